@@ -1,0 +1,237 @@
+//! The TOML configuration. `config/default.toml` is compiled in and is the one
+//! list of valid keys: a user's file and `--set` overrides are merged over it
+//! key by key, so a key the defaults do not have is an error, and a user names
+//! only what they change.
+
+use std::path::Path;
+
+use serde::{Deserialize, Serialize};
+
+use crate::error::{Error, Result};
+
+/// The shipped defaults, every key commented with its unit and range.
+pub const DEFAULT_TOML: &str = include_str!("../config/default.toml");
+
+/// Every setting of treemocap, one section per stage.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Config {
+    pub replay: ReplayConfig,
+    pub record: RecordConfig,
+    pub output: OutputConfig,
+}
+
+/// Reading recorded sessions.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ReplayConfig {
+    /// Allowed disagreement between a file's Time column and frame / rate (s).
+    pub time_tolerance_s: f64,
+}
+
+/// Writing our own recording format.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RecordConfig {
+    /// Longest time between flushes (s): what a crash may lose.
+    pub flush_interval_s: f64,
+}
+
+/// Where results go.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct OutputConfig {
+    /// Output folder for replay results and the daemon's files.
+    pub dir: String,
+}
+
+impl Default for Config {
+    fn default() -> Self {
+        Config::from_table(default_table()).expect("config/default.toml is valid")
+    }
+}
+
+fn default_table() -> toml::Table {
+    DEFAULT_TOML
+        .parse::<toml::Table>()
+        .expect("config/default.toml parses")
+}
+
+impl Config {
+    /// Defaults, then the user's file (if any), then `key=value` overrides.
+    pub fn load(path: Option<&Path>, sets: &[String]) -> Result<Config> {
+        let mut table = default_table();
+        if let Some(path) = path {
+            let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+            let user: toml::Table = text.parse().map_err(|e: toml::de::Error| {
+                Error::config(
+                    path.display().to_string(),
+                    format!("not valid TOML: {}", e.message()),
+                )
+            })?;
+            merge(&mut table, user, "")?;
+        }
+        for set in sets {
+            merge(&mut table, parse_set(set)?, "")?;
+        }
+        Config::from_table(table)
+    }
+
+    /// Parses a whole config text merged over the defaults (used by tests and
+    /// by the daemon's reload).
+    pub fn from_toml_str(text: &str) -> Result<Config> {
+        let user: toml::Table = text
+            .parse()
+            .map_err(|e: toml::de::Error| Error::config("<text>", e.message().to_string()))?;
+        let mut table = default_table();
+        merge(&mut table, user, "")?;
+        Config::from_table(table)
+    }
+
+    fn from_table(table: toml::Table) -> Result<Config> {
+        let config: Config = toml::Value::Table(table)
+            .try_into()
+            .map_err(|e: toml::de::Error| Error::config("<config>", e.message().to_string()))?;
+        config.validate()?;
+        Ok(config)
+    }
+
+    /// Range checks, each naming the key and its allowed range.
+    pub fn validate(&self) -> Result<()> {
+        check_range("replay.time_tolerance_s", self.replay.time_tolerance_s, 0.0, 1.0)?;
+        check_range("record.flush_interval_s", self.record.flush_interval_s, 0.01, 1.0)?;
+        if self.output.dir.is_empty() {
+            return Err(Error::config("output.dir", "must not be empty"));
+        }
+        Ok(())
+    }
+}
+
+/// Fails unless `lo <= value <= hi` (and the value is a number).
+pub fn check_range(key: &str, value: f64, lo: f64, hi: f64) -> Result<()> {
+    if value.is_finite() && value >= lo && value <= hi {
+        Ok(())
+    } else {
+        Err(Error::config(
+            key,
+            format!("{value} is out of range; allowed {lo} to {hi}"),
+        ))
+    }
+}
+
+/// Merges `over` into `base`; every key of `over` must exist in `base` with a
+/// value of the same kind (an integer may stand for a float).
+fn merge(base: &mut toml::Table, over: toml::Table, prefix: &str) -> Result<()> {
+    for (key, value) in over {
+        let path = if prefix.is_empty() {
+            key.clone()
+        } else {
+            format!("{prefix}.{key}")
+        };
+        let Some(slot) = base.get_mut(&key) else {
+            let known: Vec<&str> = base.keys().map(String::as_str).collect();
+            return Err(Error::config(
+                &path,
+                format!("unknown key; known keys here: {}", known.join(", ")),
+            ));
+        };
+        match (slot, value) {
+            (toml::Value::Table(b), toml::Value::Table(o)) => merge(b, o, &path)?,
+            (toml::Value::Table(_), _) => {
+                return Err(Error::config(&path, "is a section, not a value"))
+            }
+            (slot @ toml::Value::Float(_), toml::Value::Integer(i)) => {
+                *slot = toml::Value::Float(i as f64)
+            }
+            (slot, value) => {
+                if std::mem::discriminant(slot) != std::mem::discriminant(&value) {
+                    return Err(Error::config(
+                        &path,
+                        format!("expected {}, got {}", slot.type_str(), value.type_str()),
+                    ));
+                }
+                *slot = value;
+            }
+        }
+    }
+    Ok(())
+}
+
+/// `section.key=value` as a one-key table. The value is read as TOML
+/// (`3`, `0.2`, `true`, `"box"`); a bare word is taken as a string.
+fn parse_set(set: &str) -> Result<toml::Table> {
+    let Some((key, value)) = set.split_once('=') else {
+        return Err(Error::config(set, "--set takes key=value"));
+    };
+    let key = key.trim();
+    let value = value.trim();
+    let parsed = format!("v = {value}")
+        .parse::<toml::Table>()
+        .ok()
+        .and_then(|mut t| t.remove("v"))
+        .unwrap_or_else(|| toml::Value::String(value.to_string()));
+    let mut parts: Vec<&str> = key.split('.').collect();
+    let last = parts.pop().filter(|s| !s.is_empty());
+    let Some(last) = last else {
+        return Err(Error::config(key, "empty key in --set"));
+    };
+    let mut table = toml::Table::new();
+    table.insert(last.to_string(), parsed);
+    for part in parts.into_iter().rev() {
+        let mut outer = toml::Table::new();
+        outer.insert(part.to_string(), toml::Value::Table(table));
+        table = outer;
+    }
+    Ok(table)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn defaults_parse_and_validate() {
+        let c = Config::default();
+        assert_eq!(c.output.dir, "out");
+        assert_eq!(c.record.flush_interval_s, 1.0);
+    }
+
+    #[test]
+    fn user_file_overrides_only_what_it_names() {
+        let c = Config::from_toml_str("[record]\nflush_interval_s = 0.5\n").unwrap();
+        assert_eq!(c.record.flush_interval_s, 0.5);
+        assert_eq!(c.output.dir, Config::default().output.dir);
+    }
+
+    #[test]
+    fn unknown_key_names_the_key() {
+        let e = Config::from_toml_str("[record]\nflush_every = 1\n").unwrap_err();
+        let msg = e.to_string();
+        assert!(msg.contains("record.flush_every"), "{msg}");
+        assert_eq!(e.exit_code(), 2);
+        let e = Config::from_toml_str("[nope]\nx = 1\n").unwrap_err();
+        assert!(e.to_string().contains("nope"));
+    }
+
+    #[test]
+    fn out_of_range_names_key_and_range() {
+        let e = Config::from_toml_str("[record]\nflush_interval_s = 5\n").unwrap_err();
+        let msg = e.to_string();
+        assert!(msg.contains("record.flush_interval_s") && msg.contains("0.01 to 1"), "{msg}");
+    }
+
+    #[test]
+    fn wrong_type_is_an_error() {
+        let e = Config::from_toml_str("[output]\ndir = 3\n").unwrap_err();
+        assert!(e.to_string().contains("output.dir"), "{e}");
+    }
+
+    #[test]
+    fn set_overrides() {
+        let c = Config::load(None, &["record.flush_interval_s=0.25".into(), "output.dir=res".into()])
+            .unwrap();
+        assert_eq!(c.record.flush_interval_s, 0.25);
+        assert_eq!(c.output.dir, "res");
+        assert!(Config::load(None, &["record".into()]).is_err());
+    }
+}

@@ -1,0 +1,102 @@
+//! One error type for the library, so the CLI can map every failure to a
+//! one-line message that names the file and position, and to an exit code.
+
+use std::fmt;
+use std::path::PathBuf;
+
+/// Where in an input a problem was found. Text formats have lines, binary
+/// formats and packets have byte offsets, configs have dotted keys.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Location {
+    /// 1-based line, optionally with a 1-based column (CSV field index).
+    Line { line: u64, column: Option<u64> },
+    /// Byte offset from the start of the file or packet.
+    Offset(u64),
+    /// A named field (config key, packet field).
+    Field(String),
+}
+
+impl fmt::Display for Location {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Location::Line { line, column: None } => write!(f, "line {line}"),
+            Location::Line {
+                line,
+                column: Some(c),
+            } => write!(f, "line {line}, column {c}"),
+            Location::Offset(o) => write!(f, "byte {o}"),
+            Location::Field(name) => write!(f, "field {name}"),
+        }
+    }
+}
+
+/// Everything that can go wrong in treemocap, split by what the user must fix.
+#[derive(Debug, thiserror::Error)]
+pub enum Error {
+    /// The OS refused to read or write a file.
+    #[error("{}: {source}", path.display())]
+    Io {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+    /// An input file is malformed at a known place.
+    #[error("{}: {at}: {msg}", path.display())]
+    Parse {
+        path: PathBuf,
+        at: Location,
+        msg: String,
+    },
+    /// The file is of a kind or version we recognise but do not read.
+    #[error("{}: {msg}", path.display())]
+    Unsupported { path: PathBuf, msg: String },
+    /// A configuration key is unknown, mistyped or out of range (exit code 2).
+    #[error("config {key}: {msg}")]
+    Config { key: String, msg: String },
+    /// Anything else at run time (sockets, threads), already phrased for a user.
+    #[error("{0}")]
+    Runtime(String),
+}
+
+impl Error {
+    pub fn io(path: impl Into<PathBuf>, source: std::io::Error) -> Self {
+        Error::Io {
+            path: path.into(),
+            source,
+        }
+    }
+
+    pub fn parse(path: impl Into<PathBuf>, at: Location, msg: impl Into<String>) -> Self {
+        Error::Parse {
+            path: path.into(),
+            at,
+            msg: msg.into(),
+        }
+    }
+
+    pub fn at_line(
+        path: impl Into<PathBuf>,
+        line: u64,
+        column: Option<u64>,
+        msg: impl Into<String>,
+    ) -> Self {
+        Self::parse(path, Location::Line { line, column }, msg)
+    }
+
+    pub fn config(key: impl Into<String>, msg: impl Into<String>) -> Self {
+        Error::Config {
+            key: key.into(),
+            msg: msg.into(),
+        }
+    }
+
+    /// The process exit code the CLI uses: 2 for bad usage or config, 1 otherwise.
+    pub fn exit_code(&self) -> i32 {
+        match self {
+            Error::Config { .. } => 2,
+            _ => 1,
+        }
+    }
+}
+
+pub type Result<T, E = Error> = std::result::Result<T, E>;

@@ -1,0 +1,15 @@
+//! treemocap: motion capture of tree branch tips in, 3D tree models out.
+//!
+//! The method is Long & Jones 2013 (see `../shared/papers/`). Every stage is a
+//! plain library type so that replays, benchmarks and the live daemon run the
+//! same code; only `daemon` knows about threads, sockets and timing.
+
+pub mod config;
+pub mod error;
+pub mod frame;
+pub mod rng;
+pub mod sim;
+pub mod source;
+
+pub use error::{Error, Location, Result};
+pub use frame::{Marker, MarkerFrame};

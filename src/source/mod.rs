@@ -1,0 +1,4 @@
+//! Everything that yields `MarkerFrame`s: recorded files (`replay`) and, later,
+//! live network sources.
+
+pub mod replay;
