@@ -1,4 +1,5 @@
-//! Everything that yields `MarkerFrame`s: recorded files (`replay`) and, later,
-//! live network sources.
+//! Everything that yields `MarkerFrame`s: recorded files (`replay`) and live
+//! network sources, which deliver through a [`channel::FrameSink`].
 
+pub mod channel;
 pub mod replay;
