@@ -88,11 +88,20 @@ fn init_logging(verbose: u8) {
         .try_init();
 }
 
+fn to_json(value: &impl serde::Serialize) -> Result<String> {
+    serde_json::to_string_pretty(value).map_err(|e| Error::Runtime(format!("JSON output: {e}")))
+}
+
 fn run(command: Command) -> Result<()> {
     match command {
         Command::Inspect { file, json } => {
-            let _ = (file, json);
-            Err(Error::Runtime("inspect is not written yet".into()))
+            let report = treemocap::inspect::inspect(&file)?;
+            if json {
+                println!("{}", to_json(&report)?);
+            } else {
+                print!("{report}");
+            }
+            Ok(())
         }
     }
 }
