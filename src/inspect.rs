@@ -236,7 +236,11 @@ impl fmt::Display for Inspection {
             writeln!(f, "other       {n} × {kind} (not tips)")?;
         }
         if !self.marker_columns.is_empty() {
-            writeln!(f, "\n  {:<32} {:>8} {:>10}", "column", "present", "gap cells")?;
+            writeln!(
+                f,
+                "\n  {:<32} {:>8} {:>10}",
+                "column", "present", "gap cells"
+            )?;
             for c in self.marker_columns.iter().take(COLUMNS_LISTED) {
                 writeln!(f, "  {:<32} {:>8} {:>10}", c.name, c.present, c.gap_cells)?;
             }

@@ -12,6 +12,7 @@ use serde::Serialize;
 use crate::error::{Error, Result};
 use crate::frame::MarkerFrame;
 
+mod csv_rows;
 pub mod log;
 pub mod motive_csv;
 
@@ -124,7 +125,11 @@ pub fn detect(path: &Path) -> Result<Format> {
                 .into(),
         })
     } else if n == 0 {
-        Err(Error::parse(path, crate::Location::Offset(0), "file is empty"))
+        Err(Error::parse(
+            path,
+            crate::Location::Offset(0),
+            "file is empty",
+        ))
     } else {
         Err(Error::Unsupported {
             path: path.into(),
