@@ -95,7 +95,7 @@ pub fn inspect_recording(path: &Path, rec: &mut dyn Recording) -> Result<Inspect
     let mut counts: BTreeMap<usize, u64> = BTreeMap::new();
     let mut first_time = None;
     let mut last_time = 0.0;
-    while let Some(frame) = rec.next() {
+    for frame in &mut *rec {
         let frame = frame?;
         frames += 1;
         first.get_or_insert(frame.frame);

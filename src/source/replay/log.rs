@@ -161,8 +161,9 @@ pub struct LogReader {
     line_no: u64,
     /// A line read without its newline, completed on the next read.
     partial: String,
-    /// The first row of the next frame, read while finishing the previous one.
-    pending: Option<Row>,
+    /// The first row of the next frame (or the error found there), read while
+    /// finishing the previous frame; the finished frame is returned first.
+    pending: Option<Result<Row>>,
     warnings: Vec<String>,
 }
 
@@ -374,26 +375,26 @@ impl Iterator for LogReader {
     type Item = Result<MarkerFrame>;
 
     fn next(&mut self) -> Option<Self::Item> {
-        let first = match self.pending.take() {
-            Some(r) => r,
-            None => match self.next_row()? {
-                Ok(r) => r,
-                Err(e) => return Some(Err(e)),
-            },
+        let first = match self.pending.take().or_else(|| self.next_row())? {
+            Ok(r) => r,
+            Err(e) => return Some(Err(e)),
         };
         let mut frame = MarkerFrame::new(first.frame, first.time_s, Vec::new());
         frame.markers.extend(first.marker);
         loop {
             match self.next_row() {
                 None => break,
-                Some(Err(e)) => return Some(Err(e)),
+                Some(Err(e)) => {
+                    self.pending = Some(Err(e));
+                    break;
+                }
                 Some(Ok(r))
                     if r.frame == frame.frame && r.time_s.to_bits() == frame.time_s.to_bits() =>
                 {
                     frame.markers.extend(r.marker)
                 }
                 Some(Ok(r)) => {
-                    self.pending = Some(r);
+                    self.pending = Some(Ok(r));
                     break;
                 }
             }

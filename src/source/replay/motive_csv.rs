@@ -336,8 +336,8 @@ impl MotiveCsvReader {
                 let find = |axis: &str| {
                     (i..end).find(|&c| {
                         axis_row[c] == axis
-                            && component.as_ref().map_or(true, |r| {
-                                r.get(c).map_or(true, |s| s == "Position" || s.is_empty())
+                            && component.as_ref().is_none_or(|r| {
+                                r.get(c).is_none_or(|s| s == "Position" || s.is_empty())
                             })
                     })
                 };
