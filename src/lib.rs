@@ -11,6 +11,7 @@ pub mod inspect;
 pub mod rng;
 pub mod sim;
 pub mod source;
+pub mod wind;
 
 pub use error::{Error, Location, Result};
 pub use frame::{Marker, MarkerFrame};
