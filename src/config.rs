@@ -98,8 +98,18 @@ impl Config {
 
     /// Range checks, each naming the key and its allowed range.
     pub fn validate(&self) -> Result<()> {
-        check_range("replay.time_tolerance_s", self.replay.time_tolerance_s, 0.0, 1.0)?;
-        check_range("record.flush_interval_s", self.record.flush_interval_s, 0.01, 1.0)?;
+        check_range(
+            "replay.time_tolerance_s",
+            self.replay.time_tolerance_s,
+            0.0,
+            1.0,
+        )?;
+        check_range(
+            "record.flush_interval_s",
+            self.record.flush_interval_s,
+            0.01,
+            1.0,
+        )?;
         if self.output.dir.is_empty() {
             return Err(Error::config("output.dir", "must not be empty"));
         }
@@ -217,7 +227,10 @@ mod tests {
     fn out_of_range_names_key_and_range() {
         let e = Config::from_toml_str("[record]\nflush_interval_s = 5\n").unwrap_err();
         let msg = e.to_string();
-        assert!(msg.contains("record.flush_interval_s") && msg.contains("0.01 to 1"), "{msg}");
+        assert!(
+            msg.contains("record.flush_interval_s") && msg.contains("0.01 to 1"),
+            "{msg}"
+        );
     }
 
     #[test]
@@ -228,8 +241,14 @@ mod tests {
 
     #[test]
     fn set_overrides() {
-        let c = Config::load(None, &["record.flush_interval_s=0.25".into(), "output.dir=res".into()])
-            .unwrap();
+        let c = Config::load(
+            None,
+            &[
+                "record.flush_interval_s=0.25".into(),
+                "output.dir=res".into(),
+            ],
+        )
+        .unwrap();
         assert_eq!(c.record.flush_interval_s, 0.25);
         assert_eq!(c.output.dir, "res");
         assert!(Config::load(None, &["record".into()]).is_err());

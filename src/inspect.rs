@@ -95,7 +95,7 @@ pub fn inspect_recording(path: &Path, rec: &mut dyn Recording) -> Result<Inspect
     let mut counts: BTreeMap<usize, u64> = BTreeMap::new();
     let mut first_time = None;
     let mut last_time = 0.0;
-    while let Some(frame) = rec.next() {
+    for frame in &mut *rec {
         let frame = frame?;
         frames += 1;
         first.get_or_insert(frame.frame);
@@ -236,7 +236,11 @@ impl fmt::Display for Inspection {
             writeln!(f, "other       {n} × {kind} (not tips)")?;
         }
         if !self.marker_columns.is_empty() {
-            writeln!(f, "\n  {:<32} {:>8} {:>10}", "column", "present", "gap cells")?;
+            writeln!(
+                f,
+                "\n  {:<32} {:>8} {:>10}",
+                "column", "present", "gap cells"
+            )?;
             for c in self.marker_columns.iter().take(COLUMNS_LISTED) {
                 writeln!(f, "  {:<32} {:>8} {:>10}", c.name, c.present, c.gap_cells)?;
             }

@@ -40,6 +40,17 @@ impl ConfigArgs {
 
 #[derive(Subcommand)]
 enum Command {
+    /// Run the whole job on a recorded session: read it, and report what was
+    /// found. Results go to --out (default: output.dir of the config).
+    Replay {
+        /// A Motive CSV export or a treemocap log (detected by content).
+        file: PathBuf,
+        #[command(flatten)]
+        config: ConfigArgs,
+        /// Output folder (overrides output.dir).
+        #[arg(long, value_name = "DIR")]
+        out: Option<PathBuf>,
+    },
     /// Describe a recording: format, rate, units, frames, markers, gaps.
     Inspect {
         /// A Motive CSV export or a treemocap log (detected by content).
@@ -174,6 +185,14 @@ fn to_json(value: &impl serde::Serialize) -> Result<String> {
 
 fn run(command: Command) -> Result<()> {
     match command {
+        Command::Replay { file, config, out } => {
+            let config = config.load()?;
+            let _out = out.unwrap_or_else(|| PathBuf::from(&config.output.dir));
+            let mut rec = treemocap::source::replay::open_with(&file, &config.replay)?;
+            let report = treemocap::inspect::inspect_recording(&file, rec.as_mut())?;
+            print!("{report}");
+            Ok(())
+        }
         Command::Inspect { file, json } => {
             let report = treemocap::inspect::inspect(&file)?;
             if json {

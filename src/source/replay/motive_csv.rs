@@ -20,6 +20,7 @@ use std::path::{Path, PathBuf};
 
 use glam::DVec3;
 
+use super::csv_rows::RowReader;
 use super::{Channel, ChannelKind, Format, Recording, RecordingInfo};
 use crate::error::{Error, Result};
 use crate::frame::{Marker, MarkerFrame};
@@ -40,8 +41,7 @@ struct ChannelColumns {
 /// Streaming reader of a Motive CSV export.
 pub struct MotiveCsvReader {
     path: PathBuf,
-    reader: csv::Reader<BufReader<File>>,
-    record: csv::ByteRecord,
+    rows: RowReader<BufReader<File>>,
     info: RecordingInfo,
     /// Row 1 as read, in order, for `inspect` and for users who want the take's
     /// notes or start time.
@@ -84,17 +84,6 @@ fn is_unlabeled(name: &str) -> bool {
         .is_some_and(|rest| rest.starts_with([' ', ':']))
 }
 
-fn field(record: &csv::ByteRecord, i: usize) -> &str {
-    record
-        .get(i)
-        .and_then(|b| std::str::from_utf8(b).ok())
-        .unwrap_or("")
-}
-
-fn line_of(record: &csv::ByteRecord) -> u64 {
-    record.position().map(|p| p.line()).unwrap_or(0)
-}
-
 impl MotiveCsvReader {
     /// Opens a file and reads its header; data rows are read by iterating.
     pub fn open(path: &Path) -> Result<Self> {
@@ -111,14 +100,9 @@ impl MotiveCsvReader {
         if head.starts_with(b"\xEF\xBB\xBF") {
             buf.consume(3);
         }
-        let reader = csv::ReaderBuilder::new()
-            .has_headers(false)
-            .flexible(true)
-            .from_reader(buf);
         let mut r = MotiveCsvReader {
             path: path.to_path_buf(),
-            reader,
-            record: csv::ByteRecord::new(),
+            rows: RowReader::new(buf),
             info: RecordingInfo {
                 format: Format::MotiveCsv,
                 version: String::new(),
@@ -149,23 +133,14 @@ impl MotiveCsvReader {
     }
 
     fn read_row(&mut self) -> Result<bool> {
-        match self.reader.read_byte_record(&mut self.record) {
-            Ok(more) => Ok(more),
-            Err(e) => {
-                let line = e.position().map(|p| p.line()).unwrap_or(0);
-                Err(match e.into_kind() {
-                    csv::ErrorKind::Io(io) => Error::io(&self.path, io),
-                    other => self.err(line, None, format!("CSV syntax error: {other:?}")),
-                })
-            }
-        }
+        self.rows.read().map_err(|e| Error::io(&self.path, e))
     }
 
     fn read_header(&mut self) -> Result<()> {
         if !self.read_row()? {
             return Err(self.err(1, None, "file is empty"));
         }
-        let first = field(&self.record, 0).to_string();
+        let first = self.rows.text(0).to_string();
         if first == "comment" {
             return Err(Error::Unsupported {
                 path: self.path.clone(),
@@ -175,8 +150,8 @@ impl MotiveCsvReader {
             });
         }
         // Row 1: key, value, key, value… Excel adds empty pairs at the end.
-        let cells: Vec<String> = (0..self.record.len())
-            .map(|i| field(&self.record, i).trim().to_string())
+        let cells: Vec<String> = (0..self.rows.len())
+            .map(|i| self.rows.text(i).trim().to_string())
             .collect();
         for pair in cells.chunks(2) {
             let key = pair[0].clone();
@@ -193,12 +168,16 @@ impl MotiveCsvReader {
                 .map(|(_, v)| v.as_str())
         };
         let Some(version) = get("Format Version") else {
-            return Err(self.err(1, None, "row 1 has no 'Format Version' key: not a Motive CSV export"));
+            return Err(self.err(
+                1,
+                None,
+                "row 1 has no 'Format Version' key: not a Motive CSV export",
+            ));
         };
         let version = version.to_string();
-        let numeric: Option<(u32, u32)> = version.split_once('.').and_then(|(a, b)| {
-            Some((a.parse().ok()?, b.get(..b.len().min(1))?.parse().ok()?))
-        });
+        let numeric: Option<(u32, u32)> = version
+            .split_once('.')
+            .and_then(|(a, b)| Some((a.parse().ok()?, b.get(..b.len().min(1))?.parse().ok()?)));
         match numeric {
             Some((1, 2)) => {}
             _ => {
@@ -210,7 +189,10 @@ impl MotiveCsvReader {
                 })
             }
         }
-        if !matches!(version.as_str(), "1.2" | "1.21" | "1.22" | "1.23" | "1.24" | "1.25") {
+        if !matches!(
+            version.as_str(),
+            "1.2" | "1.21" | "1.22" | "1.23" | "1.24" | "1.25"
+        ) {
             self.warn(format!(
                 "format version {version} is newer than 1.25; reading it like 1.25"
             ));
@@ -220,7 +202,11 @@ impl MotiveCsvReader {
             .or_else(|| get("Capture Frame Rate"))
             .map(str::to_string);
         let Some(rate_text) = rate_text else {
-            return Err(self.err(1, None, "row 1 has neither 'Export Frame Rate' nor 'Capture Frame Rate'"));
+            return Err(self.err(
+                1,
+                None,
+                "row 1 has neither 'Export Frame Rate' nor 'Capture Frame Rate'",
+            ));
         };
         let rate: f64 = match rate_text.parse() {
             Ok(r) if f64::is_finite(r) && r > 0.0 => r,
@@ -264,14 +250,14 @@ impl MotiveCsvReader {
         loop {
             if !self.read_row()? {
                 return Err(self.err(
-                    line_of(&self.record) + 1,
+                    self.rows.line() + 1,
                     None,
                     "no 'Frame,Time' header row before the end of the file",
                 ));
             }
-            let line = line_of(&self.record);
-            let row: Vec<String> = (0..self.record.len())
-                .map(|i| field(&self.record, i).to_string())
+            let line = self.rows.line();
+            let row: Vec<String> = (0..self.rows.len())
+                .map(|i| self.rows.text(i).to_string())
                 .collect();
             if row.iter().all(|c| c.is_empty()) {
                 continue; // row 2, plain or Excel's `,,,,`
@@ -303,7 +289,7 @@ impl MotiveCsvReader {
                 }
             }
         }
-        let axis_line = line_of(&self.record);
+        let axis_line = self.rows.line();
         if !axis_row.get(1).is_some_and(|t| t.starts_with("Time")) {
             return Err(self.err(axis_line, Some(2), "the header row must begin 'Frame,Time'"));
         }
@@ -339,7 +325,8 @@ impl MotiveCsvReader {
                 continue;
             }
             let mut end = i + 1;
-            while end < self.width && (cell(Some(types), end), cell(names, end), cell(ids, end)) == key
+            while end < self.width
+                && (cell(Some(types), end), cell(names, end), cell(ids, end)) == key
             {
                 end += 1;
             }
@@ -349,8 +336,8 @@ impl MotiveCsvReader {
                 let find = |axis: &str| {
                     (i..end).find(|&c| {
                         axis_row[c] == axis
-                            && component.as_ref().map_or(true, |r| {
-                                r.get(c).map_or(true, |s| s == "Position" || s.is_empty())
+                            && component.as_ref().is_none_or(|r| {
+                                r.get(c).is_none_or(|s| s == "Position" || s.is_empty())
                             })
                     })
                 };
@@ -395,8 +382,8 @@ impl MotiveCsvReader {
     }
 
     fn parse_row(&mut self) -> Result<MarkerFrame> {
-        let line = line_of(&self.record);
-        let n = self.record.len();
+        let line = self.rows.line();
+        let n = self.rows.len();
         if n < self.width {
             // Trailing empty cells may be cut by hand-edited files; a row
             // short of real data is malformed.
@@ -406,18 +393,22 @@ impl MotiveCsvReader {
                 format!("row has {n} fields, the header has {}", self.width),
             ));
         }
-        if let Some(c) = (self.width..n).find(|&c| !self.record[c].is_empty()) {
+        if let Some(c) = (self.width..n).find(|&c| !self.rows.get(c).is_empty()) {
             return Err(self.err(
                 line,
                 Some(c as u64 + 1),
                 format!("row has {n} fields, the header has {}", self.width),
             ));
         }
-        let frame_text = field(&self.record, 0);
+        let frame_text = self.rows.text(0);
         let frame: i64 = frame_text.trim().parse().map_err(|_| {
-            self.err(line, Some(1), format!("frame number '{frame_text}' is not an integer"))
+            self.err(
+                line,
+                Some(1),
+                format!("frame number '{frame_text}' is not an integer"),
+            )
         })?;
-        let time_text = field(&self.record, 1);
+        let time_text = self.rows.text(1);
         if !time_text.is_empty() {
             let t: f64 = time_text.trim().parse().map_err(|_| {
                 self.err(line, Some(2), format!("time '{time_text}' is not a number"))
@@ -442,7 +433,7 @@ impl MotiveCsvReader {
             let (first, end, position) = (cols.first, cols.end, cols.position);
             let mut empty = 0u64;
             for c in first..end {
-                if self.record[c].is_empty() {
+                if self.rows.get(c).is_empty() {
                     empty += 1;
                 }
             }
@@ -451,7 +442,7 @@ impl MotiveCsvReader {
                 values = [0.0; 3];
                 let mut complete = true;
                 for (k, &c) in xyz.iter().enumerate() {
-                    let raw = &self.record[c];
+                    let raw = self.rows.get(c);
                     if raw.is_empty() {
                         complete = false;
                         continue;
@@ -478,7 +469,7 @@ impl MotiveCsvReader {
             } else {
                 let mut vals = Vec::with_capacity(end - first);
                 for c in first..end {
-                    let raw = &self.record[c];
+                    let raw = self.rows.get(c);
                     if raw.is_empty() {
                         vals.push(f64::NAN);
                         continue;
@@ -551,7 +542,7 @@ impl Iterator for MotiveCsvReader {
                 }
                 Ok(true) => {}
             }
-            if self.record.iter().all(|c| c.is_empty()) {
+            if self.rows.is_blank() {
                 continue; // a blank line, e.g. at the end
             }
             let r = self.parse_row();
