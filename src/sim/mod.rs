@@ -70,7 +70,7 @@ pub struct SynthOptions {
     pub still_motion_mm: f64,
     /// Scales every wind displacement (1 = sway up to a few cm).
     pub sway_scale: f64,
-    /// Fraction of tip samples lost to occlusion (0–0.5).
+    /// Fraction of tip samples lost to occlusion (0–0.3).
     pub gap_fraction: f64,
     /// Longest short occlusion burst (frames); bursts are 1 to this long.
     pub max_burst_frames: u32,
@@ -139,7 +139,7 @@ impl SynthOptions {
         check("noise_mm", self.noise_mm, 0.0, 10.0)?;
         check("still_motion_mm", self.still_motion_mm, 0.0, 10.0)?;
         check("sway_scale", self.sway_scale, 0.0, 10.0)?;
-        check("gap_fraction", self.gap_fraction, 0.0, 0.5)?;
+        check("gap_fraction", self.gap_fraction, 0.0, 0.3)?;
         check(
             "max_burst_frames",
             self.max_burst_frames as f64,
