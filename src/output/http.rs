@@ -97,14 +97,22 @@ async fn tree_glb(State(s): State<HttpState>) -> Response {
 
 async fn tree_json(State(s): State<HttpState>) -> Response {
     match latest(&s) {
-        Some(t) => ([(header::CONTENT_TYPE, "application/json")], t.tree_json.clone()).into_response(),
+        Some(t) => (
+            [(header::CONTENT_TYPE, "application/json")],
+            t.tree_json.clone(),
+        )
+            .into_response(),
         None => no_tree(),
     }
 }
 
 async fn tips_json(State(s): State<HttpState>) -> Response {
     match latest(&s) {
-        Some(t) => ([(header::CONTENT_TYPE, "application/json")], t.tips_json.clone()).into_response(),
+        Some(t) => (
+            [(header::CONTENT_TYPE, "application/json")],
+            t.tips_json.clone(),
+        )
+            .into_response(),
         None => no_tree(),
     }
 }
@@ -137,7 +145,11 @@ async fn live_session(mut socket: WebSocket, s: HttpState) {
     tokio::pin!(shutdown);
     if let Some(t) = latest(&s) {
         let hello = tree_notice(&t);
-        if socket.send(Message::Text(hello.as_ref().into())).await.is_err() {
+        if socket
+            .send(Message::Text(hello.as_ref().into()))
+            .await
+            .is_err()
+        {
             return;
         }
     }
