@@ -5,6 +5,7 @@
 //! same code; only `daemon` knows about threads, sockets and timing.
 
 pub mod config;
+pub mod daemon;
 pub mod error;
 pub mod frame;
 pub mod inspect;

@@ -5,7 +5,7 @@
 //! when full, the *oldest* frame is dropped and counted: the newest data is
 //! what a live tree needs.
 
-use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::Arc;
 
 use crossbeam_channel::{bounded, Receiver, Sender, TrySendError};
@@ -20,19 +20,44 @@ pub struct FrameSink {
     evict: Receiver<MarkerFrame>,
     dropped: Arc<AtomicU64>,
     pushed: Arc<AtomicU64>,
+    /// Set when the [`FrameReceiver`] is dropped: the eviction receiver above
+    /// keeps the channel connected, so disconnection alone cannot tell.
+    closed: Arc<AtomicBool>,
+}
+
+/// The pipeline's end of the channel: a crossbeam receiver (it derefs to
+/// one) that tells the sources when it is gone.
+pub struct FrameReceiver {
+    rx: Receiver<MarkerFrame>,
+    closed: Arc<AtomicBool>,
+}
+
+impl std::ops::Deref for FrameReceiver {
+    type Target = Receiver<MarkerFrame>;
+    fn deref(&self) -> &Receiver<MarkerFrame> {
+        &self.rx
+    }
+}
+
+impl Drop for FrameReceiver {
+    fn drop(&mut self) {
+        self.closed.store(true, Ordering::Relaxed);
+    }
 }
 
 /// Creates a channel holding at most `capacity` frames.
-pub fn frame_channel(capacity: usize) -> (FrameSink, Receiver<MarkerFrame>) {
+pub fn frame_channel(capacity: usize) -> (FrameSink, FrameReceiver) {
     let (tx, rx) = bounded(capacity.max(1));
+    let closed = Arc::new(AtomicBool::new(false));
     (
         FrameSink {
             tx,
             evict: rx.clone(),
             dropped: Arc::new(AtomicU64::new(0)),
             pushed: Arc::new(AtomicU64::new(0)),
+            closed: closed.clone(),
         },
-        rx,
+        FrameReceiver { rx, closed },
     )
 }
 
@@ -40,6 +65,9 @@ impl FrameSink {
     /// Delivers a frame, dropping the oldest queued one if the channel is full.
     /// Returns false when the receiving side is gone (the pipeline shut down).
     pub fn push(&self, frame: MarkerFrame) -> bool {
+        if self.closed.load(Ordering::Relaxed) {
+            return false;
+        }
         self.pushed.fetch_add(1, Ordering::Relaxed);
         let mut frame = frame;
         loop {
@@ -82,5 +110,9 @@ mod tests {
         assert_eq!(sink.dropped(), 7);
         assert_eq!(sink.pushed(), 10);
         drop(rx);
+        assert!(
+            !sink.push(MarkerFrame::new(11, 0.0, vec![])),
+            "receiver gone"
+        );
     }
 }
