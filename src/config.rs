@@ -19,6 +19,7 @@ pub struct Config {
     pub replay: ReplayConfig,
     pub record: RecordConfig,
     pub output: OutputConfig,
+    pub c3d: C3dConfig,
 }
 
 /// Reading recorded sessions.
@@ -43,6 +44,15 @@ pub struct RecordConfig {
 pub struct OutputConfig {
     /// Output folder for replay results and the daemon's files.
     pub dir: String,
+}
+
+/// Reading C3D files.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct C3dConfig {
+    /// Which axis of a C3D file points up: "auto" (from POINT:Y_SCREEN,
+    /// Z when absent), "y" or "z". Frames are always turned to Y up.
+    pub up_axis: crate::source::replay::c3d::UpAxisSetting,
 }
 
 impl Default for Config {
@@ -98,8 +108,18 @@ impl Config {
 
     /// Range checks, each naming the key and its allowed range.
     pub fn validate(&self) -> Result<()> {
-        check_range("replay.time_tolerance_s", self.replay.time_tolerance_s, 0.0, 1.0)?;
-        check_range("record.flush_interval_s", self.record.flush_interval_s, 0.01, 1.0)?;
+        check_range(
+            "replay.time_tolerance_s",
+            self.replay.time_tolerance_s,
+            0.0,
+            1.0,
+        )?;
+        check_range(
+            "record.flush_interval_s",
+            self.record.flush_interval_s,
+            0.01,
+            1.0,
+        )?;
         if self.output.dir.is_empty() {
             return Err(Error::config("output.dir", "must not be empty"));
         }
@@ -217,7 +237,10 @@ mod tests {
     fn out_of_range_names_key_and_range() {
         let e = Config::from_toml_str("[record]\nflush_interval_s = 5\n").unwrap_err();
         let msg = e.to_string();
-        assert!(msg.contains("record.flush_interval_s") && msg.contains("0.01 to 1"), "{msg}");
+        assert!(
+            msg.contains("record.flush_interval_s") && msg.contains("0.01 to 1"),
+            "{msg}"
+        );
     }
 
     #[test]
@@ -228,8 +251,14 @@ mod tests {
 
     #[test]
     fn set_overrides() {
-        let c = Config::load(None, &["record.flush_interval_s=0.25".into(), "output.dir=res".into()])
-            .unwrap();
+        let c = Config::load(
+            None,
+            &[
+                "record.flush_interval_s=0.25".into(),
+                "output.dir=res".into(),
+            ],
+        )
+        .unwrap();
         assert_eq!(c.record.flush_interval_s, 0.25);
         assert_eq!(c.output.dir, "res");
         assert!(Config::load(None, &["record".into()]).is_err());
