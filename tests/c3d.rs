@@ -10,6 +10,7 @@ use std::sync::OnceLock;
 use glam::DVec3;
 use serde_json::Value;
 use treemocap::rng::Rng;
+use treemocap::source::replay::c3d::{C3dOptions, C3dReader};
 use treemocap::source::replay::{self, Format, ReplayOptions};
 
 fn python() -> String {
@@ -41,6 +42,39 @@ fn write_variants(dir: &Path) -> Value {
         String::from_utf8_lossy(&out.stderr)
     );
     serde_json::from_slice(&out.stdout).expect("manifest is JSON")
+}
+
+fn fixtures() -> Vec<PathBuf> {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/c3d");
+    let mut files: Vec<PathBuf> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|e| e == "c3d"))
+        .collect();
+    files.sort();
+    files
+}
+
+/// py-c3d's counts for `files` (tests/peers/c3d_counts.py).
+fn py_c3d_counts(files: &[PathBuf]) -> Value {
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/peers/c3d_counts.py");
+    let out = Command::new(python())
+        .arg(&script)
+        .args(files)
+        .output()
+        .unwrap_or_else(|e| {
+            panic!(
+                "cannot run {} ({e}); install python3 and the peers",
+                python()
+            )
+        });
+    assert!(
+        out.status.success(),
+        "{} failed (install the peers: pip install -r tests/peers/requirements.txt):\n{}",
+        script.display(),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    serde_json::from_slice(&out.stdout).expect("py-c3d counts are JSON")
 }
 
 fn xyz(v: &Value) -> DVec3 {
@@ -164,6 +198,77 @@ fn every_processor_and_storage_from_py_c3d_reads_back_exactly() {
 }
 
 #[test]
+fn real_files_agree_with_py_c3d() {
+    let files = fixtures();
+    assert!(files.len() >= 3, "{files:?}");
+    let oracle = py_c3d_counts(&files);
+    for (path, want) in files.iter().zip(oracle.as_array().unwrap()) {
+        let name = path.file_name().unwrap().to_string_lossy().into_owned();
+        let mut rec = replay::open(path).unwrap_or_else(|e| panic!("{e}"));
+        assert_eq!(rec.info().format, Format::C3d);
+        assert_eq!(
+            rec.info().frame_rate,
+            want["rate"].as_f64().unwrap(),
+            "{name}"
+        );
+        // Vicon files are Z up (POINT:Y_SCREEN +Z, or no screen axes).
+        assert_eq!(rec.info().up_axis, "Z");
+        let (mut frames, mut first, mut sums) = (0u64, None, [0.0f64; 3]);
+        for f in rec.by_ref() {
+            let f = f.unwrap_or_else(|e| panic!("{e}"));
+            first.get_or_insert(f.frame);
+            frames += 1;
+            for m in &f.markers {
+                // Back to the file's mm, Z up: x, y = -z', z = y'.
+                let p = m.position * 1000.0;
+                sums[0] += p.x;
+                sums[1] -= p.z;
+                sums[2] += p.y;
+            }
+        }
+        assert_eq!(frames, want["frames"].as_u64().unwrap(), "{name}");
+        assert_eq!(first, Some(want["first_frame"].as_i64().unwrap()), "{name}");
+        let channels = rec.channels();
+        assert_eq!(
+            channels.len() as u64,
+            want["points"].as_u64().unwrap(),
+            "{name}"
+        );
+        let missing: Vec<u64> = channels.iter().map(|c| c.empty_cells).collect();
+        let want_missing: Vec<u64> = want["missing"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|v| v.as_u64().unwrap())
+            .collect();
+        assert_eq!(missing, want_missing, "{name}");
+        assert!(channels.iter().all(|c| c.present + c.empty_cells == frames));
+        assert!(rec.warnings().is_empty(), "{name}: {:?}", rec.warnings());
+        let labels: Vec<&str> = want["labels"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|l| l.as_str().unwrap())
+            .collect();
+        if !labels.is_empty() {
+            assert_eq!(
+                channels.iter().map(|c| c.name.as_str()).collect::<Vec<_>>(),
+                labels,
+                "{name}"
+            );
+        }
+        for (k, w) in want["sums"].as_array().unwrap().iter().enumerate() {
+            let w = w.as_f64().unwrap();
+            assert!(
+                (sums[k] - w).abs() <= 1e-9 * w.abs() + 1e-6,
+                "{name} axis {k}: {} vs {w}",
+                sums[k]
+            );
+        }
+    }
+}
+
+#[test]
 fn up_axis_setting_overrides_the_file() {
     let manifest = variants();
     let path = PathBuf::from(manifest["files"][0]["path"].as_str().unwrap());
@@ -188,7 +293,9 @@ fn damaged_files_give_errors_naming_file_and_byte_never_panics() {
         .as_array()
         .unwrap()
         .iter()
-        .map(|f| std::fs::read(f["path"].as_str().unwrap()).unwrap())
+        .map(|f| PathBuf::from(f["path"].as_str().unwrap()))
+        .chain(fixtures())
+        .map(|p| std::fs::read(p).unwrap())
         .collect();
     let bad = dir.path().join("damaged.c3d");
 
@@ -224,31 +331,37 @@ fn damaged_files_give_errors_naming_file_and_byte_never_panics() {
         "{e}"
     );
 
-    // Seeded random mutations of every variant: errors are fine, panics are not.
+    // Seeded random mutations of every variant and every real file: errors
+    // are fine, panics are not.
     let mut rng = Rng::new(20_241_107);
     let mut errors = 0;
-    for round in 0..600 {
+    for round in 0..900 {
         let mut b = originals[round % originals.len()].clone();
+        // Most damage goes where the structure is: header and parameters.
+        let hot = if rng.chance(0.7) {
+            b.len().min(8192)
+        } else {
+            b.len()
+        };
         for _ in 0..rng.int(1, 6) {
-            let at = rng.int(0, b.len() as i64 - 1) as usize;
+            let at = rng.int(0, hot as i64 - 1) as usize;
             b[at] = rng.int(0, 255) as u8;
         }
         if rng.chance(0.15) {
             b.truncate(rng.int(0, b.len() as i64) as usize);
         }
-        std::fs::write(&bad, &b).unwrap();
-        match replay::open(&bad) {
+        match C3dReader::from_bytes(Path::new("mutant.c3d"), b, &C3dOptions::default()) {
             Ok(rec) => {
                 for f in rec.take(200_000) {
                     if let Err(e) = f {
-                        assert!(e.to_string().contains("damaged.c3d"), "{e}");
+                        assert!(e.to_string().starts_with("mutant.c3d: byte "), "{e}");
                         errors += 1;
                         break;
                     }
                 }
             }
             Err(e) => {
-                assert!(e.to_string().contains("damaged.c3d"), "{e}");
+                assert!(e.to_string().starts_with("mutant.c3d: byte "), "{e}");
                 errors += 1;
             }
         }
