@@ -96,6 +96,10 @@ fn every_processor_and_storage_from_py_c3d_reads_back_exactly() {
         let path = PathBuf::from(file["path"].as_str().unwrap());
         let name = path.file_name().unwrap().to_string_lossy().into_owned();
         assert_eq!(replay::detect(&path).unwrap(), Format::C3d);
+        // By content, not by name.
+        let renamed = path.with_extension("csv");
+        std::fs::copy(&path, &renamed).unwrap();
+        assert_eq!(replay::detect(&renamed).unwrap(), Format::C3d);
         let mut rec = replay::open(&path).unwrap_or_else(|e| panic!("{e}"));
         let info = rec.info().clone();
         assert_eq!(

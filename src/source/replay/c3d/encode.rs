@@ -21,11 +21,13 @@ pub struct Sample {
 /// What to write.
 #[derive(Debug, Clone, PartialEq)]
 pub struct WriteSpec {
+    /// Byte order and float format of the whole file.
     pub processor: Processor,
     /// float32 storage (POINT:SCALE negative) instead of int16.
     pub float: bool,
     /// |POINT:SCALE|: file units per int16 step; also the float files' residual unit.
     pub scale: f32,
+    /// Frames per second (header and POINT:RATE).
     pub rate: f32,
     /// POINT:UNITS ("mm", "m").
     pub units: String,
@@ -35,8 +37,9 @@ pub struct WriteSpec {
     pub y_screen: Option<String>,
     /// Header first frame.
     pub first_frame: u16,
-    /// Analog channels (ANALOG:USED) and samples per channel per frame.
+    /// Analog channels (ANALOG:USED).
     pub analog_channels: usize,
+    /// Analog samples per channel per frame (ANALOG:RATE / POINT:RATE).
     pub analog_per_channel: usize,
     /// Block of the parameter section (≥ 2; blocks before it are blank).
     pub param_block: u8,

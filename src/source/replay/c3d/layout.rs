@@ -45,7 +45,9 @@ impl Storage {
 /// Everything needed to stream the frames of one file.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Layout {
+    /// Byte order and float format (parameter-section byte 3).
     pub processor: Processor,
+    /// int16 × scale or float32 (sign of POINT:SCALE).
     pub storage: Storage,
     /// Points per frame (POINT:USED).
     pub points: usize,
@@ -78,6 +80,7 @@ pub struct Layout {
 pub enum UpChoice {
     /// From POINT:Y_SCREEN (then X_SCREEN); Z when neither says.
     Auto,
+    /// The user's setting, whatever the file says.
     Fixed(UpAxis),
 }
 

@@ -40,6 +40,7 @@ pub use processor::Processor;
 pub struct FormatError {
     /// Byte offset from the start of the file.
     pub at: u64,
+    /// What is wrong there, naming the field.
     pub msg: String,
 }
 
@@ -52,7 +53,9 @@ impl FormatError {
 /// The vertical axis of a file's coordinates.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 pub enum UpAxis {
+    /// Y up, as inside treemocap and in Motive's default export.
     Y,
+    /// Z up, the usual C3D convention (Vicon, Qualisys).
     Z,
 }
 
@@ -83,6 +86,7 @@ impl UpAxisSetting {
 /// How C3D files are interpreted.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub struct C3dOptions {
+    /// `c3d.up_axis` from the config.
     pub up_axis: UpAxisSetting,
 }
 
@@ -205,16 +209,20 @@ impl<R: Read + Seek + Send> C3dReader<R> {
         })?;
         let head = header::Header::decode(&block, processor);
 
-        // The section is as long as its block count says, or reaches up to
-        // the data section when that follows it; never past the file.
+        // The section is as long as its block count says (as py-c3d reads
+        // it), but never overlaps a data section that follows it; with no
+        // count it reaches up to that data section.
         let data_block = head.data_block as u64;
-        let end_block = if prefix[2] > 0 {
+        let mut end_block = if prefix[2] > 0 {
             param_block + prefix[2] as u64
         } else if data_block > param_block {
             data_block
         } else {
             param_block + 1
         };
+        if data_block > param_block {
+            end_block = end_block.min(data_block);
+        }
         let end = (end_block - 1) * header::BLOCK as u64;
         if end > file_len {
             return Err(Error::parse(

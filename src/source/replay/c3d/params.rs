@@ -51,6 +51,7 @@ pub struct Param {
     pub group: String,
     /// Parameter name, upper case ("LABELS2").
     pub name: String,
+    /// Element type, which decides how `data` is read.
     pub kind: ParamType,
     /// Dimensions as stored (first varies fastest); empty for a scalar.
     pub dims: Vec<usize>,
@@ -276,15 +277,15 @@ pub fn decode(sec: &[u8], base: u64, p: Processor) -> Result<Params, FormatError
 /// A parameter value to encode.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Value {
+    /// 16-bit integers with their dimensions (empty = scalar).
     Int16(Vec<i16>, Vec<usize>),
+    /// Bytes with their dimensions.
     Byte(Vec<u8>, Vec<usize>),
+    /// Floats with their dimensions.
     Float(Vec<f32>, Vec<usize>),
     /// Strings padded with spaces to a common length (`[len, n]`), or one
     /// string (`[len]`) when `array` is false.
-    Chars {
-        strings: Vec<String>,
-        array: bool,
-    },
+    Chars { strings: Vec<String>, array: bool },
 }
 
 /// Encodes a parameter section: `groups` are (id, name), `params` are

@@ -400,3 +400,33 @@ fn random_mutations_never_panic() {
         }
     }
 }
+
+#[test]
+fn motive_data_start_zero_and_header_frames_that_make_no_sense() {
+    // Motive writes POINT:DATA_START = 0 and the right block in the header.
+    let mut b = small();
+    let ds = find(&b, b"DATA_START").unwrap();
+    b[ds + 14..ds + 16].copy_from_slice(&0u16.to_le_bytes());
+    let (r, frames) = read_all(b.clone(), &C3dOptions::default());
+    assert_eq!(frames.len(), 10);
+    assert!(r.warnings().is_empty(), "{:?}", r.warnings());
+
+    // Last frame before the first: POINT:FRAMES (10) is used, with a warning.
+    b[8..10].copy_from_slice(&0u16.to_le_bytes());
+    let (r, frames) = read_all(b.clone(), &C3dOptions::default());
+    assert_eq!(frames.len(), 10);
+    assert!(
+        r.warnings()[0].contains("POINT:FRAMES = 10"),
+        "{:?}",
+        r.warnings()
+    );
+
+    // And with no usable parameter either, an error naming header word 5.
+    let fr = find(&b, b"FRAMES").unwrap();
+    b[fr..fr + 6].copy_from_slice(b"FRAMEX");
+    let e = open_err(b);
+    assert!(
+        e.contains("byte 8") && e.contains("last frame 0 is before first frame 1"),
+        "{e}"
+    );
+}
