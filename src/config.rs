@@ -20,6 +20,7 @@ pub struct Config {
     pub record: RecordConfig,
     pub output: OutputConfig,
     pub wind: WindConfig,
+    pub c3d: C3dConfig,
 }
 
 /// Reading recorded sessions.
@@ -85,6 +86,15 @@ impl WindConfig {
             _ => None,
         }
     }
+}
+
+/// Reading C3D files.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct C3dConfig {
+    /// Which axis of a C3D file points up: "auto" (from POINT:Y_SCREEN,
+    /// Z when absent), "y" or "z". Frames are always turned to Y up.
+    pub up_axis: crate::source::replay::c3d::UpAxisSetting,
 }
 
 impl Default for Config {

@@ -189,7 +189,10 @@ fn run(command: Command) -> Result<()> {
         Command::Replay { file, config, out } => {
             let config = config.load()?;
             let _out = out.unwrap_or_else(|| PathBuf::from(&config.output.dir));
-            let mut rec = treemocap::source::replay::open_with(&file, &config.replay)?;
+            let mut rec = treemocap::source::replay::open_with(
+                &file,
+                &treemocap::source::replay::ReplayOptions::from_config(&config),
+            )?;
             let report = treemocap::inspect::inspect_recording(&file, rec.as_mut())?;
             print!("{report}");
             Ok(())

@@ -1,4 +1,5 @@
-//! Recorded sessions: Motive CSV exports and our own recording format.
+//! Recorded sessions: Motive CSV exports, C3D files and our own recording
+//! format.
 //!
 //! [`open`] detects the format from the file's content (not its extension)
 //! and returns a streaming [`Recording`]: frames are read one at a time, so
@@ -12,6 +13,7 @@ use serde::Serialize;
 use crate::error::{Error, Result};
 use crate::frame::MarkerFrame;
 
+pub mod c3d;
 mod csv_rows;
 pub mod log;
 pub mod motive_csv;
@@ -24,6 +26,8 @@ pub enum Format {
     MotiveCsv,
     /// treemocap's own long-form CSV recording (`log.rs`).
     Log,
+    /// C3D, any processor type and storage (`c3d/`).
+    C3d,
 }
 
 impl std::fmt::Display for Format {
@@ -31,6 +35,7 @@ impl std::fmt::Display for Format {
         f.write_str(match self {
             Format::MotiveCsv => "Motive CSV",
             Format::Log => "treemocap log",
+            Format::C3d => "C3D",
         })
     }
 }
@@ -124,6 +129,8 @@ pub fn detect(path: &Path) -> Result<Format> {
                   re-export the take from Motive 1.5 or later (format 1.2x)"
                 .into(),
         })
+    } else if c3d::looks_like_c3d(head) {
+        Ok(Format::C3d)
     } else if n == 0 {
         Err(Error::parse(
             path,
@@ -134,7 +141,7 @@ pub fn detect(path: &Path) -> Result<Format> {
         Err(Error::Unsupported {
             path: path.into(),
             msg: "not a recording treemocap knows (expected a Motive CSV export starting with \
-                  'Format Version' or a treemocap log)"
+                  'Format Version', a C3D file or a treemocap log)"
                 .into(),
         })
     }
@@ -151,19 +158,46 @@ fn read_up_to(r: &mut impl Read, buf: &mut [u8]) -> std::io::Result<usize> {
     Ok(n)
 }
 
-/// Opens a recording of any supported format, detected by content, with
-/// default settings.
-pub fn open(path: &Path) -> Result<Box<dyn Recording>> {
-    open_with(path, &crate::config::Config::default().replay)
+/// Settings that change how recordings are interpreted (from the config).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ReplayOptions {
+    /// `replay.time_tolerance_s`: allowed disagreement of a Motive Time column.
+    pub time_tolerance_s: f64,
+    /// `c3d.up_axis`.
+    pub c3d: c3d::C3dOptions,
 }
 
-/// Opens a recording with the `[replay]` settings of a config.
-pub fn open_with(path: &Path, config: &crate::config::ReplayConfig) -> Result<Box<dyn Recording>> {
+impl Default for ReplayOptions {
+    fn default() -> Self {
+        ReplayOptions::from_config(&crate::config::Config::default())
+    }
+}
+
+impl ReplayOptions {
+    pub fn from_config(config: &crate::config::Config) -> Self {
+        ReplayOptions {
+            time_tolerance_s: config.replay.time_tolerance_s,
+            c3d: c3d::C3dOptions {
+                up_axis: config.c3d.up_axis,
+            },
+        }
+    }
+}
+
+/// Opens a recording of any supported format, detected by content, with
+/// default options.
+pub fn open(path: &Path) -> Result<Box<dyn Recording>> {
+    open_with(path, &ReplayOptions::default())
+}
+
+/// Opens a recording of any supported format, detected by content.
+pub fn open_with(path: &Path, options: &ReplayOptions) -> Result<Box<dyn Recording>> {
     match detect(path)? {
         Format::MotiveCsv => Ok(Box::new(motive_csv::MotiveCsvReader::open_with(
             path,
-            config.time_tolerance_s,
+            options.time_tolerance_s,
         )?)),
         Format::Log => Ok(Box::new(log::LogReader::open(path)?)),
+        Format::C3d => Ok(Box::new(c3d::C3dReader::open(path, &options.c3d)?)),
     }
 }
