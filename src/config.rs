@@ -18,6 +18,7 @@ pub const DEFAULT_TOML: &str = include_str!("../config/default.toml");
 pub struct Config {
     pub replay: ReplayConfig,
     pub record: RecordConfig,
+    pub osc: OscConfig,
     pub output: OutputConfig,
 }
 
@@ -35,6 +36,28 @@ pub struct ReplayConfig {
 pub struct RecordConfig {
     /// Longest time between flushes (s): what a crash may lose.
     pub flush_interval_s: f64,
+    /// Frames queued between a live source and the writer: the slack for a
+    /// stalled disk before the oldest frames are dropped.
+    pub queue_frames: u64,
+}
+
+/// The OSC source (`source::osc`): where it listens, whom it accepts, and
+/// how the sender's positions convert to metres, Y up.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct OscConfig {
+    /// `address:port` to listen on; loopback unless the user widens it.
+    pub bind: String,
+    /// IP addresses or CIDR ranges accepted as senders.
+    pub allow: Vec<String>,
+    /// "y" or "z": the sender's up axis.
+    pub up_axis: String,
+    /// "m", "cm" or "mm": the sender's length unit.
+    pub units: String,
+    /// Also take `/othermarker` messages.
+    pub othermarkers: bool,
+    /// Nominal frame rate for recording headers (Hz).
+    pub frame_rate: f64,
 }
 
 /// Where results go.
@@ -98,8 +121,26 @@ impl Config {
 
     /// Range checks, each naming the key and its allowed range.
     pub fn validate(&self) -> Result<()> {
-        check_range("replay.time_tolerance_s", self.replay.time_tolerance_s, 0.0, 1.0)?;
-        check_range("record.flush_interval_s", self.record.flush_interval_s, 0.01, 1.0)?;
+        check_range(
+            "replay.time_tolerance_s",
+            self.replay.time_tolerance_s,
+            0.0,
+            1.0,
+        )?;
+        check_range(
+            "record.flush_interval_s",
+            self.record.flush_interval_s,
+            0.01,
+            1.0,
+        )?;
+        check_range(
+            "record.queue_frames",
+            self.record.queue_frames as f64,
+            1.0,
+            1e6,
+        )?;
+        check_range("osc.frame_rate", self.osc.frame_rate, 1.0, 10000.0)?;
+        crate::source::osc::OscOptions::from_config(&self.osc)?;
         if self.output.dir.is_empty() {
             return Err(Error::config("output.dir", "must not be empty"));
         }
@@ -217,7 +258,10 @@ mod tests {
     fn out_of_range_names_key_and_range() {
         let e = Config::from_toml_str("[record]\nflush_interval_s = 5\n").unwrap_err();
         let msg = e.to_string();
-        assert!(msg.contains("record.flush_interval_s") && msg.contains("0.01 to 1"), "{msg}");
+        assert!(
+            msg.contains("record.flush_interval_s") && msg.contains("0.01 to 1"),
+            "{msg}"
+        );
     }
 
     #[test]
@@ -228,8 +272,14 @@ mod tests {
 
     #[test]
     fn set_overrides() {
-        let c = Config::load(None, &["record.flush_interval_s=0.25".into(), "output.dir=res".into()])
-            .unwrap();
+        let c = Config::load(
+            None,
+            &[
+                "record.flush_interval_s=0.25".into(),
+                "output.dir=res".into(),
+            ],
+        )
+        .unwrap();
         assert_eq!(c.record.flush_interval_s, 0.25);
         assert_eq!(c.output.dir, "res");
         assert!(Config::load(None, &["record".into()]).is_err());

@@ -48,6 +48,34 @@ enum Command {
         #[arg(long)]
         json: bool,
     },
+    /// Record a live source (OSC or NatNet) to a treemocap log until Ctrl-C
+    /// or --seconds, printing frames, markers and losses once a second.
+    #[command(group(clap::ArgGroup::new("live").required(true).args(["osc", "natnet"])))]
+    Record {
+        /// Listen for OSC on ADDR:PORT (UDP; overrides osc.bind), e.g.
+        /// 127.0.0.1:9000. Senders must be in osc.allow (default: loopback).
+        #[arg(long, value_name = "ADDR:PORT")]
+        osc: Option<String>,
+        /// Receive from a NatNet server (Motive) at this address.
+        #[arg(long, value_name = "SERVER")]
+        natnet: Option<String>,
+        /// NatNet: frames sent to this client only (the default).
+        #[arg(long, requires = "natnet", conflicts_with = "multicast")]
+        unicast: bool,
+        /// NatNet: frames multicast to the group.
+        #[arg(long, requires = "natnet")]
+        multicast: bool,
+        /// NatNet: ask the server for this bitstream version (e.g. 3.1).
+        #[arg(long, value_name = "X.Y", requires = "natnet")]
+        natnet_version: Option<String>,
+        /// The log file to write (truncated if it exists).
+        out: PathBuf,
+        /// Stop after N seconds (default: run until Ctrl-C).
+        #[arg(long, value_name = "N")]
+        seconds: Option<f64>,
+        #[command(flatten)]
+        config: ConfigArgs,
+    },
 }
 
 fn main() -> ExitCode {
@@ -93,6 +121,60 @@ fn run(command: Command) -> Result<()> {
         Command::Inspect { file, json } => {
             let _ = (file, json);
             Err(Error::Runtime("inspect is not written yet".into()))
+        }
+        Command::Record {
+            osc,
+            natnet,
+            unicast,
+            multicast,
+            natnet_version,
+            out,
+            seconds,
+            config,
+        } => {
+            use std::sync::Arc;
+            use treemocap::source::live::LiveSource;
+            use treemocap::source::record::{self, RecordEvent, RecordOptions};
+            let config = config.load()?;
+            if let Some(s) = seconds {
+                if !(s.is_finite() && s > 0.0) {
+                    return Err(Error::config(
+                        "--seconds",
+                        format!("{s}: must be a positive number"),
+                    ));
+                }
+            }
+            let source: Arc<dyn LiveSource> = match (osc, natnet) {
+                (Some(addr), _) => {
+                    let mut opts = treemocap::source::osc::OscOptions::from_config(&config.osc)?;
+                    opts.bind = addr.parse().map_err(|_| {
+                        Error::config(
+                            "--osc",
+                            format!("'{addr}' is not ADDR:PORT (e.g. 127.0.0.1:9000)"),
+                        )
+                    })?;
+                    Arc::new(treemocap::source::osc::OscSource(opts))
+                }
+                (None, Some(server)) => {
+                    let _ = (server, unicast, multicast, natnet_version);
+                    return Err(Error::Runtime(
+                        "record --natnet: the NatNet client is not in this build yet; \
+                         record from an OSC bridge with --osc meanwhile"
+                            .into(),
+                    ));
+                }
+                (None, None) => return Err(Error::config("record", "give --osc or --natnet")),
+            };
+            let opts = RecordOptions::from_config(out, seconds, &config);
+            println!("recording to {}", opts.out.display());
+            let summary = record::record_until_ctrl_c(source, &opts, |event| match event {
+                RecordEvent::Status(s) => println!("{s}"),
+                RecordEvent::Progress(p) => println!("{}", record::progress_line(&p)),
+            })?;
+            println!("{}", record::progress_line(&summary.progress));
+            println!("{}", summary.source);
+            println!("wrote {}", summary.out.display());
+            Ok(())
         }
     }
 }
