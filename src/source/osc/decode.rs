@@ -372,10 +372,12 @@ impl Assembler {
                 match m.args.get(1) {
                     // `max` mode: id "position" x y z.
                     Some(OscType::String(s)) if s == "position" => (id, 2),
-                    Some(OscType::String(s)) => return Err(format!(
+                    Some(OscType::String(s)) => {
+                        return Err(format!(
                         "argument 2: expected \"position\" or the x coordinate, got string \"{}\"",
                         clip(s)
-                    )),
+                    ))
+                    }
                     _ => (id, 1),
                 }
             }
