@@ -4,7 +4,7 @@
 //! The source runs as a tokio task and pushes into a bounded frame channel;
 //! a blocking thread owns the `LogWriter`, so a slow disk never stalls the
 //! socket (the channel absorbs it, and drops the oldest frames, counted, if
-//! it must). The writer is ticked at least every 100 ms, so whole frames
+//! it must). The writer is ticked at least every 20 ms, so whole frames
 //! reach the OS within `flush_interval` of arriving: a killed recorder loses
 //! at most that much, and the file always ends on a whole row.
 
@@ -23,7 +23,10 @@ use crate::source::channel::frame_channel;
 use crate::source::live::{LiveSource, SourceReport};
 use crate::source::replay::log::{LogHeader, LogWriter};
 
-/// Longest wait of the writer thread before it checks the flush interval.
+/// Longest wait of the writer thread before it checks the flush interval:
+/// small against the interval, so a crash loses little more than it.
+const WRITER_TICK: Duration = Duration::from_millis(20);
+/// How often the reporting loop looks at the source's status and counters.
 const TICK: Duration = Duration::from_millis(100);
 
 /// How to record.
@@ -257,7 +260,7 @@ fn write_loop(
     let mut log: Option<LogWriter> = None;
     let mut last: Option<i64> = None;
     loop {
-        match rx.recv_timeout(TICK) {
+        match rx.recv_timeout(WRITER_TICK) {
             Ok(frame) => {
                 let w = match &mut log {
                     Some(w) => w,

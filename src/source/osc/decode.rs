@@ -16,8 +16,10 @@
 //! | `/othermarker…` | as `/marker…` | the bridges' legacy other-marker list; only with `othermarkers` on |
 //!
 //! A **frame** is one OSC bundle (everything in it, nested bundles
-//! flattened), or the messages between `/frame/start n` and `/frame/end n`
-//! when they arrive unbundled, or one `/treemocap/markers` message.
+//! flattened; a bundle without markers is a frame with none in sight), or
+//! the messages between `/frame/start n` and `/frame/end n` when they arrive
+//! unbundled, or one `/treemocap/markers` message (its own frame even inside
+//! a bundle; a bundle holding only those makes no other).
 //! Bundle time tags are ignored: the bridges that set them put milliseconds
 //! there, not NTP time. Frame time is the sender's `/frame/timestamp` or
 //! `/treemocap/markers` time when there is one, otherwise the receive time.
@@ -198,11 +200,12 @@ impl Assembler {
                     received_s: now_s,
                     ..Partial::default()
                 };
-                let mut messages = 0usize;
-                self.bundle(packet, &mut frame, &mut messages, now_s, out);
-                // A bundle of only rigid bodies is not a marker frame; an
-                // empty bundle is a bridge tick with no marker in sight.
-                if frame.content || messages == 0 {
+                let mut census = Census::default();
+                self.bundle(packet, &mut frame, &mut census, now_s, out);
+                // Every bundle is a frame (one with only rigid bodies, or
+                // none at all, is a bridge tick with no marker in sight),
+                // except one that only carried our self-contained messages.
+                if census.others > 0 || census.own == 0 {
                     self.emit(frame, out);
                 }
             }
@@ -225,21 +228,22 @@ impl Assembler {
         &mut self,
         packet: &OscPacket,
         frame: &mut Partial,
-        messages: &mut usize,
+        census: &mut Census,
         now_s: f64,
         out: &mut Output,
     ) {
         match packet {
             OscPacket::Bundle(b) => {
                 for p in &b.content {
-                    self.bundle(p, frame, messages, now_s, out);
+                    self.bundle(p, frame, census, now_s, out);
                 }
             }
             OscPacket::Message(m) => {
-                *messages += 1;
                 if m.addr == "/treemocap/markers" {
+                    census.own += 1;
                     self.treemocap_markers(m, out);
                 } else {
+                    census.others += 1;
                     // A /frame/end inside a bundle ends nothing: the bundle does.
                     self.message(m, frame, false, now_s, out);
                 }
@@ -449,6 +453,15 @@ impl Assembler {
         let time_s = p.time_s.unwrap_or(p.received_s);
         out.frames.push(MarkerFrame::new(number, time_s, p.markers));
     }
+}
+
+/// The messages of one bundle, by whether they are self-contained frames.
+#[derive(Debug, Default)]
+struct Census {
+    /// `/treemocap/markers` messages (each its own frame).
+    own: usize,
+    /// Everything else.
+    others: usize,
 }
 
 /// The addresses that only make sense inside a frame bracket.
@@ -687,10 +700,12 @@ mod tests {
             "an empty bundle is an empty frame"
         );
         let out = feed(&mut a, &bundle(vec![msg("/rigidBody", vec![I(1)])]), 0.75);
-        assert!(
-            out.frames.is_empty(),
-            "rigid bodies alone are not a marker frame"
+        assert_eq!(
+            out.frames.len(),
+            1,
+            "a tick with only rigid bodies has no markers"
         );
+        assert!(out.frames[0].markers.is_empty());
     }
 
     #[test]
@@ -805,7 +820,7 @@ mod tests {
         ]);
         let mut a = Assembler::new(DecodeOptions::default());
         let out = feed(&mut a, &m, 0.0);
-        assert!(out.frames.is_empty());
+        assert!(out.frames[0].markers.is_empty());
         assert_eq!(out.ignored, 2);
         let mut a = Assembler::new(DecodeOptions {
             othermarkers: true,
