@@ -507,3 +507,34 @@ fn killed_recorder_loses_at_most_the_last_second() {
         (sent_at.len() as f64 - got.len() as f64) / 100.0
     );
 }
+
+#[test]
+fn record_on_a_port_in_use_says_so_and_leaves_no_file() {
+    let busy = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
+    let addr = busy.local_addr().unwrap().to_string();
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("never.log.csv");
+    let run = Command::new(env!("CARGO_BIN_EXE_treemocap"))
+        .args(["record", "--osc", &addr])
+        .arg(&out)
+        .args(["--seconds", "5"])
+        .output()
+        .unwrap();
+    assert_eq!(run.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&run.stderr);
+    assert!(
+        err.contains(&format!("cannot listen for OSC on udp {addr}")),
+        "{err}"
+    );
+    assert!(!out.exists(), "no empty log left behind");
+    let bad = Command::new(env!("CARGO_BIN_EXE_treemocap"))
+        .args(["record", "--osc", "localhost"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert_eq!(
+        bad.status.code(),
+        Some(2),
+        "a malformed address is a usage error"
+    );
+}

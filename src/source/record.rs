@@ -210,7 +210,17 @@ pub async fn record(
     .map_err(|e| Error::Runtime(format!("the writer thread failed: {e}")));
     // A writer error (disk full) matters more than the source's.
     written??;
-    let report = report??;
+    let report = match report? {
+        Ok(r) => r,
+        Err(e) => {
+            // A source that never started (port in use, no server) leaves
+            // no empty log behind to be mistaken for a recording.
+            if stats.frames.load(Ordering::Relaxed) == 0 {
+                let _ = std::fs::remove_file(&opts.out);
+            }
+            return Err(e);
+        }
+    };
     let progress = stats.progress(started.elapsed().as_secs_f64(), source.losses());
     Ok(RecordSummary {
         out: opts.out.clone(),
