@@ -594,8 +594,22 @@ pub fn parse_datagram(bytes: &[u8]) -> Result<OscPacket, String> {
             rest.len(),
             bytes.len() - rest.len()
         )),
-        Err(e) => Err(format!("not OSC ({} bytes): {e}", bytes.len())),
+        Err(e) => Err(format!(
+            "not OSC ({} bytes starting \"{}\"): {e}",
+            bytes.len(),
+            preview(bytes)
+        )),
     }
+}
+
+/// The first bytes of a datagram, printable ASCII kept and the rest escaped.
+fn preview(bytes: &[u8]) -> String {
+    let head = bytes.get(..16).unwrap_or(bytes);
+    let mut s: String = head.escape_ascii().to_string();
+    if head.len() < bytes.len() {
+        s.push('…');
+    }
+    s
 }
 
 /// Walks the bundle structure (`#bundle\0`, 8-byte time tag, then
