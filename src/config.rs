@@ -19,6 +19,7 @@ pub struct Config {
     pub replay: ReplayConfig,
     pub record: RecordConfig,
     pub output: OutputConfig,
+    pub natnet: NatNetConfig,
 }
 
 /// Reading recorded sessions.
@@ -43,6 +44,20 @@ pub struct RecordConfig {
 pub struct OutputConfig {
     /// Output folder for replay results and the daemon's files.
     pub dir: String,
+}
+
+/// The NatNet client (`treemocap record --natnet`, the daemon).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct NatNetConfig {
+    /// Which markers of a frame are tracked (see `source::natnet::select`).
+    pub markers: crate::source::natnet::select::MarkerSelection,
+    /// Wait for the server's SERVERINFO before reporting it unreachable (s).
+    pub connect_timeout_s: f64,
+    /// Silence after which the client reconnects (s).
+    pub silence_timeout_s: f64,
+    /// Unicast keep-alive period (s).
+    pub keepalive_interval_s: f64,
 }
 
 impl Default for Config {
@@ -98,8 +113,36 @@ impl Config {
 
     /// Range checks, each naming the key and its allowed range.
     pub fn validate(&self) -> Result<()> {
-        check_range("replay.time_tolerance_s", self.replay.time_tolerance_s, 0.0, 1.0)?;
-        check_range("record.flush_interval_s", self.record.flush_interval_s, 0.01, 1.0)?;
+        check_range(
+            "replay.time_tolerance_s",
+            self.replay.time_tolerance_s,
+            0.0,
+            1.0,
+        )?;
+        check_range(
+            "record.flush_interval_s",
+            self.record.flush_interval_s,
+            0.01,
+            1.0,
+        )?;
+        check_range(
+            "natnet.connect_timeout_s",
+            self.natnet.connect_timeout_s,
+            0.1,
+            60.0,
+        )?;
+        check_range(
+            "natnet.silence_timeout_s",
+            self.natnet.silence_timeout_s,
+            0.1,
+            60.0,
+        )?;
+        check_range(
+            "natnet.keepalive_interval_s",
+            self.natnet.keepalive_interval_s,
+            0.05,
+            10.0,
+        )?;
         if self.output.dir.is_empty() {
             return Err(Error::config("output.dir", "must not be empty"));
         }
@@ -217,7 +260,10 @@ mod tests {
     fn out_of_range_names_key_and_range() {
         let e = Config::from_toml_str("[record]\nflush_interval_s = 5\n").unwrap_err();
         let msg = e.to_string();
-        assert!(msg.contains("record.flush_interval_s") && msg.contains("0.01 to 1"), "{msg}");
+        assert!(
+            msg.contains("record.flush_interval_s") && msg.contains("0.01 to 1"),
+            "{msg}"
+        );
     }
 
     #[test]
@@ -227,9 +273,25 @@ mod tests {
     }
 
     #[test]
+    fn natnet_marker_selection_is_checked() {
+        use crate::source::natnet::select::MarkerSelection;
+        assert_eq!(Config::default().natnet.markers, MarkerSelection::Unlabeled);
+        let c = Config::from_toml_str("[natnet]\nmarkers = \"all\"\n").unwrap();
+        assert_eq!(c.natnet.markers, MarkerSelection::All);
+        let e = Config::from_toml_str("[natnet]\nmarkers = \"some\"\n").unwrap_err();
+        assert!(e.to_string().contains("some"), "{e}");
+    }
+
+    #[test]
     fn set_overrides() {
-        let c = Config::load(None, &["record.flush_interval_s=0.25".into(), "output.dir=res".into()])
-            .unwrap();
+        let c = Config::load(
+            None,
+            &[
+                "record.flush_interval_s=0.25".into(),
+                "output.dir=res".into(),
+            ],
+        )
+        .unwrap();
         assert_eq!(c.record.flush_interval_s, 0.25);
         assert_eq!(c.output.dir, "res");
         assert!(Config::load(None, &["record".into()]).is_err());

@@ -2,4 +2,5 @@
 //! network sources, which deliver through a [`channel::FrameSink`].
 
 pub mod channel;
+pub mod natnet;
 pub mod replay;

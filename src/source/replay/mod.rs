@@ -124,7 +124,11 @@ pub fn detect(path: &Path) -> Result<Format> {
                 .into(),
         })
     } else if n == 0 {
-        Err(Error::parse(path, crate::Location::Offset(0), "file is empty"))
+        Err(Error::parse(
+            path,
+            crate::Location::Offset(0),
+            "file is empty",
+        ))
     } else {
         Err(Error::Unsupported {
             path: path.into(),
