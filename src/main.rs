@@ -48,6 +48,47 @@ enum Command {
         #[arg(long)]
         json: bool,
     },
+    /// Stream a recording as a NatNet server (a stand-in for Motive), so any
+    /// NatNet client can be tested without a rig.
+    Serve {
+        /// A Motive CSV export or a treemocap log (detected by content).
+        file: PathBuf,
+        /// NatNet bitstream version to stream (2.5 … 4.x); unicast clients
+        /// may switch theirs with a `Bitstream,X.Y` request.
+        #[arg(long, value_name = "X.Y", default_value = "3.1")]
+        natnet_version: treemocap::source::natnet::packet::Version,
+        /// Playback speed (2 = twice as fast as recorded).
+        #[arg(long, default_value_t = 1.0)]
+        speed: f64,
+        /// Start again at the end (frame numbers jump back, as in Motive).
+        #[arg(long = "loop")]
+        looping: bool,
+        /// Send frames to the multicast group (default: unicast to each
+        /// client that connects).
+        #[arg(long, conflicts_with = "unicast")]
+        multicast: bool,
+        /// Send frames to each client that connects (the default).
+        #[arg(long)]
+        unicast: bool,
+        /// Local address to listen on.
+        #[arg(long, default_value = "0.0.0.0")]
+        bind: std::net::Ipv4Addr,
+        /// Command port (clients send CONNECT here).
+        #[arg(long, default_value_t = 1510)]
+        command_port: u16,
+        /// Data port (frames are sent from / to it).
+        #[arg(long, default_value_t = 1511)]
+        data_port: u16,
+        /// Multicast group.
+        #[arg(long, default_value = "239.255.42.99")]
+        group: std::net::Ipv4Addr,
+        /// Address of the interface multicast frames leave by.
+        #[arg(long, default_value = "127.0.0.1")]
+        interface: std::net::Ipv4Addr,
+        /// Start streaming at once instead of when the first client connects.
+        #[arg(long)]
+        now: bool,
+    },
 }
 
 fn main() -> ExitCode {
@@ -94,5 +135,66 @@ fn run(command: Command) -> Result<()> {
             let _ = (file, json);
             Err(Error::Runtime("inspect is not written yet".into()))
         }
+        Command::Serve {
+            file,
+            natnet_version,
+            speed,
+            looping,
+            multicast,
+            unicast: _,
+            bind,
+            command_port,
+            data_port,
+            group,
+            interface,
+            now,
+        } => {
+            use treemocap::source::natnet::server;
+            let opts = server::ServeOptions {
+                version: natnet_version,
+                speed,
+                looping,
+                transport: if multicast {
+                    server::Transport::Multicast
+                } else {
+                    server::Transport::Unicast
+                },
+                bind,
+                command_port,
+                data_port,
+                multicast_group: group,
+                multicast_interface: interface,
+                wait_for_client: !now,
+                ..Default::default()
+            };
+            let report = with_ctrl_c(|shutdown| async move {
+                server::serve(&file, &opts, shutdown).await
+            })?;
+            eprintln!(
+                "served {} frames ({} loops) to {} clients in {:.1} s",
+                report.frames, report.loops, report.clients, report.elapsed_s
+            );
+            Ok(())
+        }
     }
+}
+
+/// Runs an async library call on a tokio runtime until it returns or Ctrl-C
+/// (which it sees as its shutdown signal turning true).
+fn with_ctrl_c<T, F, Fut>(f: F) -> Result<T>
+where
+    F: FnOnce(tokio::sync::watch::Receiver<bool>) -> Fut,
+    Fut: std::future::Future<Output = Result<T>>,
+{
+    let rt = tokio::runtime::Runtime::new()
+        .map_err(|e| Error::Runtime(format!("cannot start the async runtime: {e}")))?;
+    rt.block_on(async move {
+        let (tx, rx) = tokio::sync::watch::channel(false);
+        tokio::spawn(async move {
+            if tokio::signal::ctrl_c().await.is_ok() {
+                let _ = tx.send(true);
+            }
+        });
+        f(rx).await
+    })
 }

@@ -6,3 +6,14 @@
 
 pub mod packet;
 pub mod select;
+pub mod server;
+
+/// How frames travel from a NatNet server to its clients.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Transport {
+    /// To each client that sent CONNECT, from the server's data port to the
+    /// client's command socket.
+    Unicast,
+    /// To a multicast group on the data port.
+    Multicast,
+}

@@ -283,7 +283,12 @@ pub struct ServerConnection {
 #[derive(Debug, Clone, PartialEq)]
 pub enum Response {
     Value([u8; 4]),
+    /// A NUL-terminated string.
     Text(String),
+    /// A string filling the payload with no NUL. OptiTrack's Python client
+    /// parses the `Bitstream` reply up to the end of the datagram, so a NUL
+    /// there makes it crash (`int('0\x00')`); our server answers that query so.
+    Unterminated(String),
 }
 
 impl Response {
@@ -296,13 +301,20 @@ impl Response {
     pub fn as_i32(&self) -> Option<i32> {
         match self {
             Response::Value(b) => Some(i32::from_le_bytes(*b)),
-            Response::Text(_) => None,
+            _ => None,
         }
     }
     pub fn as_f32(&self) -> Option<f32> {
         match self {
             Response::Value(b) => Some(f32::from_le_bytes(*b)),
-            Response::Text(_) => None,
+            _ => None,
+        }
+    }
+    /// The text of a string response.
+    pub fn as_text(&self) -> Option<&str> {
+        match self {
+            Response::Text(s) | Response::Unterminated(s) => Some(s),
+            Response::Value(_) => None,
         }
     }
 }
@@ -993,6 +1005,9 @@ pub fn decode(datagram: &[u8], version: Version) -> Result<Packet, DecodeError> 
         id::RESPONSE => {
             if n == 4 {
                 Packet::Response(Response::Value(r.arr("value")?))
+            } else if !payload.contains(&0) {
+                let s = String::from_utf8_lossy(r.take(n, "text")?).into_owned();
+                Packet::Response(Response::Unterminated(s))
             } else {
                 let s = r.cstr("text")?;
                 r.padding("text")?;
@@ -1598,6 +1613,11 @@ pub fn encode_into(packet: &Packet, version: Version, out: &mut Vec<u8>) -> ERes
             w.cstr(s)
         }
         Packet::Response(Response::Value(b)) => w.bytes(b),
+        Packet::Response(Response::Unterminated(s)) => {
+            let b = s.as_bytes();
+            let end = b.iter().position(|&c| c == 0).unwrap_or(b.len());
+            w.bytes(&b[..end]);
+        }
         Packet::RequestModelDef
         | Packet::RequestFrameOfData
         | Packet::Disconnect
