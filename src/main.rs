@@ -167,9 +167,8 @@ fn run(command: Command) -> Result<()> {
                 wait_for_client: !now,
                 ..Default::default()
             };
-            let report = with_ctrl_c(|shutdown| async move {
-                server::serve(&file, &opts, shutdown).await
-            })?;
+            let report =
+                with_ctrl_c(|shutdown| async move { server::serve(&file, &opts, shutdown).await })?;
             eprintln!(
                 "served {} frames ({} loops) to {} clients in {:.1} s",
                 report.frames, report.loops, report.clients, report.elapsed_s

@@ -4,6 +4,7 @@
 //!
 //! [`MarkerFrame`]: crate::frame::MarkerFrame
 
+pub mod client;
 pub mod packet;
 pub mod select;
 pub mod server;

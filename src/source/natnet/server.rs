@@ -30,14 +30,14 @@ use tokio::net::UdpSocket;
 use tokio::sync::watch;
 
 use super::packet::{
-    self, decode, encode_into, Connect, Description, FrameOfData, LabeledMarker, ModelDef,
-    Packet, Response, Sender, ServerConnection, ServerInfo, Version, FRAME_BITSTREAM_CHANGED,
+    self, decode, encode_into, Connect, Description, FrameOfData, LabeledMarker, ModelDef, Packet,
+    Response, Sender, ServerConnection, ServerInfo, Version, FRAME_BITSTREAM_CHANGED,
     MARKER_UNLABELED,
 };
+pub use super::Transport;
 use crate::error::{Error, Result};
 use crate::frame::MarkerFrame;
 use crate::source::replay::{self, Recording};
-pub use super::Transport;
 
 /// Ticks per second of the server's hi-res clock (nanoseconds since start).
 pub const CLOCK_FREQUENCY: u64 = 1_000_000_000;
@@ -143,7 +143,12 @@ fn to_tokio(s: Socket) -> std::io::Result<UdpSocket> {
 }
 
 /// The SERVERINFO this server sends for bitstream `version`.
-pub fn server_info(version: Version, transport: Transport, data_port: u16, group: Ipv4Addr) -> ServerInfo {
+pub fn server_info(
+    version: Version,
+    transport: Transport,
+    data_port: u16,
+    group: Ipv4Addr,
+) -> ServerInfo {
     let app = env!("CARGO_PKG_VERSION")
         .split('.')
         .map(|p| p.parse::<u8>().unwrap_or(0))
@@ -241,12 +246,18 @@ pub async fn serve_with(
     mut shutdown: watch::Receiver<bool>,
 ) -> Result<ServeReport> {
     if !(opts.speed > 0.0 && opts.speed.is_finite()) {
-        return Err(Error::config("--speed", format!("{} must be above 0", opts.speed)));
+        return Err(Error::config(
+            "--speed",
+            format!("{} must be above 0", opts.speed),
+        ));
     }
     if opts.version < packet::OLDEST_VERSION || opts.version.major > 4 {
         return Err(Error::config(
             "--natnet-version",
-            format!("{} is not a version treemocap can stream (2.0 to 4.x)", opts.version),
+            format!(
+                "{} is not a version treemocap can stream (2.0 to 4.x)",
+                opts.version
+            ),
         ));
     }
     let mut recording = open()?;
@@ -254,10 +265,15 @@ pub async fn serve_with(
     let cmd_addr = SocketAddrV4::new(opts.bind, opts.command_port);
     let cmd = udp_socket(cmd_addr, false)
         .and_then(to_tokio)
-        .map_err(|e| Error::Runtime(format!("cannot listen for NatNet commands on {cmd_addr}: {e}")))?;
+        .map_err(|e| {
+            Error::Runtime(format!(
+                "cannot listen for NatNet commands on {cmd_addr}: {e}"
+            ))
+        })?;
     let data_addr = SocketAddrV4::new(opts.bind, opts.data_port);
-    let data = udp_socket(data_addr, opts.transport == Transport::Multicast)
-        .map_err(|e| Error::Runtime(format!("cannot bind the NatNet data port {data_addr}: {e}")))?;
+    let data = udp_socket(data_addr, opts.transport == Transport::Multicast).map_err(|e| {
+        Error::Runtime(format!("cannot bind the NatNet data port {data_addr}: {e}"))
+    })?;
     if opts.transport == Transport::Multicast {
         data.set_multicast_if_v4(&opts.multicast_interface)
             .and_then(|_| data.set_multicast_loop_v4(true))
@@ -272,7 +288,10 @@ pub async fn serve_with(
     let _ = data.set_send_buffer_size(4 << 20);
     let data = to_tokio(data).map_err(|e| Error::Runtime(format!("data socket: {e}")))?;
     let stats = &opts.stats;
-    let data_port = data.local_addr().map(|a| a.port()).unwrap_or(opts.data_port);
+    let data_port = data
+        .local_addr()
+        .map(|a| a.port())
+        .unwrap_or(opts.data_port);
     if let Ok(a) = cmd.local_addr() {
         let _ = stats.command_addr.set(a);
     }
@@ -324,7 +343,8 @@ pub async fn serve_with(
             play_start + Duration::from_secs_f64(if dt.is_finite() { dt.min(1e9) } else { 0.0 })
         });
         let sleep = tokio::time::sleep_until(
-            due.unwrap_or_else(|| Instant::now() + Duration::from_secs(3600)).into(),
+            due.unwrap_or_else(|| Instant::now() + Duration::from_secs(3600))
+                .into(),
         );
         tokio::select! {
             _ = shutdown.changed() => {
