@@ -20,6 +20,7 @@ pub struct Config {
     pub record: RecordConfig,
     pub osc: OscConfig,
     pub output: OutputConfig,
+    pub natnet: NatNetConfig,
 }
 
 /// Reading recorded sessions.
@@ -66,6 +67,20 @@ pub struct OscConfig {
 pub struct OutputConfig {
     /// Output folder for replay results and the daemon's files.
     pub dir: String,
+}
+
+/// The NatNet client (`treemocap record --natnet`, the daemon).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct NatNetConfig {
+    /// Which markers of a frame are tracked (see `source::natnet::select`).
+    pub markers: crate::source::natnet::select::MarkerSelection,
+    /// Wait for the server's SERVERINFO before reporting it unreachable (s).
+    pub connect_timeout_s: f64,
+    /// Silence after which the client reconnects (s).
+    pub silence_timeout_s: f64,
+    /// Unicast keep-alive period (s).
+    pub keepalive_interval_s: f64,
 }
 
 impl Default for Config {
@@ -141,6 +156,24 @@ impl Config {
         )?;
         check_range("osc.frame_rate", self.osc.frame_rate, 1.0, 10000.0)?;
         crate::source::osc::OscOptions::from_config(&self.osc)?;
+        check_range(
+            "natnet.connect_timeout_s",
+            self.natnet.connect_timeout_s,
+            0.1,
+            60.0,
+        )?;
+        check_range(
+            "natnet.silence_timeout_s",
+            self.natnet.silence_timeout_s,
+            0.1,
+            60.0,
+        )?;
+        check_range(
+            "natnet.keepalive_interval_s",
+            self.natnet.keepalive_interval_s,
+            0.05,
+            10.0,
+        )?;
         if self.output.dir.is_empty() {
             return Err(Error::config("output.dir", "must not be empty"));
         }
@@ -268,6 +301,16 @@ mod tests {
     fn wrong_type_is_an_error() {
         let e = Config::from_toml_str("[output]\ndir = 3\n").unwrap_err();
         assert!(e.to_string().contains("output.dir"), "{e}");
+    }
+
+    #[test]
+    fn natnet_marker_selection_is_checked() {
+        use crate::source::natnet::select::MarkerSelection;
+        assert_eq!(Config::default().natnet.markers, MarkerSelection::Unlabeled);
+        let c = Config::from_toml_str("[natnet]\nmarkers = \"all\"\n").unwrap();
+        assert_eq!(c.natnet.markers, MarkerSelection::All);
+        let e = Config::from_toml_str("[natnet]\nmarkers = \"some\"\n").unwrap_err();
+        assert!(e.to_string().contains("some"), "{e}");
     }
 
     #[test]

@@ -67,10 +67,12 @@ enum Command {
         /// 127.0.0.1:9000. Senders must be in osc.allow (default: loopback).
         #[arg(long, value_name = "ADDR:PORT")]
         osc: Option<String>,
-        /// Receive from a NatNet server (Motive) at this address.
+        /// Receive from a NatNet server (Motive) at ADDRESS or
+        /// ADDRESS:COMMAND_PORT (default port 1510).
         #[arg(long, value_name = "SERVER")]
         natnet: Option<String>,
-        /// NatNet: frames sent to this client only (the default).
+        /// NatNet: frames sent to this client only (default: what the
+        /// server says it does).
         #[arg(long, requires = "natnet", conflicts_with = "multicast")]
         unicast: bool,
         /// NatNet: frames multicast to the group.
@@ -86,6 +88,47 @@ enum Command {
         seconds: Option<f64>,
         #[command(flatten)]
         config: ConfigArgs,
+    },
+    /// Stream a recording as a NatNet server (a stand-in for Motive), so any
+    /// NatNet client can be tested without a rig.
+    Serve {
+        /// A Motive CSV export or a treemocap log (detected by content).
+        file: PathBuf,
+        /// NatNet bitstream version to stream (2.5 … 4.x); unicast clients
+        /// may switch theirs with a `Bitstream,X.Y` request.
+        #[arg(long, value_name = "X.Y", default_value = "3.1")]
+        natnet_version: treemocap::source::natnet::packet::Version,
+        /// Playback speed (2 = twice as fast as recorded).
+        #[arg(long, default_value_t = 1.0)]
+        speed: f64,
+        /// Start again at the end (frame numbers jump back, as in Motive).
+        #[arg(long = "loop")]
+        looping: bool,
+        /// Send frames to the multicast group (default: unicast to each
+        /// client that connects).
+        #[arg(long, conflicts_with = "unicast")]
+        multicast: bool,
+        /// Send frames to each client that connects (the default).
+        #[arg(long)]
+        unicast: bool,
+        /// Local address to listen on.
+        #[arg(long, default_value = "0.0.0.0")]
+        bind: std::net::Ipv4Addr,
+        /// Command port (clients send CONNECT here).
+        #[arg(long, default_value_t = 1510)]
+        command_port: u16,
+        /// Data port (frames are sent from / to it).
+        #[arg(long, default_value_t = 1511)]
+        data_port: u16,
+        /// Multicast group.
+        #[arg(long, default_value = "239.255.42.99")]
+        group: std::net::Ipv4Addr,
+        /// Address of the interface multicast frames leave by.
+        #[arg(long, default_value = "127.0.0.1")]
+        interface: std::net::Ipv4Addr,
+        /// Start streaming at once instead of when the first client connects.
+        #[arg(long)]
+        now: bool,
     },
 }
 
@@ -184,12 +227,34 @@ fn run(command: Command) -> Result<()> {
                     Arc::new(treemocap::source::osc::OscSource(opts))
                 }
                 (None, Some(server)) => {
-                    let _ = (server, unicast, multicast, natnet_version);
-                    return Err(Error::Runtime(
-                        "record --natnet: the NatNet client is not in this build yet; \
-                         record from an OSC bridge with --osc meanwhile"
-                            .into(),
-                    ));
+                    use treemocap::source::natnet::{client::NatNetOptions, live::NatNetSource};
+                    let mut opts = NatNetOptions::from_config(&config.natnet);
+                    let (ip, port) = match server.parse::<std::net::SocketAddrV4>() {
+                        Ok(a) => (*a.ip(), a.port()),
+                        Err(_) => (
+                            server.parse().map_err(|_| {
+                                Error::config(
+                                    "--natnet",
+                                    format!("'{server}' is not an IPv4 address or ADDRESS:PORT"),
+                                )
+                            })?,
+                            opts.command_port,
+                        ),
+                    };
+                    opts.server = Some(ip);
+                    opts.command_port = port;
+                    opts.transport = match (unicast, multicast) {
+                        (true, _) => Some(treemocap::source::natnet::Transport::Unicast),
+                        (_, true) => Some(treemocap::source::natnet::Transport::Multicast),
+                        _ => None,
+                    };
+                    if let Some(v) = natnet_version {
+                        opts.bitstream = Some(
+                            v.parse()
+                                .map_err(|e| Error::config("--natnet-version", e))?,
+                        );
+                    }
+                    Arc::new(NatNetSource(opts))
                 }
                 (None, None) => return Err(Error::config("record", "give --osc or --natnet")),
             };
@@ -204,5 +269,65 @@ fn run(command: Command) -> Result<()> {
             println!("wrote {}", summary.out.display());
             Ok(())
         }
+        Command::Serve {
+            file,
+            natnet_version,
+            speed,
+            looping,
+            multicast,
+            unicast: _,
+            bind,
+            command_port,
+            data_port,
+            group,
+            interface,
+            now,
+        } => {
+            use treemocap::source::natnet::server;
+            let opts = server::ServeOptions {
+                version: natnet_version,
+                speed,
+                looping,
+                transport: if multicast {
+                    server::Transport::Multicast
+                } else {
+                    server::Transport::Unicast
+                },
+                bind,
+                command_port,
+                data_port,
+                multicast_group: group,
+                multicast_interface: interface,
+                wait_for_client: !now,
+                ..Default::default()
+            };
+            let report =
+                with_ctrl_c(|shutdown| async move { server::serve(&file, &opts, shutdown).await })?;
+            eprintln!(
+                "served {} frames ({} loops) to {} clients in {:.1} s",
+                report.frames, report.loops, report.clients, report.elapsed_s
+            );
+            Ok(())
+        }
     }
+}
+
+/// Runs an async library call on a tokio runtime until it returns or Ctrl-C
+/// (which it sees as its shutdown signal turning true).
+fn with_ctrl_c<T, F, Fut>(f: F) -> Result<T>
+where
+    F: FnOnce(tokio::sync::watch::Receiver<bool>) -> Fut,
+    Fut: std::future::Future<Output = Result<T>>,
+{
+    let rt = tokio::runtime::Runtime::new()
+        .map_err(|e| Error::Runtime(format!("cannot start the async runtime: {e}")))?;
+    rt.block_on(async move {
+        let (tx, rx) = tokio::sync::watch::channel(false);
+        tokio::spawn(async move {
+            if tokio::signal::ctrl_c().await.is_ok() {
+                let _ = tx.send(true);
+            }
+        });
+        f(rx).await
+    })
 }

@@ -63,8 +63,9 @@ pub trait LiveSource: Send + Sync {
     /// The nominal frame rate if the source knows it by now (asked when the
     /// first frame arrives; NatNet learns it from the server).
     fn frame_rate(&self) -> Option<f64>;
-    /// Input rejected or lost so far, by kind: the kinds of
-    /// [`SourceReport::rejected`] plus `dropped` (frames the sink dropped).
+    /// Input rejected or lost so far, by kind (the kinds of
+    /// [`SourceReport::rejected`]); frames the sink dropped are counted by
+    /// whoever owns the channel.
     fn losses(&self) -> Vec<(String, u64)>;
     /// Starts the source; the future returns when `shutdown` turns true or
     /// the sink's receiver is gone.

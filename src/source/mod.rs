@@ -4,6 +4,7 @@
 pub mod allow;
 pub mod channel;
 pub mod live;
+pub mod natnet;
 pub mod osc;
 pub mod record;
 pub mod replay;

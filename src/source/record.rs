@@ -143,6 +143,9 @@ pub async fn record(
     // written when the first frame tells the source's frame rate.
     std::fs::File::create(&opts.out).map_err(|e| Error::io(&opts.out, e))?;
     let (sink, rx) = frame_channel(opts.queue_frames);
+    // Reads the sink's drop counter while the source runs; dropped as soon
+    // as the source stops, so the writer then sees the channel close.
+    let probe = sink.clone();
     let (stop_tx, stop_rx) = watch::channel(false);
     let started = Instant::now();
     let mut src = tokio::spawn(source.start(sink, stop_rx));
@@ -188,9 +191,10 @@ pub async fn record(
                 }
                 if Instant::now() >= next_progress {
                     next_progress += opts.progress_interval;
-                    on_event(RecordEvent::Progress(
-                        stats.progress(started.elapsed().as_secs_f64(), source.losses()),
-                    ));
+                    on_event(RecordEvent::Progress(stats.progress(
+                        started.elapsed().as_secs_f64(),
+                        losses(source.as_ref(), probe.dropped()),
+                    )));
                 }
             }
         }
@@ -203,6 +207,8 @@ pub async fn record(
         None => src.await,
     }
     .map_err(|e| Error::Runtime(format!("the source task failed: {e}")));
+    let dropped = probe.dropped();
+    drop(probe);
     let written = match writer_done {
         Some(r) => r,
         None => writer.await,
@@ -221,12 +227,22 @@ pub async fn record(
             return Err(e);
         }
     };
-    let progress = stats.progress(started.elapsed().as_secs_f64(), source.losses());
+    let progress = stats.progress(
+        started.elapsed().as_secs_f64(),
+        losses(source.as_ref(), dropped),
+    );
     Ok(RecordSummary {
         out: opts.out.clone(),
         progress,
         source: report,
     })
+}
+
+/// The source's losses plus the frames the channel dropped.
+fn losses(source: &dyn LiveSource, dropped: u64) -> Vec<(String, u64)> {
+    let mut l = source.losses();
+    l.push(("dropped".into(), dropped));
+    l
 }
 
 /// One console line: "12.0 s  1440 frames (last 1439, 30 markers)  missed 0  restarts 0  dropped 0 …".

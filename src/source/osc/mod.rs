@@ -331,10 +331,7 @@ impl LiveSource for OscSource {
     }
 
     fn losses(&self) -> Vec<(String, u64)> {
-        let counts = self.0.stats.snapshot();
-        let mut losses = counts.rejected();
-        losses.push(("dropped".into(), counts.dropped));
-        losses
+        self.0.stats.snapshot().rejected()
     }
 
     fn start(&self, sink: FrameSink, shutdown: watch::Receiver<bool>) -> SourceFuture {
