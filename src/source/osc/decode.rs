@@ -118,6 +118,9 @@ pub struct Output {
     pub problems: Vec<Problem>,
     /// Well-formed messages at addresses we do not use (rigid bodies, …).
     pub ignored: u64,
+    /// Of those, `/othermarker…` messages (taken only with `othermarkers`
+    /// on), so the source can tell a user who forgot to turn it on.
+    pub ignored_othermarkers: u64,
 }
 
 /// A frame being collected (an open bracket or a bundle).
@@ -179,7 +182,7 @@ impl Assembler {
                     && !is_frame_message(&m.addr)
                     && !self.is_marker_address(&m.addr)
                 {
-                    out.ignored += 1;
+                    self.ignore(&m.addr, out);
                     return;
                 }
                 // A marker outside any bracket is one whose /frame/start was
@@ -248,6 +251,13 @@ impl Assembler {
                     self.message(m, frame, false, now_s, out);
                 }
             }
+        }
+    }
+
+    fn ignore(&self, addr: &str, out: &mut Output) {
+        out.ignored += 1;
+        if addr.starts_with("/othermarker") {
+            out.ignored_othermarkers += 1;
         }
     }
 
@@ -353,7 +363,7 @@ impl Assembler {
             }
             addr => {
                 let Some(kind) = marker_kind(addr, self.opts.othermarkers) else {
-                    out.ignored += 1;
+                    self.ignore(addr, out);
                     return false;
                 };
                 match self.marker(m, kind) {
@@ -835,7 +845,7 @@ mod tests {
         let mut a = Assembler::new(DecodeOptions::default());
         let out = feed(&mut a, &m, 0.0);
         assert!(out.frames[0].markers.is_empty());
-        assert_eq!(out.ignored, 2);
+        assert_eq!((out.ignored, out.ignored_othermarkers), (2, 2));
         let mut a = Assembler::new(DecodeOptions {
             othermarkers: true,
             ..DecodeOptions::default()

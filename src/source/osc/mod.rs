@@ -115,6 +115,8 @@ pub struct OscStats {
     pub ignored: AtomicU64,
     /// Frames the sink dropped because its consumer fell behind.
     pub dropped: AtomicU64,
+    /// `/othermarker…` messages ignored (part of `ignored`; warned about once).
+    pub othermarkers_ignored: AtomicU64,
     /// The address actually bound (port 0 resolved), once listening.
     local_addr: Mutex<Option<SocketAddr>>,
 }
@@ -280,6 +282,19 @@ fn deliver(out: &mut Output, sink: &FrameSink, stats: &OscStats, from: SocketAdd
     stats
         .ignored
         .fetch_add(std::mem::take(&mut out.ignored), Ordering::Relaxed);
+    let others = std::mem::take(&mut out.ignored_othermarkers);
+    if others > 0
+        && stats
+            .othermarkers_ignored
+            .fetch_add(others, Ordering::Relaxed)
+            == 0
+    {
+        tracing::warn!(
+            "osc: {from} sends /othermarker messages, which are ignored; \
+             set osc.othermarkers = true to track them (and turn off /marker in the \
+             bridge, or markers are doubled)"
+        );
+    }
     for p in out.problems.drain(..) {
         let n = stats
             .problem_counter(p.kind)
