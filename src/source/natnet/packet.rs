@@ -1233,7 +1233,7 @@ fn decode_description(r: &mut Rd, v: Version, kind: i32) -> DResult<Description>
             for _ in 0..n {
                 rigid_bodies.push(decode_rb_description(r, v)?);
             }
-            let n = r.count("asset marker count", 27)?;
+            let n = r.count("asset marker count", 23)?;
             let mut markers = Vec::with_capacity(n);
             for _ in 0..n {
                 markers.push(AssetMarkerDescription {
