@@ -323,3 +323,69 @@ fn client_reconnects_after_the_server_restarts() {
         check_session(Version::new(3, 1), &sent, &got[sent.len()..]);
     });
 }
+
+/// Multicast needs a multicast route, and must never go out on a shared
+/// network: so this runs in a private network namespace (`unshare -n`, with
+/// loopback up and 224.0.0.0/4 routed to it, spec §10), re-running this test
+/// binary inside it. Where no namespace can be created it says so and passes.
+#[test]
+fn multicast_inside_a_private_network_namespace() {
+    if std::env::var_os("TREEMOCAP_IN_NETNS").is_some() {
+        multicast_session();
+        return;
+    }
+    let can = std::process::Command::new("unshare")
+        .args(["-n", "true"])
+        .status()
+        .is_ok_and(|s| s.success());
+    if !can {
+        eprintln!("SKIPPED: cannot create a network namespace (unshare -n); multicast not tested");
+        return;
+    }
+    let exe = std::env::current_exe().unwrap();
+    let out = std::process::Command::new("unshare")
+        .args([
+            "-n",
+            "sh",
+            "-c",
+            "ip link set lo up && ip link set lo multicast on && ip route add 224.0.0.0/4 dev lo && exec \"$0\" multicast_inside_a_private_network_namespace --exact --nocapture",
+        ])
+        .arg(&exe)
+        .env("TREEMOCAP_IN_NETNS", "1")
+        .output()
+        .unwrap();
+    let text = format!("{}{}", String::from_utf8_lossy(&out.stdout), String::from_utf8_lossy(&out.stderr));
+    assert!(out.status.success() && text.contains("1 passed"), "{text}");
+}
+
+fn multicast_session() {
+    let dir = tempfile::tempdir().unwrap();
+    let (path, sent) = session(dir.path(), 11, 80, 30, 100.0);
+    let rt = runtime();
+    rt.block_on(async {
+        // Default ports and group, as Motive: nothing else lives in here.
+        for version in [Version::new(2, 9), Version::new(3, 1), Version::new(4, 1)] {
+            let stats = Arc::new(ServerStats::default());
+            let (server, _stop) = start_server(
+                path.clone(),
+                ServeOptions {
+                    version,
+                    speed: 4.0,
+                    transport: Transport::Multicast,
+                    stats: stats.clone(),
+                    ..Default::default()
+                },
+            );
+            command_port(&stats).await;
+            // 2.x SERVERINFO does not say multicast: the client listens on both.
+            let opts = NatNetOptions {
+                local: "127.0.0.1".parse().unwrap(),
+                ..Default::default()
+            };
+            let (report, got) = collect(opts, sent.len(), Duration::from_secs(20)).await;
+            report.unwrap();
+            check_session(version, &sent, &got);
+            server.await.unwrap().unwrap();
+        }
+    });
+}
