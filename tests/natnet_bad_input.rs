@@ -28,10 +28,18 @@ fn good_frame(n: i32) -> Vec<u8> {
 
 #[test]
 fn bad_datagrams_are_counted_and_the_client_carries_on() {
-    let rt = tokio::runtime::Builder::new_multi_thread().worker_threads(2).enable_all().build().unwrap();
+    let rt = tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .enable_all()
+        .build()
+        .unwrap();
     rt.block_on(async {
         let server = UdpSocket::bind("127.0.0.1:0").await.unwrap();
-        let data_port = std::net::UdpSocket::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port();
+        let data_port = std::net::UdpSocket::bind("127.0.0.1:0")
+            .unwrap()
+            .local_addr()
+            .unwrap()
+            .port();
         let opts = NatNetOptions {
             command_port: server.local_addr().unwrap().port(),
             // Multicast so that there is a data channel; the fake server
@@ -48,18 +56,39 @@ fn bad_datagrams_are_counted_and_the_client_carries_on() {
 
         let mut buf = [0u8; 2048];
         let (n, from) = server.recv_from(&mut buf).await.unwrap();
-        assert!(matches!(decode(&buf[..n], Version::new(3, 1)), Ok(Packet::Connect(_))));
+        assert!(matches!(
+            decode(&buf[..n], Version::new(3, 1)),
+            Ok(Packet::Connect(_))
+        ));
         let info = ServerInfo {
-            sender: Sender { name: "fake".into(), version: [1, 0, 0, 0], natnet_version: [3, 1, 0, 0] },
-            connection: Some(ServerConnection { clock_frequency: 1_000_000, data_port, multicast: true, multicast_group: [239, 255, 42, 99] }),
+            sender: Sender {
+                name: "fake".into(),
+                version: [1, 0, 0, 0],
+                natnet_version: [3, 1, 0, 0],
+            },
+            connection: Some(ServerConnection {
+                clock_frequency: 1_000_000,
+                data_port,
+                multicast: true,
+                multicast_group: [239, 255, 42, 99],
+            }),
         };
-        server.send_to(&encode(&Packet::ServerInfo(info.clone()), Version::new(3, 1)).unwrap(), from).await.unwrap();
+        server
+            .send_to(
+                &encode(&Packet::ServerInfo(info.clone()), Version::new(3, 1)).unwrap(),
+                from,
+            )
+            .await
+            .unwrap();
         tokio::time::sleep(Duration::from_millis(200)).await;
 
         let data = ("127.0.0.1", data_port);
         let frame = good_frame(1);
         // Truncated datagram.
-        server.send_to(&frame[..frame.len() - 9], data).await.unwrap();
+        server
+            .send_to(&frame[..frame.len() - 9], data)
+            .await
+            .unwrap();
         // nDataBytes says less than the content.
         let mut short = frame.clone();
         let n = (frame.len() - 4 - 6) as u16;
@@ -73,7 +102,13 @@ fn bad_datagrams_are_counted_and_the_client_carries_on() {
         // An unknown message id.
         server.send_to(&[77, 0, 2, 0, 1, 2], data).await.unwrap();
         // A SERVERINFO on the data channel (Motive 1.x does this).
-        server.send_to(&encode(&Packet::ServerInfo(info), Version::new(2, 9)).unwrap(), data).await.unwrap();
+        server
+            .send_to(
+                &encode(&Packet::ServerInfo(info), Version::new(2, 9)).unwrap(),
+                data,
+            )
+            .await
+            .unwrap();
         // Good frames afterwards.
         for k in 2..5 {
             server.send_to(&good_frame(k), data).await.unwrap();
@@ -88,7 +123,10 @@ fn bad_datagrams_are_counted_and_the_client_carries_on() {
         }
         let _ = stop.send(true);
         client.await.unwrap().unwrap();
-        assert_eq!(got.iter().map(|f| f.frame).collect::<Vec<_>>(), vec![2, 3, 4]);
+        assert_eq!(
+            got.iter().map(|f| f.frame).collect::<Vec<_>>(),
+            vec![2, 3, 4]
+        );
         assert_eq!(got[0].markers[0].position.y, 1.5);
         assert_eq!(stats.incomplete.load(Ordering::Relaxed), 2);
         assert_eq!(stats.invalid.load(Ordering::Relaxed), 1);

@@ -23,7 +23,9 @@ fn i(r: &mut Rng) -> i32 {
 }
 fn name(r: &mut Rng) -> String {
     let n = r.int(0, 12) as usize;
-    (0..n).map(|_| (b'a' + r.int(0, 25) as u8) as char).collect()
+    (0..n)
+        .map(|_| (b'a' + r.int(0, 25) as u8) as char)
+        .collect()
 }
 fn list<T>(r: &mut Rng, max: i64, mut g: impl FnMut(&mut Rng) -> T) -> Vec<T> {
     let n = r.int(0, max) as usize;
@@ -181,7 +183,14 @@ fn modeldef(r: &mut Rng) -> ModelDef {
 
 fn all_versions() -> Vec<Version> {
     let mut v = SUPPORTED_VERSIONS.to_vec();
-    v.extend([Version::new(2, 0), Version::new(2, 1), Version::new(2, 3), Version::new(2, 8), Version::new(2, 10), Version::new(4, 4)]);
+    v.extend([
+        Version::new(2, 0),
+        Version::new(2, 1),
+        Version::new(2, 3),
+        Version::new(2, 8),
+        Version::new(2, 10),
+        Version::new(4, 4),
+    ]);
     v
 }
 
@@ -359,15 +368,29 @@ fn server_info_3_0_as_motive_2_1_sends_it() {
         .raw(&[1, 239, 255, 42, 99])
         .packet(1);
     assert_eq!(p.len(), 4 + 279);
-    let Packet::ServerInfo(s) = decode(&p, Version::new(3, 0)).unwrap() else { panic!() };
+    let Packet::ServerInfo(s) = decode(&p, Version::new(3, 0)).unwrap() else {
+        panic!()
+    };
     assert_eq!(s.sender.name, "Motive");
     assert_eq!(s.sender.natnet(), Version::new(3, 0));
     let c = s.connection.unwrap();
-    assert_eq!((c.clock_frequency, c.data_port, c.multicast, c.multicast_group), (3_312_787, 1511, true, [239, 255, 42, 99]));
+    assert_eq!(
+        (
+            c.clock_frequency,
+            c.data_port,
+            c.multicast,
+            c.multicast_group
+        ),
+        (3_312_787, 1511, true, [239, 255, 42, 99])
+    );
     // The 2.x ping response is 264 bytes (268 with the header).
-    let p = B::default().raw(&sender_bytes("NatNetLib", [2, 7, 0, 0], [2, 7, 0, 0])).packet(1);
+    let p = B::default()
+        .raw(&sender_bytes("NatNetLib", [2, 7, 0, 0], [2, 7, 0, 0]))
+        .packet(1);
     assert_eq!(p.len(), 268);
-    let Packet::ServerInfo(s) = decode(&p, Version::new(2, 7)).unwrap() else { panic!() };
+    let Packet::ServerInfo(s) = decode(&p, Version::new(2, 7)).unwrap() else {
+        panic!()
+    };
     assert_eq!((s.sender.name.as_str(), s.connection), ("NatNetLib", None));
 }
 
@@ -375,32 +398,65 @@ fn server_info_3_0_as_motive_2_1_sends_it() {
 fn connect_payloads_seen_in_the_wild() {
     let v = Version::new(3, 1);
     // SDK 2.x PacketClient: empty ping.
-    assert_eq!(decode(&B::default().packet(0), v).unwrap(), Packet::Connect(Connect::Empty));
+    assert_eq!(
+        decode(&B::default().packet(0), v).unwrap(),
+        Packet::Connect(Connect::Empty)
+    );
     // PyPI natnet 0.3.0: "Ping\0", nDataBytes 5.
     assert_eq!(
         decode(&B::default().raw(b"Ping\0").packet(0), v).unwrap(),
         Packet::Connect(Connect::Text("Ping".into()))
     );
     // NatNetLib 3.0: sSender only (264).
-    let p = B::default().raw(&sender_bytes("NatNetLib", [3, 0, 0, 0], [3, 0, 0, 0])).packet(0);
-    let Packet::Connect(c) = decode(&p, v).unwrap() else { panic!() };
+    let p = B::default()
+        .raw(&sender_bytes("NatNetLib", [3, 0, 0, 0], [3, 0, 0, 0]))
+        .packet(0);
+    let Packet::Connect(c) = decode(&p, v).unwrap() else {
+        panic!()
+    };
     assert!(matches!(c, Connect::Sender { options: None, .. }));
     // OptiTrack Python 4.1.1: "Ping" in the name, then 00 04 01 00 00 00 00 (271).
-    let p = B::default().raw(&sender_bytes("Ping", [0; 4], [0; 4])).raw(&[0, 4, 1, 0, 0, 0, 0]).packet(0);
-    let Packet::Connect(c) = decode(&p, v).unwrap() else { panic!() };
+    let p = B::default()
+        .raw(&sender_bytes("Ping", [0; 4], [0; 4]))
+        .raw(&[0, 4, 1, 0, 0, 0, 0])
+        .packet(0);
+    let Packet::Connect(c) = decode(&p, v).unwrap() else {
+        panic!()
+    };
     assert_eq!(c.requested_bitstream(), Some(Version::new(4, 1)));
     // SDK 4.x PacketClient: zeros + options + 4 spare (273).
-    let p = B::default().raw(&[0u8; 264]).raw(&[0, 0, 0, 0, 0]).raw(&[0; 4]).packet(0);
-    let Packet::Connect(c) = decode(&p, v).unwrap() else { panic!() };
+    let p = B::default()
+        .raw(&[0u8; 264])
+        .raw(&[0, 0, 0, 0, 0])
+        .raw(&[0; 4])
+        .packet(0);
+    let Packet::Connect(c) = decode(&p, v).unwrap() else {
+        panic!()
+    };
     assert_eq!(c.requested_bitstream(), None);
     // libNatNet 4.4: sSender + options (269).
-    let p = B::default().raw(&sender_bytes("NatNetLib", [4, 4, 0, 0], [4, 4, 0, 0])).raw(&[1, 4, 4, 0, 0]).packet(0);
-    assert!(matches!(decode(&p, v).unwrap(), Packet::Connect(Connect::Sender { options: Some(ConnectionOptions { subscribed_data_only: true, .. }), .. })));
+    let p = B::default()
+        .raw(&sender_bytes("NatNetLib", [4, 4, 0, 0], [4, 4, 0, 0]))
+        .raw(&[1, 4, 4, 0, 0])
+        .packet(0);
+    assert!(matches!(
+        decode(&p, v).unwrap(),
+        Packet::Connect(Connect::Sender {
+            options: Some(ConnectionOptions {
+                subscribed_data_only: true,
+                ..
+            }),
+            ..
+        })
+    ));
     // Keep-alives: PY 4.1.1 sends 0a 00 00 00 00 (nDataBytes 0 + a stray NUL),
     // PyPI natnet 0a 00 01 00 00.
     assert_eq!(decode(&[10, 0, 0, 0, 0], v).unwrap(), Packet::KeepAlive);
     assert_eq!(decode(&[10, 0, 1, 0, 0], v).unwrap(), Packet::KeepAlive);
-    assert_eq!(decode(&[4, 0, 0, 0, 0], v).unwrap(), Packet::RequestModelDef);
+    assert_eq!(
+        decode(&[4, 0, 0, 0, 0], v).unwrap(),
+        Packet::RequestModelDef
+    );
 }
 
 /// A 3.0 frame as in `mocapframe_packet_v3.bin` (spec §5): one unlabeled
@@ -412,30 +468,53 @@ fn frame_3_0_built_from_the_layout() {
         .i32(1) // marker sets
         .raw(b"all\0")
         .i32(1)
-        .f32(0.1).f32(0.2).f32(0.3)
+        .f32(0.1)
+        .f32(0.2)
+        .f32(0.3)
         .i32(0) // other markers
         .i32(1) // rigid bodies
-        .i32(2).f32(1.0).f32(2.0).f32(3.0).f32(0.0).f32(0.0).f32(0.0).f32(1.0)
+        .i32(2)
+        .f32(1.0)
+        .f32(2.0)
+        .f32(3.0)
+        .f32(0.0)
+        .f32(0.0)
+        .f32(0.0)
+        .f32(1.0)
         .f32(0.0005) // mean error
         .i16(1) // params: tracking valid
         .i32(0) // skeletons
         .i32(1) // labeled markers
-        .i32(50007).f32(0.5).f32(1.5).f32(-0.25).f32(0.014).i16(0x12).f32(0.0002)
+        .i32(50007)
+        .f32(0.5)
+        .f32(1.5)
+        .f32(-0.25)
+        .f32(0.014)
+        .i16(0x12)
+        .f32(0.0002)
         .i32(0) // force plates
         .i32(0) // devices
-        .u32(0x0102_0304).u32(0) // timecode
+        .u32(0x0102_0304)
+        .u32(0) // timecode
         .f64(12.345) // timestamp
-        .u64(1000).u64(1500).u64(4312) // hi-res stamps
+        .u64(1000)
+        .u64(1500)
+        .u64(4312) // hi-res stamps
         .i16(0x01) // frame params
         .i32(0) // eod
         .packet(7);
-    let Packet::FrameOfData(f) = decode(&p, Version::new(3, 0)).unwrap() else { panic!() };
+    let Packet::FrameOfData(f) = decode(&p, Version::new(3, 0)).unwrap() else {
+        panic!()
+    };
     assert_eq!(f.frame_number, 1234);
     assert_eq!(f.marker_sets[0].name, "all");
     assert_eq!(f.rigid_bodies[0].id, 2);
     assert_eq!(f.rigid_bodies[0].params, 1);
     let m = f.labeled_markers[0];
-    assert_eq!((m.model_id(), m.marker_id(), m.is_unlabeled()), (0, 50007, true));
+    assert_eq!(
+        (m.model_id(), m.marker_id(), m.is_unlabeled()),
+        (0, 50007, true)
+    );
     assert_eq!(m.position, [0.5, 1.5, -0.25]);
     assert_eq!(f.timestamp, 12.345);
     assert_eq!((f.camera_mid_exposure, f.transmit), (1000, 4312));
@@ -458,51 +537,123 @@ fn frames_2_5_and_2_6_built_from_the_layout() {
         let b = b
             .i32(77)
             .i32(0) // marker sets
-            .i32(2).f32(1.0).f32(2.0).f32(3.0).f32(4.0).f32(5.0).f32(6.0) // other markers
+            .i32(2)
+            .f32(1.0)
+            .f32(2.0)
+            .f32(3.0)
+            .f32(4.0)
+            .f32(5.0)
+            .f32(6.0) // other markers
             .i32(1) // one rigid body with 1 marker
-            .i32(1).f32(0.0).f32(0.0).f32(0.0).f32(0.0).f32(0.0).f32(0.0).f32(1.0)
-            .i32(1).f32(7.0).f32(8.0).f32(9.0).i32(3).f32(0.02)
+            .i32(1)
+            .f32(0.0)
+            .f32(0.0)
+            .f32(0.0)
+            .f32(0.0)
+            .f32(0.0)
+            .f32(0.0)
+            .f32(1.0)
+            .i32(1)
+            .f32(7.0)
+            .f32(8.0)
+            .f32(9.0)
+            .i32(3)
+            .f32(0.02)
             .f32(0.001);
         let b = if with_params { b.i16(1) } else { b };
         let b = b.i32(0); // skeletons
         let b = b.i32(1).i32(3).f32(7.0).f32(8.0).f32(9.0).f32(0.02); // labeled
-        if with_params { b.i16(0x04) } else { b }
+        if with_params {
+            b.i16(0x04)
+        } else {
+            b
+        }
     };
-    let p25 = body(B::default(), false).f32(4.5).u32(0).u32(0).i32(0).packet(7);
-    let Packet::FrameOfData(f) = decode(&p25, Version::new(2, 5)).unwrap() else { panic!() };
+    let p25 = body(B::default(), false)
+        .f32(4.5)
+        .u32(0)
+        .u32(0)
+        .i32(0)
+        .packet(7);
+    let Packet::FrameOfData(f) = decode(&p25, Version::new(2, 5)).unwrap() else {
+        panic!()
+    };
     assert_eq!(f.other_markers, vec![[1.0, 2.0, 3.0], [4.0, 5.0, 6.0]]);
     assert_eq!(f.rigid_bodies[0].markers[0].id, 3);
     assert_eq!(f.software_latency, 4.5);
     assert_eq!(f.labeled_markers[0].id, 3);
-    let p26 = body(B::default(), true).f32(4.5).u32(0).u32(0).f32(2.5).i16(0).i32(0).packet(7);
-    let Packet::FrameOfData(f) = decode(&p26, Version::new(2, 6)).unwrap() else { panic!() };
+    let p26 = body(B::default(), true)
+        .f32(4.5)
+        .u32(0)
+        .u32(0)
+        .f32(2.5)
+        .i16(0)
+        .i32(0)
+        .packet(7);
+    let Packet::FrameOfData(f) = decode(&p26, Version::new(2, 6)).unwrap() else {
+        panic!()
+    };
     assert_eq!((f.timestamp, f.labeled_markers[0].params), (2.5, 0x04));
-    assert_eq!(encode(&Packet::FrameOfData(f), Version::new(2, 6)).unwrap(), p26);
+    assert_eq!(
+        encode(&Packet::FrameOfData(f), Version::new(2, 6)).unwrap(),
+        p26
+    );
 }
 
 /// 4.1: section sizes, assets, precision timestamps.
 #[test]
 fn frame_4_1_built_from_the_layout() {
-    let labeled = B::default().i32(5).f32(1.0).f32(2.0).f32(3.0).f32(0.01).i16(0x10).f32(0.0).0;
+    let labeled = B::default()
+        .i32(5)
+        .f32(1.0)
+        .f32(2.0)
+        .f32(3.0)
+        .f32(0.01)
+        .i16(0x10)
+        .f32(0.0)
+        .0;
     let p = B::default()
         .i32(9)
-        .i32(0).u32(0) // marker sets + size
-        .i32(0).u32(0) // other markers
-        .i32(0).u32(0) // rigid bodies
-        .i32(0).u32(0) // skeletons
-        .i32(0).u32(0) // assets
-        .i32(1).u32(labeled.len() as u32).raw(&labeled)
-        .i32(0).u32(0) // force plates
-        .i32(0).u32(0) // devices
-        .u32(0).u32(0).f64(1.0)
-        .u64(1).u64(2).u64(3)
-        .u32(1_700_000_000).u32(42) // precision timestamp
-        .i16(0).i32(0)
+        .i32(0)
+        .u32(0) // marker sets + size
+        .i32(0)
+        .u32(0) // other markers
+        .i32(0)
+        .u32(0) // rigid bodies
+        .i32(0)
+        .u32(0) // skeletons
+        .i32(0)
+        .u32(0) // assets
+        .i32(1)
+        .u32(labeled.len() as u32)
+        .raw(&labeled)
+        .i32(0)
+        .u32(0) // force plates
+        .i32(0)
+        .u32(0) // devices
+        .u32(0)
+        .u32(0)
+        .f64(1.0)
+        .u64(1)
+        .u64(2)
+        .u64(3)
+        .u32(1_700_000_000)
+        .u32(42) // precision timestamp
+        .i16(0)
+        .i32(0)
         .packet(7);
-    let Packet::FrameOfData(f) = decode(&p, Version::new(4, 1)).unwrap() else { panic!() };
+    let Packet::FrameOfData(f) = decode(&p, Version::new(4, 1)).unwrap() else {
+        panic!()
+    };
     assert_eq!(f.labeled_markers.len(), 1);
-    assert_eq!((f.precision_seconds, f.precision_fraction), (1_700_000_000, 42));
-    assert_eq!(encode(&Packet::FrameOfData(f), Version::new(4, 1)).unwrap(), p);
+    assert_eq!(
+        (f.precision_seconds, f.precision_fraction),
+        (1_700_000_000, 42)
+    );
+    assert_eq!(
+        encode(&Packet::FrameOfData(f), Version::new(4, 1)).unwrap(),
+        p
+    );
     // Later 4.x versions decode the same layout.
     assert!(decode(&p, Version::new(4, 3)).is_ok());
 }
@@ -514,7 +665,13 @@ fn frame_4_1_built_from_the_layout() {
 fn sample_frame(v: Version) -> Vec<u8> {
     let mut r = Rng::new(99);
     let mut fr = frame(&mut r);
-    fr.labeled_markers = (0..5).map(|k| LabeledMarker { id: k, position: [1.0, 2.0, 3.0], ..Default::default() }).collect();
+    fr.labeled_markers = (0..5)
+        .map(|k| LabeledMarker {
+            id: k,
+            position: [1.0, 2.0, 3.0],
+            ..Default::default()
+        })
+        .collect();
     encode(&Packet::FrameOfData(Box::new(fr)), v).unwrap()
 }
 
@@ -539,7 +696,10 @@ fn header_byte_count_disagreeing_with_content_names_the_field() {
     let n = u16::from_le_bytes([p[2], p[3]]);
     p[2..4].copy_from_slice(&(n + 10).to_le_bytes());
     let e = decode(&p, v).unwrap_err();
-    assert_eq!((e.kind, e.field, e.offset), (DecodeErrorKind::Incomplete, "nDataBytes", 2));
+    assert_eq!(
+        (e.kind, e.field, e.offset),
+        (DecodeErrorKind::Incomplete, "nDataBytes", 2)
+    );
     assert!(e.message.contains("FRAMEOFDATA"));
     // nDataBytes smaller: the payload ends inside a field.
     p[2..4].copy_from_slice(&(n - 7).to_le_bytes());
@@ -568,11 +728,17 @@ fn counts_that_overflow_the_packet_are_invalid_and_allocate_nothing() {
         .raw(&[0; 40])
         .packet(7);
     let e = decode(&p, v).unwrap_err();
-    assert_eq!((e.kind, e.field), (DecodeErrorKind::Invalid, "labeled marker count"));
+    assert_eq!(
+        (e.kind, e.field),
+        (DecodeErrorKind::Invalid, "labeled marker count")
+    );
     assert_eq!(e.offset, 4 + 20);
     let p = B::default().i32(1).i32(-3).raw(&[0; 40]).packet(7);
     let e = decode(&p, v).unwrap_err();
-    assert_eq!((e.kind, e.field), (DecodeErrorKind::Invalid, "marker set count"));
+    assert_eq!(
+        (e.kind, e.field),
+        (DecodeErrorKind::Invalid, "marker set count")
+    );
     assert!(e.detail.contains("negative"));
 }
 
@@ -584,19 +750,28 @@ fn wrong_section_size_and_eod_tag_are_invalid() {
     let sz = u32::from_le_bytes(p[12..16].try_into().unwrap());
     p[12..16].copy_from_slice(&(sz + 1).to_le_bytes());
     let e = decode(&p, v).unwrap_err();
-    assert_eq!((e.kind, e.field, e.offset), (DecodeErrorKind::Invalid, "marker set section size", 12));
+    assert_eq!(
+        (e.kind, e.field, e.offset),
+        (DecodeErrorKind::Invalid, "marker set section size", 12)
+    );
     let mut p = sample_frame(Version::new(3, 1));
     let n = p.len();
     p[n - 4] = 1;
     let e = decode(&p, Version::new(3, 1)).unwrap_err();
-    assert_eq!((e.kind, e.field), (DecodeErrorKind::Invalid, "end of data tag"));
+    assert_eq!(
+        (e.kind, e.field),
+        (DecodeErrorKind::Invalid, "end of data tag")
+    );
 }
 
 #[test]
 fn unknown_ids_and_malformed_server_info() {
     let v = Version::new(3, 1);
     let e = decode(&B::default().raw(&[1, 2, 3]).packet(77), v).unwrap_err();
-    assert_eq!((e.kind, e.field), (DecodeErrorKind::UnknownMessage, "iMessage"));
+    assert_eq!(
+        (e.kind, e.field),
+        (DecodeErrorKind::UnknownMessage, "iMessage")
+    );
     let e = decode(&B::default().raw(&[0; 270]).packet(1), v).unwrap_err();
     assert_eq!(e.kind, DecodeErrorKind::Invalid);
     assert!(e.detail.contains("264") && e.detail.contains("279"), "{e}");
@@ -620,10 +795,23 @@ fn seeded_mutations_never_panic() {
     let mut seeds: Vec<(Version, Vec<u8>)> = Vec::new();
     for v in all_versions() {
         let mut r = rng.fork(v.major as u64 * 100 + v.minor as u64);
-        seeds.push((v, encode(&Packet::FrameOfData(Box::new(frame(&mut r))), v).unwrap()));
-        seeds.push((v, encode(&Packet::ModelDef(modeldef(&mut r).restricted_to(v)), v).unwrap()));
+        seeds.push((
+            v,
+            encode(&Packet::FrameOfData(Box::new(frame(&mut r))), v).unwrap(),
+        ));
+        seeds.push((
+            v,
+            encode(&Packet::ModelDef(modeldef(&mut r).restricted_to(v)), v).unwrap(),
+        ));
     }
-    seeds.push((Version::new(3, 0), encode(&Packet::Connect(Connect::Text("Ping".into())), Version::new(3, 0)).unwrap()));
+    seeds.push((
+        Version::new(3, 0),
+        encode(
+            &Packet::Connect(Connect::Text("Ping".into())),
+            Version::new(3, 0),
+        )
+        .unwrap(),
+    ));
     let mut accepted = 0;
     for round in 0..60_000u64 {
         let (v, base) = &seeds[(round as usize) % seeds.len()];

@@ -42,7 +42,10 @@ fn require(module: &str) {
 }
 
 fn netns_available() -> bool {
-    Command::new("unshare").args(["-n", "true"]).status().is_ok_and(|s| s.success())
+    Command::new("unshare")
+        .args(["-n", "true"])
+        .status()
+        .is_ok_and(|s| s.success())
 }
 
 /// Runs `script` with sh, inside a fresh network namespace when possible.
@@ -64,15 +67,22 @@ fn run_script(script: &str) -> String {
         .output()
         .unwrap();
     let text = String::from_utf8_lossy(&out.stdout).into_owned();
-    assert!(out.status.success(), "{text}\n{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{text}\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     text
 }
 
+/// A frame printed in detail: its number and labeled-marker positions.
+type Detailed = (i64, Vec<[f64; 3]>);
+
 /// Frame numbers printed ("MoCap Frame: N") and, for frames printed in
 /// detail, the labeled-marker positions ("pos : [x, y, z]", 2 decimals).
-fn parse_natnetsdk(text: &str) -> (Vec<i64>, Vec<(i64, Vec<[f64; 3]>)>) {
+fn parse_natnetsdk(text: &str) -> (Vec<i64>, Vec<Detailed>) {
     let mut numbers = Vec::new();
-    let mut detailed: Vec<(i64, Vec<[f64; 3]>)> = Vec::new();
+    let mut detailed: Vec<Detailed> = Vec::new();
     for line in text.lines() {
         let t = line.trim();
         // Its main thread prints too ("Ready..."), so a line may start
@@ -83,8 +93,15 @@ fn parse_natnetsdk(text: &str) -> (Vec<i64>, Vec<(i64, Vec<[f64; 3]>)>) {
             detailed.push((n.trim().parse().unwrap(), Vec::new()));
         } else if t.starts_with("pos ") && t.contains(": [") {
             let inner = t.split(": [").nth(1).unwrap().trim_end_matches(']');
-            let v: Vec<f64> = inner.split(',').map(|x| x.trim().parse().unwrap()).collect();
-            detailed.last_mut().expect("pos inside a frame").1.push([v[0], v[1], v[2]]);
+            let v: Vec<f64> = inner
+                .split(',')
+                .map(|x| x.trim().parse().unwrap())
+                .collect();
+            detailed
+                .last_mut()
+                .expect("pos inside a frame")
+                .1
+                .push([v[0], v[1], v[2]]);
         }
     }
     (numbers, detailed)
@@ -106,11 +123,22 @@ fn optitrack_python_client_decodes_our_stream() {
             path.display()
         );
         let out = run_script(&script);
-        assert!(out.contains(&format!("NatNetVersion  {} {} 0 0", &version[..1], &version[2..])), "{out}");
+        assert!(
+            out.contains(&format!(
+                "NatNetVersion  {} {} 0 0",
+                &version[..1],
+                &version[2..]
+            )),
+            "{out}"
+        );
         let (numbers, detailed) = parse_natnetsdk(&out);
         let want: Vec<i64> = sent.iter().map(|f| f.frame).collect();
         assert_eq!(numbers, want, "bitstream {version}: frame numbers");
-        assert!(detailed.len() >= 100, "bitstream {version}: {} frames printed in detail", detailed.len());
+        assert!(
+            detailed.len() >= 100,
+            "bitstream {version}: {} frames printed in detail",
+            detailed.len()
+        );
         for (n, pos) in &detailed {
             let f: &MarkerFrame = &sent[*n as usize];
             assert_eq!(pos.len(), f.markers.len(), "bitstream {version} frame {n}");
@@ -118,7 +146,10 @@ fn optitrack_python_client_decodes_our_stream() {
                 let q = m.position;
                 for (a, b) in p.iter().zip([q.x, q.y, q.z]) {
                     // Printed with %3.2f.
-                    assert!((a - b).abs() <= 0.005 + 1e-6, "bitstream {version} frame {n}: {a} vs {b}");
+                    assert!(
+                        (a - b).abs() <= 0.005 + 1e-6,
+                        "bitstream {version} frame {n}: {a} vs {b}"
+                    );
                 }
             }
         }
@@ -130,7 +161,10 @@ fn pypi_natnet_decodes_our_stream_exactly() {
     require("natnet");
     let dir = tempfile::tempdir().unwrap();
     let (path, sent) = session(dir.path(), 22, 200, 25, 100.0);
-    let driver = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/peers/natnet_pypi_client.py");
+    let driver = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/tests/peers/natnet_pypi_client.py"
+    );
     for version in ["3.0", "3.1", "4.0"] {
         let (cp, dp) = (free_port(), free_port());
         let script = format!(
@@ -140,7 +174,9 @@ fn pypi_natnet_decodes_our_stream_exactly() {
             sent.len()
         );
         let out = run_script(&script);
-        let mut lines = out.lines().map(|l| serde_json::from_str::<serde_json::Value>(l).unwrap());
+        let mut lines = out
+            .lines()
+            .map(|l| serde_json::from_str::<serde_json::Value>(l).unwrap());
         let head = lines.next().unwrap();
         assert_eq!(head["server"], "treemocap");
         assert_eq!(head["version"], format!("{version}.0.0"));
@@ -152,9 +188,17 @@ fn pypi_natnet_decodes_our_stream_exactly() {
             let labeled = g["labeled"].as_array().unwrap();
             assert_eq!(labeled.len(), f.markers.len(), "frame {}", f.frame);
             for (p, m) in labeled.iter().zip(&f.markers) {
-                let p: Vec<u64> = p.as_array().unwrap().iter().map(|x| x.as_u64().unwrap()).collect();
+                let p: Vec<u64> = p
+                    .as_array()
+                    .unwrap()
+                    .iter()
+                    .map(|x| x.as_u64().unwrap())
+                    .collect();
                 let q = m.position;
-                let want: Vec<u64> = [q.x, q.y, q.z].iter().map(|&c| (c as f32 as f64).to_bits()).collect();
+                let want: Vec<u64> = [q.x, q.y, q.z]
+                    .iter()
+                    .map(|&c| (c as f32 as f64).to_bits())
+                    .collect();
                 assert_eq!(p, want, "frame {}", f.frame);
             }
             assert!(g["unlabeled"].as_array().unwrap().iter().all(|u| u == true));
