@@ -393,3 +393,39 @@ fn multicast_session() {
         }
     });
 }
+
+/// A shipped Motive CSV take (read by `replay::open`) served and received:
+/// every frame and marker as the reader produced them, f32 on the wire.
+#[test]
+fn a_motive_csv_take_is_served_exactly() {
+    let path =
+        std::path::PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/replays/maple-24.csv"));
+    let sent: Vec<MarkerFrame> = treemocap::source::replay::open(&path)
+        .unwrap()
+        .collect::<treemocap::Result<_>>()
+        .unwrap();
+    let rt = runtime();
+    rt.block_on(async {
+        let stats = Arc::new(ServerStats::default());
+        let (server, _stop) = start_server(
+            path.clone(),
+            ServeOptions {
+                version: Version::new(4, 1),
+                speed: 40.0,
+                bind: "127.0.0.1".parse().unwrap(),
+                command_port: 0,
+                data_port: 0,
+                stats: stats.clone(),
+                ..Default::default()
+            },
+        );
+        let opts = NatNetOptions {
+            command_port: command_port(&stats).await,
+            ..Default::default()
+        };
+        let (report, got) = collect(opts, sent.len(), Duration::from_secs(30)).await;
+        report.unwrap();
+        check_session(Version::new(4, 1), &sent, &got);
+        server.await.unwrap().unwrap();
+    });
+}
