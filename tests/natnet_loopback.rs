@@ -429,3 +429,43 @@ fn a_motive_csv_take_is_served_exactly() {
         server.await.unwrap().unwrap();
     });
 }
+
+/// Opt-in discovery: no server address, a DISCOVERY datagram (sent to
+/// 127.0.0.1 here instead of a broadcast address) finds the server.
+#[test]
+fn discovery_finds_the_server() {
+    let dir = tempfile::tempdir().unwrap();
+    let (path, sent) = session(dir.path(), 12, 20, 4, 100.0);
+    let rt = runtime();
+    rt.block_on(async {
+        let stats = Arc::new(ServerStats::default());
+        let (server, _stop) = start_server(
+            path,
+            ServeOptions {
+                bind: "127.0.0.1".parse().unwrap(),
+                command_port: 0,
+                data_port: 0,
+                stats: stats.clone(),
+                ..Default::default()
+            },
+        );
+        let opts = NatNetOptions {
+            server: None,
+            discovery: true,
+            discovery_address: "127.0.0.1".parse().unwrap(),
+            command_port: command_port(&stats).await,
+            ..Default::default()
+        };
+        let (report, got) = collect(opts, sent.len(), Duration::from_secs(10)).await;
+        assert!(report.unwrap().server.contains("treemocap"));
+        check_session(Version::new(3, 1), &sent, &got);
+        server.await.unwrap().unwrap();
+        // Without an address and without discovery the client refuses to guess.
+        let opts = NatNetOptions {
+            server: None,
+            ..Default::default()
+        };
+        let (report, _) = collect(opts, 1, Duration::from_secs(2)).await;
+        assert!(report.unwrap_err().to_string().contains("discovery"));
+    });
+}
