@@ -323,3 +323,149 @@ fn client_reconnects_after_the_server_restarts() {
         check_session(Version::new(3, 1), &sent, &got[sent.len()..]);
     });
 }
+
+/// Multicast needs a multicast route, and must never go out on a shared
+/// network: so this runs in a private network namespace (`unshare -n`, with
+/// loopback up and 224.0.0.0/4 routed to it, spec §10), re-running this test
+/// binary inside it. Where no namespace can be created it says so and passes.
+#[test]
+fn multicast_inside_a_private_network_namespace() {
+    if std::env::var_os("TREEMOCAP_IN_NETNS").is_some() {
+        multicast_session();
+        return;
+    }
+    let can = std::process::Command::new("unshare")
+        .args(["-n", "true"])
+        .status()
+        .is_ok_and(|s| s.success());
+    if !can {
+        eprintln!("SKIPPED: cannot create a network namespace (unshare -n); multicast not tested");
+        return;
+    }
+    let exe = std::env::current_exe().unwrap();
+    let out = std::process::Command::new("unshare")
+        .args([
+            "-n",
+            "sh",
+            "-c",
+            "ip link set lo up && ip link set lo multicast on && ip route add 224.0.0.0/4 dev lo && exec \"$0\" multicast_inside_a_private_network_namespace --exact --nocapture",
+        ])
+        .arg(&exe)
+        .env("TREEMOCAP_IN_NETNS", "1")
+        .output()
+        .unwrap();
+    let text = format!(
+        "{}{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(out.status.success() && text.contains("1 passed"), "{text}");
+}
+
+fn multicast_session() {
+    let dir = tempfile::tempdir().unwrap();
+    let (path, sent) = session(dir.path(), 11, 80, 30, 100.0);
+    let rt = runtime();
+    rt.block_on(async {
+        // Default ports and group, as Motive: nothing else lives in here.
+        for version in [Version::new(2, 9), Version::new(3, 1), Version::new(4, 1)] {
+            let stats = Arc::new(ServerStats::default());
+            let (server, _stop) = start_server(
+                path.clone(),
+                ServeOptions {
+                    version,
+                    speed: 4.0,
+                    transport: Transport::Multicast,
+                    stats: stats.clone(),
+                    ..Default::default()
+                },
+            );
+            command_port(&stats).await;
+            // 2.x SERVERINFO does not say multicast: the client listens on both.
+            let opts = NatNetOptions {
+                local: "127.0.0.1".parse().unwrap(),
+                ..Default::default()
+            };
+            let (report, got) = collect(opts, sent.len(), Duration::from_secs(20)).await;
+            report.unwrap();
+            check_session(version, &sent, &got);
+            server.await.unwrap().unwrap();
+        }
+    });
+}
+
+/// A shipped Motive CSV take (read by `replay::open`) served and received:
+/// every frame and marker as the reader produced them, f32 on the wire.
+#[test]
+fn a_motive_csv_take_is_served_exactly() {
+    let path =
+        std::path::PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/replays/maple-24.csv"));
+    let sent: Vec<MarkerFrame> = treemocap::source::replay::open(&path)
+        .unwrap()
+        .collect::<treemocap::Result<_>>()
+        .unwrap();
+    let rt = runtime();
+    rt.block_on(async {
+        let stats = Arc::new(ServerStats::default());
+        let (server, _stop) = start_server(
+            path.clone(),
+            ServeOptions {
+                version: Version::new(4, 1),
+                speed: 40.0,
+                bind: "127.0.0.1".parse().unwrap(),
+                command_port: 0,
+                data_port: 0,
+                stats: stats.clone(),
+                ..Default::default()
+            },
+        );
+        let opts = NatNetOptions {
+            command_port: command_port(&stats).await,
+            ..Default::default()
+        };
+        let (report, got) = collect(opts, sent.len(), Duration::from_secs(30)).await;
+        report.unwrap();
+        check_session(Version::new(4, 1), &sent, &got);
+        server.await.unwrap().unwrap();
+    });
+}
+
+/// Opt-in discovery: no server address, a DISCOVERY datagram (sent to
+/// 127.0.0.1 here instead of a broadcast address) finds the server.
+#[test]
+fn discovery_finds_the_server() {
+    let dir = tempfile::tempdir().unwrap();
+    let (path, sent) = session(dir.path(), 12, 20, 4, 100.0);
+    let rt = runtime();
+    rt.block_on(async {
+        let stats = Arc::new(ServerStats::default());
+        let (server, _stop) = start_server(
+            path,
+            ServeOptions {
+                bind: "127.0.0.1".parse().unwrap(),
+                command_port: 0,
+                data_port: 0,
+                stats: stats.clone(),
+                ..Default::default()
+            },
+        );
+        let opts = NatNetOptions {
+            server: None,
+            discovery: true,
+            discovery_address: "127.0.0.1".parse().unwrap(),
+            command_port: command_port(&stats).await,
+            ..Default::default()
+        };
+        let (report, got) = collect(opts, sent.len(), Duration::from_secs(10)).await;
+        assert!(report.unwrap().server.contains("treemocap"));
+        check_session(Version::new(3, 1), &sent, &got);
+        server.await.unwrap().unwrap();
+        // Without an address and without discovery the client refuses to guess.
+        let opts = NatNetOptions {
+            server: None,
+            ..Default::default()
+        };
+        let (report, _) = collect(opts, 1, Duration::from_secs(2)).await;
+        assert!(report.unwrap_err().to_string().contains("discovery"));
+    });
+}

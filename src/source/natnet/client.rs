@@ -272,7 +272,18 @@ struct Session {
     started: Instant,
     /// Rate-limits bad-packet warnings.
     warned: u64,
+    /// Frames of a version without timestamps (2.5 and earlier) that came
+    /// before the FrameRate answer their time is computed from; replayed
+    /// when it comes (or after `HOLD_LIMIT`).
+    held: Vec<Vec<u8>>,
+    hold_since: Option<Instant>,
+    /// Set when held frames are due for replay.
+    release: bool,
 }
+
+/// Longest wait for a FrameRate answer before untimed frames fall back to
+/// their arrival time.
+const HOLD_LIMIT: Duration = Duration::from_secs(1);
 
 /// Runs the client until `shutdown` turns true; see the module docs.
 pub async fn run(
@@ -316,6 +327,9 @@ pub async fn run(
         first_frame: None,
         started: Instant::now(),
         warned: 0,
+        held: Vec::new(),
+        hold_since: None,
+        release: false,
     };
     let mut buf = vec![0u8; 65536];
 
@@ -446,12 +460,24 @@ pub async fn run(
                 if let Some(d) = buf.get(..n) {
                     on_datagram(d, true, &mut s, &mut connected, opts, &sink, &cmd).await?;
                 }
+                if s.release {
+                    s.release = false;
+                    for d in std::mem::take(&mut s.held) {
+                        on_datagram(&d, true, &mut s, &mut connected, opts, &sink, &cmd).await?;
+                    }
+                }
             }
             r = async { match &data { Some(d) => d.recv_from(&mut dbuf).await, None => std::future::pending().await } } => {
                 let Ok((n, _)) = r else { continue };
                 last_heard = Instant::now();
                 if let Some(d) = dbuf.get(..n) {
                     on_datagram(d, false, &mut s, &mut connected, opts, &sink, &cmd).await?;
+                }
+                if s.release {
+                    s.release = false;
+                    for d in std::mem::take(&mut s.held) {
+                        on_datagram(&d, true, &mut s, &mut connected, opts, &sink, &cmd).await?;
+                    }
                 }
             }
             _ = keepalive.tick(), if unicast && connected => {
@@ -585,6 +611,22 @@ async fn on_datagram(
         }
     };
     match packet {
+        Packet::FrameOfData(_)
+            if !s.version.at_least(2, 6)
+                && s.frame_rate.is_none()
+                && s.pending.contains(&Pending::FrameRate)
+                && s.hold_since.is_none_or(|t| t.elapsed() < HOLD_LIMIT)
+                && s.held.len() < 10_000 =>
+        {
+            s.hold_since.get_or_insert_with(Instant::now);
+            s.held.push(d.to_vec());
+        }
+        Packet::FrameOfData(_) if !s.held.is_empty() => {
+            // The FrameRate answer never came: release the held frames
+            // first, in order, on arrival time.
+            s.held.push(d.to_vec());
+            s.release = true;
+        }
         Packet::FrameOfData(f) => {
             if !*connected {
                 stats.reconnects.fetch_add(1, Ordering::Relaxed);
@@ -647,6 +689,7 @@ async fn on_datagram(
         }
         Packet::Response(r) => match s.pending.pop_front() {
             Some(Pending::FrameRate) => {
+                s.release = true;
                 s.frame_rate = r
                     .as_f32()
                     .map(|x| x as f64)
@@ -658,7 +701,10 @@ async fn on_datagram(
         },
         Packet::UnrecognizedRequest(_) => match s.pending.pop_front() {
             Some(Pending::Bitstream(want)) => bitstream_answer(s, want, None)?,
-            Some(Pending::FrameRate) => tracing::debug!("server does not know FrameRate"),
+            Some(Pending::FrameRate) => {
+                s.release = true;
+                tracing::debug!("server does not know FrameRate");
+            }
             None => {}
         },
         Packet::ModelDef(m) => {

@@ -959,6 +959,18 @@ impl<'a> Rd<'a> {
 // Decoding
 // ---------------------------------------------------------------------------
 
+/// Little-endian reads inside a block whose length was already checked
+/// (`chunks_exact` of the element size), so the indexing cannot fail.
+#[inline(always)]
+fn le_f32(c: &[u8], at: usize) -> f32 {
+    f32::from_le_bytes([c[at], c[at + 1], c[at + 2], c[at + 3]])
+}
+
+#[inline(always)]
+fn le_i32(c: &[u8], at: usize) -> i32 {
+    i32::from_le_bytes([c[at], c[at + 1], c[at + 2], c[at + 3]])
+}
+
 /// The message id of a datagram, if it has a header.
 pub fn peek_id(datagram: &[u8]) -> Option<u16> {
     datagram.get(..2).map(|b| u16::from_le_bytes([b[0], b[1]]))
@@ -1233,7 +1245,7 @@ fn decode_description(r: &mut Rd, v: Version, kind: i32) -> DResult<Description>
             for _ in 0..n {
                 rigid_bodies.push(decode_rb_description(r, v)?);
             }
-            let n = r.count("asset marker count", 27)?;
+            let n = r.count("asset marker count", 23)?;
             let mut markers = Vec::with_capacity(n);
             for _ in 0..n {
                 markers.push(AssetMarkerDescription {
@@ -1355,20 +1367,22 @@ fn decode_frame(r: &mut Rd, v: Version) -> DResult<FrameOfData> {
     for _ in 0..n {
         let name = r.cstr("marker set name")?;
         let m = r.count("marker set marker count", 12)?;
-        let mut markers = Vec::with_capacity(m);
-        for _ in 0..m {
-            markers.push(r.vec3("marker set marker position")?);
-        }
+        let block = r.take(m * 12, "marker set marker positions")?;
+        let markers = block
+            .chunks_exact(12)
+            .map(|c| [le_f32(c, 0), le_f32(c, 4), le_f32(c, 8)])
+            .collect();
         f.marker_sets.push(MarkerSetData { name, markers });
     }
     r.section_end(sz, "marker set section size")?;
 
     let n = r.count("other marker count", 12)?;
     let sz = r.section_start(v, "other marker section size")?;
-    f.other_markers.reserve_exact(n);
-    for _ in 0..n {
-        f.other_markers.push(r.vec3("other marker position")?);
-    }
+    let block = r.take(n * 12, "other marker positions")?;
+    f.other_markers = block
+        .chunks_exact(12)
+        .map(|c| [le_f32(c, 0), le_f32(c, 4), le_f32(c, 8)])
+        .collect();
     r.section_end(sz, "other marker section size")?;
 
     let n = r.count("rigid body count", rb_min_size(v))?;
@@ -1438,22 +1452,25 @@ fn decode_frame(r: &mut Rd, v: Version) -> DResult<FrameOfData> {
         let size = 20 + if with_params { 2 } else { 0 } + if with_residual { 4 } else { 0 };
         let n = r.count("labeled marker count", size)?;
         let sz = r.section_start(v, "labeled marker section size")?;
+        // The count was checked against the bytes left, so the whole list
+        // is one block: one bounds check instead of six per marker.
+        let block = r.take(n * size, "labeled markers")?;
         f.labeled_markers.reserve_exact(n);
-        for _ in 0..n {
+        f.labeled_markers.extend(block.chunks_exact(size).map(|c| {
             let mut m = LabeledMarker {
-                id: r.i32("labeled marker id")?,
-                position: r.vec3("labeled marker position")?,
-                size: r.f32("labeled marker size")?,
+                id: le_i32(c, 0),
+                position: [le_f32(c, 4), le_f32(c, 8), le_f32(c, 12)],
+                size: le_f32(c, 16),
                 ..Default::default()
             };
             if with_params {
-                m.params = r.i16("labeled marker params")?;
+                m.params = i16::from_le_bytes([c[20], c[21]]);
             }
             if with_residual {
-                m.residual = r.f32("labeled marker residual")?;
+                m.residual = le_f32(c, 22);
             }
-            f.labeled_markers.push(m);
-        }
+            m
+        }));
         r.section_end(sz, "labeled marker section size")?;
     }
 

@@ -392,7 +392,12 @@ pub async fn serve_with(
                         entry.last_seen = now;
                         if !playing && opts.wait_for_client {
                             playing = true;
-                            play_start = Instant::now();
+                            // A multicast client joins the group only after
+                            // SERVERINFO told it where; give it that moment.
+                            play_start = Instant::now() + match opts.transport {
+                                Transport::Multicast => Duration::from_millis(250),
+                                Transport::Unicast => Duration::ZERO,
+                            };
                         }
                         Some(Packet::ServerInfo(server_info(entry.version, opts.transport, data_port, opts.multicast_group)))
                     }
