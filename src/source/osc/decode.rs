@@ -22,7 +22,9 @@
 //! a bundle; a bundle holding only those makes no other).
 //! Bundle time tags are ignored: the bridges that set them put milliseconds
 //! there, not NTP time. Frame time is the sender's `/frame/timestamp` or
-//! `/treemocap/markers` time when there is one, otherwise the receive time.
+//! `/treemocap/markers` time when there is one, otherwise the receive time
+//! (the bridges' timestamp is milliseconds since Motive started, modulo 24 h,
+//! so it jumps back once a day).
 //! Frames without a sender frame number (the hku bridge) are numbered on from
 //! the last frame. Other addresses (rigid bodies, skeletons, `/frame/timecode`)
 //! are ignored and counted, not errors.
