@@ -18,7 +18,9 @@ pub const DEFAULT_TOML: &str = include_str!("../config/default.toml");
 pub struct Config {
     pub replay: ReplayConfig,
     pub record: RecordConfig,
+    pub osc: OscConfig,
     pub output: OutputConfig,
+    pub natnet: NatNetConfig,
     pub wind: WindConfig,
     pub c3d: C3dConfig,
 }
@@ -37,6 +39,28 @@ pub struct ReplayConfig {
 pub struct RecordConfig {
     /// Longest time between flushes (s): what a crash may lose.
     pub flush_interval_s: f64,
+    /// Frames queued between a live source and the writer: the slack for a
+    /// stalled disk before the oldest frames are dropped.
+    pub queue_frames: u64,
+}
+
+/// The OSC source (`source::osc`): where it listens, whom it accepts, and
+/// how the sender's positions convert to metres, Y up.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct OscConfig {
+    /// `address:port` to listen on; loopback unless the user widens it.
+    pub bind: String,
+    /// IP addresses or CIDR ranges accepted as senders.
+    pub allow: Vec<String>,
+    /// "y" or "z": the sender's up axis.
+    pub up_axis: String,
+    /// "m", "cm" or "mm": the sender's length unit.
+    pub units: String,
+    /// Also take `/othermarker` messages.
+    pub othermarkers: bool,
+    /// Nominal frame rate for recording headers (Hz).
+    pub frame_rate: f64,
 }
 
 /// Where results go.
@@ -45,6 +69,20 @@ pub struct RecordConfig {
 pub struct OutputConfig {
     /// Output folder for replay results and the daemon's files.
     pub dir: String,
+}
+
+/// The NatNet client (`treemocap record --natnet`, the daemon).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct NatNetConfig {
+    /// Which markers of a frame are tracked (see `source::natnet::select`).
+    pub markers: crate::source::natnet::select::MarkerSelection,
+    /// Wait for the server's SERVERINFO before reporting it unreachable (s).
+    pub connect_timeout_s: f64,
+    /// Silence after which the client reconnects (s).
+    pub silence_timeout_s: f64,
+    /// Unicast keep-alive period (s).
+    pub keepalive_interval_s: f64,
 }
 
 /// Where the wind estimate comes from (see `wind`).
@@ -161,6 +199,32 @@ impl Config {
             self.record.flush_interval_s,
             0.01,
             1.0,
+        )?;
+        check_range(
+            "record.queue_frames",
+            self.record.queue_frames as f64,
+            1.0,
+            1e6,
+        )?;
+        check_range("osc.frame_rate", self.osc.frame_rate, 1.0, 10000.0)?;
+        crate::source::osc::OscOptions::from_config(&self.osc)?;
+        check_range(
+            "natnet.connect_timeout_s",
+            self.natnet.connect_timeout_s,
+            0.1,
+            60.0,
+        )?;
+        check_range(
+            "natnet.silence_timeout_s",
+            self.natnet.silence_timeout_s,
+            0.1,
+            60.0,
+        )?;
+        check_range(
+            "natnet.keepalive_interval_s",
+            self.natnet.keepalive_interval_s,
+            0.05,
+            10.0,
         )?;
         let w = &self.wind;
         let mut seen = Vec::new();
@@ -333,6 +397,16 @@ mod tests {
     fn wrong_type_is_an_error() {
         let e = Config::from_toml_str("[output]\ndir = 3\n").unwrap_err();
         assert!(e.to_string().contains("output.dir"), "{e}");
+    }
+
+    #[test]
+    fn natnet_marker_selection_is_checked() {
+        use crate::source::natnet::select::MarkerSelection;
+        assert_eq!(Config::default().natnet.markers, MarkerSelection::Unlabeled);
+        let c = Config::from_toml_str("[natnet]\nmarkers = \"all\"\n").unwrap();
+        assert_eq!(c.natnet.markers, MarkerSelection::All);
+        let e = Config::from_toml_str("[natnet]\nmarkers = \"some\"\n").unwrap_err();
+        assert!(e.to_string().contains("some"), "{e}");
     }
 
     #[test]

@@ -59,6 +59,77 @@ enum Command {
         #[arg(long)]
         json: bool,
     },
+    /// Record a live source (OSC or NatNet) to a treemocap log until Ctrl-C
+    /// or --seconds, printing frames, markers and losses once a second.
+    #[command(group(clap::ArgGroup::new("live").required(true).args(["osc", "natnet"])))]
+    Record {
+        /// Listen for OSC on ADDR:PORT (UDP; overrides osc.bind), e.g.
+        /// 127.0.0.1:9000. Senders must be in osc.allow (default: loopback).
+        #[arg(long, value_name = "ADDR:PORT")]
+        osc: Option<String>,
+        /// Receive from a NatNet server (Motive) at ADDRESS or
+        /// ADDRESS:COMMAND_PORT (default port 1510).
+        #[arg(long, value_name = "SERVER")]
+        natnet: Option<String>,
+        /// NatNet: frames sent to this client only (default: what the
+        /// server says it does).
+        #[arg(long, requires = "natnet", conflicts_with = "multicast")]
+        unicast: bool,
+        /// NatNet: frames multicast to the group.
+        #[arg(long, requires = "natnet")]
+        multicast: bool,
+        /// NatNet: ask the server for this bitstream version (e.g. 3.1).
+        #[arg(long, value_name = "X.Y", requires = "natnet")]
+        natnet_version: Option<String>,
+        /// The log file to write (truncated if it exists).
+        out: PathBuf,
+        /// Stop after N seconds (default: run until Ctrl-C).
+        #[arg(long, value_name = "N")]
+        seconds: Option<f64>,
+        #[command(flatten)]
+        config: ConfigArgs,
+    },
+    /// Stream a recording as a NatNet server (a stand-in for Motive), so any
+    /// NatNet client can be tested without a rig.
+    Serve {
+        /// A Motive CSV export or a treemocap log (detected by content).
+        file: PathBuf,
+        /// NatNet bitstream version to stream (2.5 … 4.x); unicast clients
+        /// may switch theirs with a `Bitstream,X.Y` request.
+        #[arg(long, value_name = "X.Y", default_value = "3.1")]
+        natnet_version: treemocap::source::natnet::packet::Version,
+        /// Playback speed (2 = twice as fast as recorded).
+        #[arg(long, default_value_t = 1.0)]
+        speed: f64,
+        /// Start again at the end (frame numbers jump back, as in Motive).
+        #[arg(long = "loop")]
+        looping: bool,
+        /// Send frames to the multicast group (default: unicast to each
+        /// client that connects).
+        #[arg(long, conflicts_with = "unicast")]
+        multicast: bool,
+        /// Send frames to each client that connects (the default).
+        #[arg(long)]
+        unicast: bool,
+        /// Local address to listen on.
+        #[arg(long, default_value = "0.0.0.0")]
+        bind: std::net::Ipv4Addr,
+        /// Command port (clients send CONNECT here).
+        #[arg(long, default_value_t = 1510)]
+        command_port: u16,
+        /// Data port (frames are sent from / to it).
+        #[arg(long, default_value_t = 1511)]
+        data_port: u16,
+        /// Multicast group.
+        #[arg(long, default_value = "239.255.42.99")]
+        group: std::net::Ipv4Addr,
+        /// Address of the interface multicast frames leave by.
+        #[arg(long, default_value = "127.0.0.1")]
+        interface: std::net::Ipv4Addr,
+        /// Start streaming at once instead of when the first client connects.
+        #[arg(long)]
+        now: bool,
+    },
     /// Make a synthetic capture session of a simulated tree: a Motive 1.23
     /// CSV of unlabeled markers plus NAME.truth.json beside it (the true tree,
     /// rest positions, wind and every gap), for testing without a mocap lab.
@@ -206,10 +277,146 @@ fn run(command: Command) -> Result<()> {
             }
             Ok(())
         }
+        Command::Record {
+            osc,
+            natnet,
+            unicast,
+            multicast,
+            natnet_version,
+            out,
+            seconds,
+            config,
+        } => {
+            use std::sync::Arc;
+            use treemocap::source::live::LiveSource;
+            use treemocap::source::record::{self, RecordEvent, RecordOptions};
+            let config = config.load()?;
+            if let Some(s) = seconds {
+                if !(s.is_finite() && s > 0.0) {
+                    return Err(Error::config(
+                        "--seconds",
+                        format!("{s}: must be a positive number"),
+                    ));
+                }
+            }
+            let source: Arc<dyn LiveSource> = match (osc, natnet) {
+                (Some(addr), _) => {
+                    let mut opts = treemocap::source::osc::OscOptions::from_config(&config.osc)?;
+                    opts.bind = addr.parse().map_err(|_| {
+                        Error::config(
+                            "--osc",
+                            format!("'{addr}' is not ADDR:PORT (e.g. 127.0.0.1:9000)"),
+                        )
+                    })?;
+                    Arc::new(treemocap::source::osc::OscSource(opts))
+                }
+                (None, Some(server)) => {
+                    use treemocap::source::natnet::{client::NatNetOptions, live::NatNetSource};
+                    let mut opts = NatNetOptions::from_config(&config.natnet);
+                    let (ip, port) = match server.parse::<std::net::SocketAddrV4>() {
+                        Ok(a) => (*a.ip(), a.port()),
+                        Err(_) => (
+                            server.parse().map_err(|_| {
+                                Error::config(
+                                    "--natnet",
+                                    format!("'{server}' is not an IPv4 address or ADDRESS:PORT"),
+                                )
+                            })?,
+                            opts.command_port,
+                        ),
+                    };
+                    opts.server = Some(ip);
+                    opts.command_port = port;
+                    opts.transport = match (unicast, multicast) {
+                        (true, _) => Some(treemocap::source::natnet::Transport::Unicast),
+                        (_, true) => Some(treemocap::source::natnet::Transport::Multicast),
+                        _ => None,
+                    };
+                    if let Some(v) = natnet_version {
+                        opts.bitstream = Some(
+                            v.parse()
+                                .map_err(|e| Error::config("--natnet-version", e))?,
+                        );
+                    }
+                    Arc::new(NatNetSource(opts))
+                }
+                (None, None) => return Err(Error::config("record", "give --osc or --natnet")),
+            };
+            let opts = RecordOptions::from_config(out, seconds, &config);
+            println!("recording to {}", opts.out.display());
+            let summary = record::record_until_ctrl_c(source, &opts, |event| match event {
+                RecordEvent::Status(s) => println!("{s}"),
+                RecordEvent::Progress(p) => println!("{}", record::progress_line(&p)),
+            })?;
+            println!("{}", record::progress_line(&summary.progress));
+            println!("{}", summary.source);
+            println!("wrote {}", summary.out.display());
+            Ok(())
+        }
+        Command::Serve {
+            file,
+            natnet_version,
+            speed,
+            looping,
+            multicast,
+            unicast: _,
+            bind,
+            command_port,
+            data_port,
+            group,
+            interface,
+            now,
+        } => {
+            use treemocap::source::natnet::server;
+            let opts = server::ServeOptions {
+                version: natnet_version,
+                speed,
+                looping,
+                transport: if multicast {
+                    server::Transport::Multicast
+                } else {
+                    server::Transport::Unicast
+                },
+                bind,
+                command_port,
+                data_port,
+                multicast_group: group,
+                multicast_interface: interface,
+                wait_for_client: !now,
+                ..Default::default()
+            };
+            let report =
+                with_ctrl_c(|shutdown| async move { server::serve(&file, &opts, shutdown).await })?;
+            eprintln!(
+                "served {} frames ({} loops) to {} clients in {:.1} s",
+                report.frames, report.loops, report.clients, report.elapsed_s
+            );
+            Ok(())
+        }
         Command::Synth(args) => {
             let summary = treemocap::sim::write_session(&args.options(), &args.out)?;
             print!("{summary}");
             Ok(())
         }
     }
+}
+
+/// Runs an async library call on a tokio runtime until it returns or Ctrl-C
+/// (which it sees as its shutdown signal turning true).
+fn with_ctrl_c<T, F, Fut>(f: F) -> Result<T>
+where
+    F: FnOnce(tokio::sync::watch::Receiver<bool>) -> Fut,
+    Fut: std::future::Future<Output = Result<T>>,
+{
+    let rt = tokio::runtime::Runtime::new()
+        .map_err(|e| Error::Runtime(format!("cannot start the async runtime: {e}")))?;
+    rt.block_on(async move {
+        let (tx, rx) = tokio::sync::watch::channel(false);
+        tokio::spawn(async move {
+            if tokio::signal::ctrl_c().await.is_ok() {
+                let _ = tx.send(true);
+            }
+        });
+        f(rx).await
+    })
 }

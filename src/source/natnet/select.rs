@@ -1,0 +1,205 @@
+//! Which markers of a NatNet frame become the [`MarkerFrame`], and its
+//! timestamps.
+//!
+//! A tree rig wants the unlabeled point cloud. Where NatNet puts it depends on
+//! the version (spec §5): from 3.0 the unlabeled markers are the entries of
+//! the *labeled* list with params bit 0x10 (model id 0); before 3.0 the only
+//! unlabeled list is the legacy "other markers". The legacy list is not a
+//! reliable unlabeled list in 3.x+ (Motive 2.1 fills it with rigid-body
+//! markers), so it is used there only when asked for.
+
+use glam::DVec3;
+use serde::{Deserialize, Serialize};
+
+use super::packet::{FrameOfData, Version};
+use crate::frame::{Marker, MarkerFrame};
+
+/// The `natnet.markers` setting.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum MarkerSelection {
+    /// The unlabeled point cloud: labeled-list entries with the unlabeled bit
+    /// (3.0+), the legacy other markers (2.x). What a tree rig needs.
+    #[default]
+    Unlabeled,
+    /// Markers that belong to a model: labeled-list entries without the
+    /// unlabeled bit (3.0+), every labeled-list entry (2.x).
+    Labeled,
+    /// The legacy "other markers" list, whatever the version (for servers
+    /// configured to put the point cloud there).
+    Other,
+    /// The whole labeled list (3.0+: labeled and unlabeled); 2.x adds the
+    /// other markers, since its labeled list has no unlabeled ones.
+    All,
+}
+
+impl std::str::FromStr for MarkerSelection {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        match s {
+            "unlabeled" => Ok(MarkerSelection::Unlabeled),
+            "labeled" => Ok(MarkerSelection::Labeled),
+            "other" => Ok(MarkerSelection::Other),
+            "all" => Ok(MarkerSelection::All),
+            _ => Err(format!(
+                "'{s}' is not a marker selection; use unlabeled, labeled, other or all"
+            )),
+        }
+    }
+}
+
+fn v3(p: &[f32; 3]) -> DVec3 {
+    DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64)
+}
+
+/// The markers of `frame` that `selection` asks for, positions in metres
+/// (NatNet streams metres, Y up). Labeled-list entries keep their NatNet id
+/// as the hint; other markers have none.
+pub fn select_markers(
+    frame: &FrameOfData,
+    version: Version,
+    selection: MarkerSelection,
+) -> Vec<Marker> {
+    let labeled = |keep: &dyn Fn(bool) -> bool| -> Vec<Marker> {
+        frame
+            .labeled_markers
+            .iter()
+            .filter(|m| keep(m.is_unlabeled()))
+            .map(|m| Marker {
+                position: v3(&m.position),
+                id: Some(m.id as i64),
+            })
+            .collect()
+    };
+    let other = || -> Vec<Marker> {
+        frame
+            .other_markers
+            .iter()
+            .map(|p| Marker::new(v3(p)))
+            .collect()
+    };
+    let modern = version.major >= 3;
+    match selection {
+        MarkerSelection::Unlabeled if modern => labeled(&|u| u),
+        MarkerSelection::Unlabeled => other(),
+        MarkerSelection::Labeled if modern => labeled(&|u| !u),
+        MarkerSelection::Labeled => labeled(&|_| true),
+        MarkerSelection::Other => other(),
+        MarkerSelection::All if modern => labeled(&|_| true),
+        MarkerSelection::All => {
+            let mut m = labeled(&|_| true);
+            m.extend(other());
+            m
+        }
+    }
+}
+
+/// System latency in seconds (3.0+): transmit minus mid-exposure, in server
+/// clock ticks, over the clock frequency from SERVERINFO. None when the
+/// version has no hi-res timestamps, the clock is unknown or the stamps are
+/// not in order.
+pub fn latency_s(frame: &FrameOfData, version: Version, clock_frequency: u64) -> Option<f64> {
+    if version.major < 3 || clock_frequency == 0 || frame.camera_mid_exposure == 0 {
+        return None;
+    }
+    let ticks = frame.transmit.checked_sub(frame.camera_mid_exposure)?;
+    Some(ticks as f64 / clock_frequency as f64)
+}
+
+/// Builds the [`MarkerFrame`]. `time_s` is the frame's own timestamp (2.6+);
+/// for 2.5 and earlier, which have none, the caller's `fallback_time_s`
+/// (frame number over the server's frame rate, or arrival time).
+pub fn to_marker_frame(
+    frame: &FrameOfData,
+    version: Version,
+    selection: MarkerSelection,
+    clock_frequency: u64,
+    fallback_time_s: f64,
+) -> MarkerFrame {
+    let time_s = if version.at_least(2, 6) {
+        frame.timestamp
+    } else {
+        fallback_time_s
+    };
+    MarkerFrame {
+        frame: frame.frame_number as i64,
+        time_s,
+        markers: select_markers(frame, version, selection),
+        latency_s: latency_s(frame, version, clock_frequency),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::source::natnet::packet::LabeledMarker;
+
+    fn frame() -> FrameOfData {
+        FrameOfData {
+            frame_number: 5,
+            other_markers: vec![[9.0, 9.0, 9.0]],
+            labeled_markers: vec![
+                LabeledMarker {
+                    id: 50007,
+                    position: [1.0, 2.0, 3.0],
+                    params: 0x12,
+                    ..Default::default()
+                },
+                LabeledMarker {
+                    id: 131073,
+                    position: [4.0, 5.0, 6.0],
+                    params: 0x02,
+                    ..Default::default()
+                },
+            ],
+            timestamp: 12.5,
+            camera_mid_exposure: 1_000,
+            transmit: 4_000,
+            ..Default::default()
+        }
+    }
+
+    #[test]
+    fn unlabeled_is_the_flagged_labeled_entries_in_3x_and_other_markers_in_2x() {
+        let f = frame();
+        let m = select_markers(&f, Version::new(3, 1), MarkerSelection::Unlabeled);
+        assert_eq!(m.len(), 1);
+        assert_eq!(m[0].id, Some(50007));
+        assert_eq!(m[0].position, DVec3::new(1.0, 2.0, 3.0));
+        let m = select_markers(&f, Version::new(2, 9), MarkerSelection::Unlabeled);
+        assert_eq!(m, vec![Marker::new(DVec3::splat(9.0))]);
+        let m = select_markers(&f, Version::new(4, 1), MarkerSelection::Labeled);
+        assert_eq!(m[0].id, Some(131073));
+        assert_eq!(
+            select_markers(&f, Version::new(4, 1), MarkerSelection::All).len(),
+            2
+        );
+        assert_eq!(
+            select_markers(&f, Version::new(2, 7), MarkerSelection::All).len(),
+            3
+        );
+        assert_eq!(
+            select_markers(&f, Version::new(4, 1), MarkerSelection::Other).len(),
+            1
+        );
+    }
+
+    #[test]
+    fn latency_is_transmit_minus_mid_exposure_over_clock() {
+        let f = frame();
+        // 3000 ticks at 1 MHz = 3 ms.
+        assert_eq!(latency_s(&f, Version::new(3, 0), 1_000_000), Some(0.003));
+        assert_eq!(latency_s(&f, Version::new(2, 9), 1_000_000), None);
+        assert_eq!(latency_s(&f, Version::new(3, 0), 0), None);
+        let mf = to_marker_frame(&f, Version::new(2, 5), MarkerSelection::Unlabeled, 0, 0.25);
+        assert_eq!((mf.frame, mf.time_s, mf.latency_s), (5, 0.25, None));
+        let mf = to_marker_frame(
+            &f,
+            Version::new(3, 0),
+            MarkerSelection::Unlabeled,
+            1_000_000,
+            0.25,
+        );
+        assert_eq!((mf.time_s, mf.latency_s), (12.5, Some(0.003)));
+    }
+}
