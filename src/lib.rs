@@ -10,6 +10,7 @@ pub mod frame;
 pub mod rng;
 pub mod sim;
 pub mod source;
+pub mod track;
 
 pub use error::{Error, Location, Result};
 pub use frame::{Marker, MarkerFrame};
