@@ -7,6 +7,7 @@
 pub mod config;
 pub mod error;
 pub mod frame;
+pub mod inspect;
 pub mod rng;
 pub mod sim;
 pub mod source;

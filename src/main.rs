@@ -40,6 +40,17 @@ impl ConfigArgs {
 
 #[derive(Subcommand)]
 enum Command {
+    /// Run the whole job on a recorded session: read it, and report what was
+    /// found. Results go to --out (default: output.dir of the config).
+    Replay {
+        /// A Motive CSV export or a treemocap log (detected by content).
+        file: PathBuf,
+        #[command(flatten)]
+        config: ConfigArgs,
+        /// Output folder (overrides output.dir).
+        #[arg(long, value_name = "DIR")]
+        out: Option<PathBuf>,
+    },
     /// Describe a recording: format, rate, units, frames, markers, gaps.
     Inspect {
         /// A Motive CSV export or a treemocap log (detected by content).
@@ -88,11 +99,28 @@ fn init_logging(verbose: u8) {
         .try_init();
 }
 
+fn to_json(value: &impl serde::Serialize) -> Result<String> {
+    serde_json::to_string_pretty(value).map_err(|e| Error::Runtime(format!("JSON output: {e}")))
+}
+
 fn run(command: Command) -> Result<()> {
     match command {
+        Command::Replay { file, config, out } => {
+            let config = config.load()?;
+            let _out = out.unwrap_or_else(|| PathBuf::from(&config.output.dir));
+            let mut rec = treemocap::source::replay::open_with(&file, &config.replay)?;
+            let report = treemocap::inspect::inspect_recording(&file, rec.as_mut())?;
+            print!("{report}");
+            Ok(())
+        }
         Command::Inspect { file, json } => {
-            let _ = (file, json);
-            Err(Error::Runtime("inspect is not written yet".into()))
+            let report = treemocap::inspect::inspect(&file)?;
+            if json {
+                println!("{}", to_json(&report)?);
+            } else {
+                print!("{report}");
+            }
+            Ok(())
         }
     }
 }
