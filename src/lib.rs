@@ -8,6 +8,7 @@ pub mod config;
 pub mod error;
 pub mod frame;
 pub mod inspect;
+pub mod output;
 pub mod rng;
 pub mod sim;
 pub mod source;

@@ -17,6 +17,7 @@
 pub mod assign;
 pub mod gaps;
 pub mod noise;
+pub mod report;
 pub mod rest;
 pub mod trace;
 pub mod tracker;
@@ -28,6 +29,7 @@ use serde::Serialize;
 
 pub use gaps::GapStats;
 pub use noise::DroppedTrace;
+pub use report::tips_command;
 pub use rest::{RestSource, RestWindow, Tip, Tips, WindEstimate};
 pub use trace::{Sample, SampleKind, Trace};
 pub use tracker::{Timeline, TrackStats, Tracked, Tracker};
