@@ -53,6 +53,9 @@ pub struct Summary {
     /// Pieces joined to an earlier piece of the same marker.
     pub joined_by_motion: usize,
     pub joined_by_rest: usize,
+    /// Long fragments without a rest position put into a gap of the marker
+    /// whose neighbourhood they occupy.
+    pub joined_into_gaps: usize,
     /// Traces dropped as noise (measured in fewer than `noise_fraction` of
     /// the frames), longest first.
     pub dropped: Vec<DroppedTrace>,
@@ -77,8 +80,8 @@ impl fmt::Display for Summary {
         )?;
         writeln!(
             f,
-            "markers found: {} tips, from {} traces ({} joined by motion across a gap, {} by rest position)",
-            self.tips, self.traces, self.joined_by_motion, self.joined_by_rest
+            "markers found: {} tips, from {} traces (pieces joined: {} by motion across a gap, {} by rest position, {} into a gap of their neighbourhood)",
+            self.tips, self.traces, self.joined_by_motion, self.joined_by_rest, self.joined_into_gaps
         )?;
         let longest = self.dropped.first().map_or(String::new(), |d| {
             format!(
@@ -214,8 +217,33 @@ pub fn clean(
                 .map(|r| r.0)
         })
         .collect();
+    let rest_by_id: std::collections::HashMap<usize, bool> = traces
+        .iter()
+        .zip(&rests)
+        .flat_map(|(t, r)| t.pieces.iter().map(move |p| (*p, r.is_some())))
+        .collect();
     let (traces, joined_by_rest) =
         noise::join_by_rest(traces, &rests, cfg.merge_radius_mm / 1000.0);
+    // After joining by rest, a trace has a rest position if any piece had.
+    let has_rest: Vec<bool> = traces
+        .iter()
+        .map(|t| {
+            t.pieces
+                .iter()
+                .any(|p| rest_by_id.get(p).copied().unwrap_or(false))
+        })
+        .collect();
+    let one_second = timeline
+        .frame_interval()
+        .map_or(100, |dt| (1.0 / dt).round().max(1.0) as i64);
+    let (traces, joined_into_gaps) = noise::join_into_gaps(
+        traces,
+        &has_rest,
+        one_second as usize,
+        one_second,
+        cfg.max_jump_mm / 1000.0,
+        &mut assigner,
+    );
     let (mut kept, mut dropped) = noise::drop_noise(traces, frames, cfg.noise_fraction);
     dropped.sort_by(|a, b| b.measured.cmp(&a.measured).then(a.id.cmp(&b.id)));
 
@@ -276,6 +304,7 @@ pub fn clean(
         traces: n_traces,
         joined_by_motion,
         joined_by_rest,
+        joined_into_gaps,
         dropped,
         noise_fraction: cfg.noise_fraction,
         gaps: gap_stats,

@@ -321,3 +321,162 @@ mod tests {
         assert!((dropped[0].fraction - 0.24).abs() < 1e-12);
     }
 }
+
+/// Joins long fragments that have no rest position (a marker hidden for
+/// seconds while the tree moved, ours) into the gap of the marker whose
+/// neighbourhood they occupy: the host is not measured while the fragment
+/// is, and on each side where the host has data the mean of its `context`
+/// measurements nearest the fragment lies within `radius_m` of the mean of
+/// the fragment's `context` measurements on that side. Tips are
+/// placed further apart than their sway, so the neighbourhood decides;
+/// fragments shorter than `min_len` measurements (spurious reflections live
+/// shorter) are left alone. Pairs are chosen by global assignment, repeated
+/// while joins happen (one host may have several gaps). Returns the traces
+/// and the number of joins.
+pub fn join_into_gaps(
+    traces: Vec<Trace>,
+    has_rest: &[bool],
+    min_len: usize,
+    context: i64,
+    radius_m: f64,
+    assigner: &mut Assigner,
+) -> (Vec<Trace>, usize) {
+    let mut slots: Vec<Option<Trace>> = traces.into_iter().map(Some).collect();
+    let hosts: Vec<usize> = (0..slots.len())
+        .filter(|&i| has_rest.get(i).copied().unwrap_or(false))
+        .collect();
+    let mut joins = 0;
+    loop {
+        let fragments: Vec<(usize, i64, i64, DVec3, DVec3)> = slots
+            .iter()
+            .enumerate()
+            .filter(|(i, _)| !has_rest.get(*i).copied().unwrap_or(false))
+            .filter_map(|(i, t)| {
+                let t = t.as_ref()?;
+                if t.measured() < min_len {
+                    return None;
+                }
+                let (head, tail) = end_means(t.measurements(), context as usize);
+                Some((i, t.first_frame(), t.last_frame(), head?, tail?))
+            })
+            .collect();
+        let mut edges = Vec::new();
+        for (row, &(_, s, e, head, tail)) in fragments.iter().enumerate() {
+            for (col, &h) in hosts.iter().enumerate() {
+                let Some(host) = slots[h].as_ref() else {
+                    continue;
+                };
+                if host.measured_between(s, e) > 0 {
+                    continue;
+                }
+                let before = end_means(
+                    host.measurements().take_while(|m| m.0 < s),
+                    context as usize,
+                )
+                .1;
+                let after = end_means(
+                    host.measurements().skip_while(|m| m.0 <= e),
+                    context as usize,
+                )
+                .0;
+                let cost = match (before, after) {
+                    (Some(b), Some(a)) => b.distance(head).max(a.distance(tail)),
+                    (Some(b), None) => b.distance(head),
+                    (None, Some(a)) => a.distance(tail),
+                    (None, None) => continue,
+                };
+                if cost <= radius_m {
+                    edges.push(Edge { row, col, cost });
+                }
+            }
+        }
+        let mut out = Vec::new();
+        assigner.solve(fragments.len(), hosts.len(), &edges, radius_m, &mut out);
+        let mut joined_now = 0;
+        for (row, col) in out.iter().enumerate() {
+            let (Some(col), Some(&(frag, ..))) = (*col, fragments.get(row)) else {
+                continue;
+            };
+            let h = hosts[col];
+            let (Some(host), Some(piece)) = (slots[h].as_ref(), slots[frag].as_ref()) else {
+                continue;
+            };
+            if let Some(m) = host.merged(piece) {
+                slots[h] = Some(m);
+                slots[frag] = None;
+                joined_now += 1;
+            }
+        }
+        joins += joined_now;
+        if joined_now == 0 {
+            break;
+        }
+    }
+    (slots.into_iter().flatten().collect(), joins)
+}
+
+/// Means of the first and of the last `n` positions of a sequence.
+fn end_means(
+    items: impl Iterator<Item = (i64, DVec3)>,
+    n: usize,
+) -> (Option<DVec3>, Option<DVec3>) {
+    let n = n.max(1);
+    let mut head = (0usize, DVec3::ZERO);
+    let mut tail = std::collections::VecDeque::with_capacity(n + 1);
+    let mut tail_sum = DVec3::ZERO;
+    for (_, p) in items {
+        if head.0 < n {
+            head = (head.0 + 1, head.1 + p);
+        }
+        tail.push_back(p);
+        tail_sum += p;
+        if tail.len() > n {
+            if let Some(old) = tail.pop_front() {
+                tail_sum -= old;
+            }
+        }
+    }
+    if head.0 == 0 {
+        return (None, None);
+    }
+    (
+        Some(head.1 / head.0 as f64),
+        Some(tail_sum / tail.len() as f64),
+    )
+}
+
+#[cfg(test)]
+mod gap_join_tests {
+    use super::*;
+
+    #[test]
+    fn long_fragment_goes_into_the_gap_of_its_neighbourhood() {
+        let at = |x: f64| move |n: i64| DVec3::new(x + 0.02 * (n as f64 / 30.0).sin(), 1.0, 0.0);
+        let mut host_a = Trace::new(0, 0, at(0.0)(0), None);
+        for n in (1..1000).chain(1400..2000) {
+            host_a.push(n, at(0.0)(n), None);
+        }
+        let mut host_b = Trace::new(1, 0, at(0.1)(0), None);
+        for n in 1..2000 {
+            host_b.push(n, at(0.1)(n), None);
+        }
+        let mut frag = Trace::new(2, 1050, at(0.0)(1050), None);
+        for n in 1051..1350 {
+            frag.push(n, at(0.0)(n), None);
+        }
+        let spurious = Trace::new(3, 1100, DVec3::new(0.0, 1.0, 0.0), None);
+        let mut asg = Assigner::default();
+        let (out, joins) = join_into_gaps(
+            vec![host_a, host_b, frag, spurious],
+            &[true, true, false, false],
+            100,
+            200,
+            0.04,
+            &mut asg,
+        );
+        assert_eq!(joins, 1);
+        assert_eq!(out.len(), 3);
+        assert_eq!(out[0].pieces, vec![0, 2]);
+        assert_eq!(out[0].measured(), 1600 + 300);
+    }
+}

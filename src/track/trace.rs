@@ -273,17 +273,79 @@ impl Trace {
         if other.first_frame() <= self.last_frame() {
             return false;
         }
-        let mut runs = other.sources.iter().peekable();
-        let mut source = None;
-        for (frame, p) in other.measurements() {
-            while let Some(r) = runs.next_if(|r| r.frame <= frame) {
-                source = r.id;
-            }
+        for (frame, p, source) in other.measurements_with_source() {
             self.push(frame, p, source);
         }
         self.fills.extend_from_slice(&other.fills);
         self.pieces.extend_from_slice(&other.pieces);
         true
+    }
+
+    /// Number of measured frames in `[from, to]`.
+    pub fn measured_between(&self, from: i64, to: i64) -> usize {
+        let lo = (from - self.first).max(0);
+        let hi = (to - self.first).min(self.len as i64 - 1);
+        if hi < lo {
+            return 0;
+        }
+        (lo as usize..=hi as usize)
+            .filter(|&i| {
+                self.measured_bits
+                    .get(i / 64)
+                    .is_some_and(|w| w & (1 << (i % 64)) != 0)
+            })
+            .count()
+    }
+
+    /// The measurements (with their source IDs) in frame order.
+    fn measurements_with_source(&self) -> impl Iterator<Item = (i64, DVec3, Option<i64>)> + '_ {
+        let mut runs = self.sources.iter().peekable();
+        let mut source = None;
+        self.measurements().map(move |(frame, p)| {
+            while let Some(r) = runs.next_if(|r| r.frame <= frame) {
+                source = r.id;
+            }
+            (frame, p, source)
+        })
+    }
+
+    /// One trace from two pieces that may interleave in time (one fills a
+    /// gap of the other); `None` if both are measured in the same frame.
+    /// Keeps this trace's id.
+    pub fn merged(&self, other: &Trace) -> Option<Trace> {
+        let mut a = self.measurements_with_source().peekable();
+        let mut b = other.measurements_with_source().peekable();
+        let mut out: Option<Trace> = None;
+        loop {
+            let next = match (a.peek(), b.peek()) {
+                (Some(x), Some(y)) if x.0 == y.0 => return None,
+                (Some(x), Some(y)) => {
+                    if x.0 < y.0 {
+                        a.next()
+                    } else {
+                        b.next()
+                    }
+                }
+                (Some(_), None) => a.next(),
+                (None, Some(_)) => b.next(),
+                (None, None) => break,
+            };
+            let Some((frame, p, source)) = next else {
+                break;
+            };
+            match out.as_mut() {
+                None => out = Some(Trace::new(self.id, frame, p, source)),
+                Some(t) => t.push(frame, p, source),
+            }
+        }
+        let mut out = out?;
+        out.pieces = self.pieces.clone();
+        out.pieces.extend_from_slice(&other.pieces);
+        out.fills = self.fills.clone();
+        for f in &other.fills {
+            out.add_fill(*f);
+        }
+        Some(out)
     }
 
     /// Bytes of heap this trace uses (for memory reports).
@@ -500,5 +562,24 @@ mod tests {
         assert!(a.is_measured(10) && !a.is_measured(5));
         let ids: Vec<_> = a.sources().iter().map(|r| r.id).collect();
         assert_eq!(ids, vec![Some(1), Some(2), Some(3)]);
+    }
+
+    #[test]
+    fn merged_interleaves_and_refuses_shared_frames() {
+        let mut a = Trace::new(0, 0, DVec3::ZERO, Some(1));
+        a.push(1, DVec3::X, Some(1));
+        a.push(9, DVec3::Y, Some(1));
+        let mut b = Trace::new(4, 4, DVec3::Z, Some(2));
+        b.push(5, DVec3::Z, Some(2));
+        let m = a.merged(&b).unwrap();
+        assert_eq!(m.id, 0);
+        assert_eq!(m.pieces, vec![0, 4]);
+        let frames: Vec<i64> = m.measurements().map(|x| x.0).collect();
+        assert_eq!(frames, vec![0, 1, 4, 5, 9]);
+        let ids: Vec<_> = m.sources().iter().map(|r| (r.frame, r.id)).collect();
+        assert_eq!(ids, vec![(0, Some(1)), (4, Some(2)), (9, Some(1))]);
+        assert_eq!(m.measured_between(2, 8), 2);
+        let c = Trace::new(7, 5, DVec3::ONE, None);
+        assert!(m.merged(&c).is_none());
     }
 }
