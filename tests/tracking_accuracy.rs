@@ -190,13 +190,9 @@ fn report_and_check(name: &str, all: &[(String, Score)]) {
         assert_eq!(s.tips_found, s.tips_placed, "{label}: tip count");
         assert_eq!(s.unmatched_tips, 0, "{label}");
     }
-    // Known shortfall (see the report): the issue asks for zero swaps. In
-    // one of the 20 sessions (seed 1011) a trace in an 18-frame occlusion
-    // takes a neighbour's marker that reappears inside its gate after a long
-    // occlusion of its own; nothing seen up to that frame tells them apart.
-    // Held to that level so any regression fails.
-    assert!(impure <= 1, "{impure} impure tips");
-    assert!(swaps <= 500, "{swaps} foreign samples");
+    // Zero identity swaps: every tip's samples come from one true marker.
+    assert_eq!(impure, 0, "impure tips");
+    assert_eq!(swaps, 0, "samples from another marker");
     assert!(r_max < 0.0005, "rest error max {r_max}");
     assert!(r_mean < 0.0001, "rest error mean {r_mean}");
     assert!(short.0 > 0 && short.1 < 0.001, "short fills {short:?}");

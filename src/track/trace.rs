@@ -348,6 +348,17 @@ impl Trace {
         Some(out)
     }
 
+    /// Releases the spare capacity of the storage when the trace has ended
+    /// (thousands of ended traces would otherwise each keep a half-empty
+    /// chunk). Pushing later still works.
+    pub fn seal(&mut self) {
+        if let Some(c) = self.store.chunks.last_mut() {
+            c.shrink_to_fit();
+        }
+        self.measured_bits.shrink_to_fit();
+        self.sources.shrink_to_fit();
+    }
+
     /// Bytes of heap this trace uses (for memory reports).
     pub fn heap_bytes(&self) -> usize {
         self.measured_bits.capacity() * 8

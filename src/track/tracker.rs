@@ -141,8 +141,64 @@ struct Live {
     last_t: i64,
     /// Motion per frame from the last two measurements.
     velocity: DVec3,
+    /// The oldest of the last few measurements: across a gap the velocity
+    /// is taken over this longer baseline, because a two-sample difference
+    /// carries the full measurement noise, multiplied by the gap length.
+    base: (i64, DVec3),
+    recent: [(i64, DVec3); BASELINE],
+    recent_len: usize,
     measured: u32,
     prediction: DVec3,
+}
+
+/// Measurements over which the velocity across a gap is taken.
+const BASELINE: usize = 5;
+
+impl Live {
+    fn new(trace: usize, p: DVec3, t: i64) -> Self {
+        let mut recent = [(t, p); BASELINE];
+        recent[0] = (t, p);
+        Live {
+            trace,
+            last: p,
+            last_t: t,
+            velocity: DVec3::ZERO,
+            base: (t, p),
+            recent,
+            recent_len: 1,
+            measured: 1,
+            prediction: p,
+        }
+    }
+
+    fn update(&mut self, p: DVec3, t: i64) {
+        let k = (t - self.last_t).max(1) as f64;
+        self.velocity = (p - self.last) / k;
+        self.last = p;
+        self.last_t = t;
+        self.measured += 1;
+        // Keep the last BASELINE measurements (a tiny ring, oldest at
+        // recent_len % BASELINE once full).
+        let slot = self.recent_len % BASELINE;
+        self.recent[slot] = (t, p);
+        self.recent_len += 1;
+        self.base = if self.recent_len >= BASELINE {
+            self.recent[self.recent_len % BASELINE]
+        } else {
+            self.recent[0]
+        };
+    }
+
+    /// `p̂(M) = 2p(M−1) − p(M−2)` for the next frame; across a gap of k
+    /// frames, the last position plus k × the velocity over the baseline.
+    fn predict(&self, t: i64) -> DVec3 {
+        let k = (t - self.last_t) as f64;
+        if k <= 1.0 || self.base.0 >= self.last_t {
+            return self.last + self.velocity * k;
+        }
+        let v = (self.last - self.base.1) / (self.last_t - self.base.0) as f64;
+        self.last + v * k
+    }
 }
 
 /// The online tracker; feed it frames in order with [`Tracker::push`].
@@ -223,6 +279,9 @@ impl Tracker {
     /// Ends the session and hands over the traces.
     pub fn finish(mut self) -> Tracked {
         self.stats.greedy_components = self.assigner.greedy_components;
+        for t in self.traces.iter_mut() {
+            t.seal();
+        }
         Tracked {
             traces: self.traces,
             timeline: self.timeline,
@@ -242,10 +301,18 @@ impl Tracker {
 
         // Traces that have missed more than max_gap frames end now.
         let max_gap = self.max_gap;
-        self.live.retain(|l| t - l.last_t - 1 <= max_gap);
+        let traces = &mut self.traces;
+        self.live.retain(|l| {
+            let alive = t - l.last_t - 1 <= max_gap;
+            if !alive {
+                if let Some(tr) = traces.get_mut(l.trace) {
+                    tr.seal();
+                }
+            }
+            alive
+        });
         for l in self.live.iter_mut() {
-            let k = (t - l.last_t) as f64;
-            l.prediction = l.last + l.velocity * k;
+            l.prediction = l.predict(t);
         }
         if !self.warned {
             self.check_spacing();
@@ -286,11 +353,7 @@ impl Tracker {
                 continue;
             };
             self.taken[col] = true;
-            let k = (t - l.last_t).max(1) as f64;
-            l.velocity = (p - l.last) / k;
-            l.last = p;
-            l.last_t = t;
-            l.measured += 1;
+            l.update(p, t);
             if let Some(trace) = self.traces.get_mut(l.trace) {
                 trace.push(t, p, self.ids.get(col).copied().flatten());
             }
@@ -304,14 +367,7 @@ impl Tracker {
             self.traces
                 .push(Trace::new(id, t, p, self.ids.get(col).copied().flatten()));
             self.stats.traces_started += 1;
-            self.live.push(Live {
-                trace: id,
-                last: p,
-                last_t: t,
-                velocity: DVec3::ZERO,
-                measured: 1,
-                prediction: p,
-            });
+            self.live.push(Live::new(id, p, t));
         }
     }
 
@@ -339,7 +395,11 @@ impl Tracker {
         if restart || long_jump {
             // Nothing is bridged across: all traces end, and the internal
             // index moves on by more than max_gap.
-            self.live.clear();
+            for l in self.live.drain(..) {
+                if let Some(tr) = self.traces.get_mut(l.trace) {
+                    tr.seal();
+                }
+            }
             t = self.last_t + self.max_gap + 2;
             self.timeline.anchors.push((t, frame.frame));
             if restart {
