@@ -69,7 +69,11 @@ fn bench_per_frame(c: &mut Criterion, n: usize, name: &str) {
         b.iter(|| {
             frame.frame = k;
             frame.time_s = k as f64 / 100.0;
-            frame.markers.clone_from(&frames[(k % 1000) as usize]);
+            // Forward then backward through the frames, so the motion stays
+            // continuous (no jump back to the first frame).
+            let i = (k % 2000) as usize;
+            let i = if i < 1000 { i } else { 1999 - i };
+            frame.markers.clone_from(&frames[i]);
             tracker.push(black_box(&frame));
             k += 1;
         });

@@ -5,7 +5,8 @@
 //! and takes one marker of the new frame within the gate. Which trace takes
 //! which marker is decided for all of them at once ([`assign`]): the
 //! cheapest total distance, where a trace left without a marker costs the
-//! gate radius. Candidates come from a kd-tree of the frame's markers. A
+//! gate radius. Candidates come from a kd-tree of the frame's markers
+//! (for small frames, a direct scan of all pairs, which is cheaper). A
 //! trace that finds nothing for more than `max_gap` frames ends; markers
 //! nobody took start new traces.
 //!
@@ -150,6 +151,12 @@ struct Live {
     measured: u32,
     prediction: DVec3,
 }
+
+/// Up to this many trace × marker pairs per frame, candidates are found by
+/// comparing every pair; beyond, from a kd-tree of the frame's markers
+/// (O(n log n)). Building the tree costs more than the whole scan for a
+/// typical tree capture of 24–70 markers (see benches/tracking.rs).
+const DIRECT_SCAN_MAX: usize = 4096;
 
 /// Measurements over which the velocity across a gap is taken.
 const BASELINE: usize = 5;
@@ -319,9 +326,23 @@ impl Tracker {
         }
 
         self.edges.clear();
-        if !self.points.is_empty() && !self.live.is_empty() {
+        let r2 = self.gate_m * self.gate_m;
+        if self.points.len() * self.live.len() <= DIRECT_SCAN_MAX {
+            // Few markers: comparing every pair is cheaper than building a tree.
+            for (row, l) in self.live.iter().enumerate() {
+                for (col, p) in self.points.iter().enumerate() {
+                    let d2 = l.prediction.distance_squared(DVec3::from_array(*p));
+                    if d2 <= r2 {
+                        self.edges.push(Edge {
+                            row,
+                            col,
+                            cost: d2.sqrt(),
+                        });
+                    }
+                }
+            }
+        } else if !self.points.is_empty() && !self.live.is_empty() {
             if let Ok(tree) = ImmutableKdTree::<f64, 3>::new_from_slice(&self.points) {
-                let r2 = self.gate_m * self.gate_m;
                 for (row, l) in self.live.iter().enumerate() {
                     let q = l.prediction.to_array();
                     let found = tree.query(&q).within::<SquaredEuclidean<f64>>(r2).execute();
