@@ -697,6 +697,30 @@ mod tests {
     }
 
     #[test]
+    fn kd_tree_path_tracks_many_markers() {
+        // 100 markers (10 000 pairs: the kd-tree path), 80 mm apart, each
+        // moving 3 mm per frame in its own direction, listed in rotating
+        // order; every marker must stay one trace.
+        let mut tr = Tracker::new(&cfg(), Some(100.0));
+        let start = |i: usize| DVec3::new((i % 10) as f64, (i / 10) as f64, 0.0) * 0.08;
+        let dir =
+            |i: usize| DVec3::new((i as f64).cos(), (i as f64).sin(), 0.5).normalize() * 0.003;
+        for n in 0..50 {
+            let mut pts: Vec<DVec3> = (0..100).map(|i| start(i) + dir(i) * n as f64).collect();
+            pts.rotate_left(n as usize % 100);
+            tr.push(&frame(n, &pts));
+        }
+        let done = tr.finish();
+        assert_eq!(done.traces.len(), 100);
+        for t in &done.traces {
+            assert_eq!(t.measured(), 50);
+            let ms: Vec<DVec3> = t.measurements().map(|m| m.1).collect();
+            let step = ms[1] - ms[0];
+            assert!(ms.windows(2).all(|w| (w[1] - w[0] - step).length() < 1e-4));
+        }
+    }
+
+    #[test]
     fn warns_once_when_gate_is_wide_for_the_spacing() {
         let mut tr = Tracker::new(&cfg(), Some(100.0));
         let a = DVec3::ZERO;
