@@ -78,7 +78,8 @@ enum Command {
     /// CSV of unlabeled markers plus NAME.truth.json beside it (the true tree,
     /// rest positions, wind and every gap), for testing without a mocap lab.
     ///
-    /// Example: treemocap synth --seed 7 --tips 24 --shape maple --out replays/maple-24.csv
+    /// Example (how replays/maple-24.csv was made):
+    /// treemocap synth --seed 24 --tips 24 --shape maple --out replays/maple-24.csv
     Synth(SynthArgs),
 }
 
@@ -112,7 +113,7 @@ struct SynthArgs {
     /// Scale of the wind sway (1 = up to a few cm) [default: 1].
     #[arg(long, value_name = "X")]
     sway_scale: Option<f64>,
-    /// Fraction of tip samples lost to occlusion, 0-0.5 [default: 0.05].
+    /// Fraction of tip samples lost to occlusion, 0-0.3 [default: 0.05].
     #[arg(long, value_name = "F")]
     gap_fraction: Option<f64>,
     /// Longest short occlusion burst in frames [default: 50].

@@ -7,7 +7,8 @@
 //!   occlusions (a marker hidden for seconds: a branch in front of it) take at
 //!   most half of it; the rest is bursts of 1–`max_burst_frames` frames (uniform
 //!   length) spread over the tips with random weights 0.5–1.5, since some tips
-//!   are harder to see than others. Two gaps of one tip are always separated
+//!   are harder to see than others; a tip too crowded to take its share
+//!   hands the rest to the next tip. Two gaps of one tip are always separated
 //!   by at least one visible frame (else they would be one gap).
 //! - Spurious reflections arrive as a Poisson process at `spurious_per_s`,
 //!   live 1–`spurious_max_frames` frames, sit still (plus noise) somewhere in the
@@ -78,8 +79,10 @@ pub(crate) fn gaps(opts: &SynthOptions, frames: i64, tips: usize, base: &Rng) ->
     let weights: Vec<f64> = rngs.iter_mut().map(|r| r.range(0.5, 1.5)).collect();
     let total_weight: f64 = weights.iter().sum();
     let max_burst = opts.max_burst_frames.max(1) as i64;
+    // A tip that cannot take its share (too crowded) hands the rest on.
+    let mut carry = 0;
     for (t, rng) in rngs.iter_mut().enumerate() {
-        let mut left = (short_budget as f64 * weights[t] / total_weight).round() as i64;
+        let mut left = (short_budget as f64 * weights[t] / total_weight).round() as i64 + carry;
         let mut failures = 0;
         while left > 0 && failures < 200 {
             let len = rng.int(1, max_burst).min(left).min(frames - 2);
@@ -91,6 +94,7 @@ pub(crate) fn gaps(opts: &SynthOptions, frames: i64, tips: usize, base: &Rng) ->
                 failures += 1;
             }
         }
+        carry = left;
     }
 
     let mut out = Vec::new();
@@ -287,4 +291,63 @@ pub(crate) fn frames(truth: &Truth, noise_sigma: f64, base: &Rng) -> Vec<MarkerF
         .enumerate()
         .map(|(f, markers)| MarkerFrame::new(f as i64, f as f64 / truth.frame_rate, markers))
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn gaps_fill_the_budget_without_touching() {
+        for (fraction, frames, tips) in [
+            (0.05, 4000, 24),
+            (0.2, 1000, 70),
+            (0.01, 500, 3),
+            (0.3, 300, 10),
+        ] {
+            let opts = SynthOptions {
+                gap_fraction: fraction,
+                ..SynthOptions::default()
+            };
+            let gaps = gaps(&opts, frames, tips, &Rng::new(4));
+            let mut missing = 0;
+            for (k, g) in gaps.iter().enumerate() {
+                assert!(g.tip < tips && 0 <= g.first_frame && g.first_frame <= g.last_frame);
+                assert!(g.last_frame < frames);
+                missing += g.last_frame - g.first_frame + 1;
+                if let Some(next) = gaps.get(k + 1).filter(|n| n.tip == g.tip) {
+                    assert!(
+                        next.first_frame > g.last_frame + 1,
+                        "{g:?} touches {next:?}"
+                    );
+                }
+            }
+            let asked = fraction * (frames * tips as i64) as f64;
+            assert!(
+                (missing as f64 - asked).abs() <= 0.02 * asked + tips as f64,
+                "{fraction}: {missing} missing, asked {asked}"
+            );
+            let long = gaps
+                .iter()
+                .filter(|g| g.last_frame - g.first_frame + 1 > 50)
+                .count();
+            assert!(long <= tips.div_ceil(12), "{long} long gaps");
+        }
+        let none = SynthOptions {
+            gap_fraction: 0.0,
+            ..SynthOptions::default()
+        };
+        assert!(gaps(&none, 4000, 24, &Rng::new(4)).is_empty());
+    }
+
+    #[test]
+    fn written_positions_are_what_a_reader_parses() {
+        let p = DVec3::new(0.123_456_789, 2.5, -0.000_000_4);
+        let q = as_written(p);
+        let text = format!("{:.6}", q.x * 1000.0);
+        assert_eq!(text, "123.456787"); // f32 of 123.456789 mm is 123.45678710…
+        assert_eq!(q.x, "123.456787".parse::<f64>().unwrap() * 0.001);
+        assert_eq!(q.y, 2.5);
+        assert!((q.z - p.z).abs() < 1e-9);
+    }
 }

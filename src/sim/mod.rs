@@ -41,6 +41,9 @@ const MOTION: u64 = 2;
 const WIND: u64 = 3;
 const CAPTURE: u64 = 4;
 
+/// Longest session `generate` makes (frames).
+pub const MAX_FRAMES: usize = 360_000;
+
 /// Number of the first `Unlabeled N` column (Motive's numbers are arbitrary).
 const FIRST_UNLABELED: u64 = 1000;
 
@@ -70,7 +73,7 @@ pub struct SynthOptions {
     pub still_motion_mm: f64,
     /// Scales every wind displacement (1 = sway up to a few cm).
     pub sway_scale: f64,
-    /// Fraction of tip samples lost to occlusion (0–0.5).
+    /// Fraction of tip samples lost to occlusion (0–0.3).
     pub gap_fraction: f64,
     /// Longest short occlusion burst (frames); bursts are 1 to this long.
     pub max_burst_frames: u32,
@@ -139,7 +142,7 @@ impl SynthOptions {
         check("noise_mm", self.noise_mm, 0.0, 10.0)?;
         check("still_motion_mm", self.still_motion_mm, 0.0, 10.0)?;
         check("sway_scale", self.sway_scale, 0.0, 10.0)?;
-        check("gap_fraction", self.gap_fraction, 0.0, 0.5)?;
+        check("gap_fraction", self.gap_fraction, 0.0, 0.3)?;
         check(
             "max_burst_frames",
             self.max_burst_frames as f64,
@@ -161,11 +164,15 @@ impl SynthOptions {
             10_000.0,
         )?;
         check("min_spacing_mm", self.min_spacing_mm, 0.0, 1000.0)?;
+        // The whole session is held in memory (about 1 kB per frame at 35
+        // tips), so the length is capped at an hour at 100 Hz.
         let frames = ((self.still_s + self.wind_s) * self.frame_rate).round();
-        if !(1.0..=10_000_000.0).contains(&frames) {
+        if !(1.0..=MAX_FRAMES as f64).contains(&frames) {
             return Err(Error::config(
                 "still_s",
-                format!("still + wind phases give {frames} frames; need 1 to 10 000 000"),
+                format!(
+                    "(still_s + wind_s) × frame_rate gives {frames} frames; need 1 to {MAX_FRAMES}"
+                ),
             ));
         }
         Ok(())

@@ -7,7 +7,7 @@
 //!   around it with three sinusoids: a *limb mode* shared by every tip on the
 //!   same limb (0.5–1.2 Hz, amplitude growing with the tip's lever), a *twig
 //!   mode* of its own whose frequency rises as its last twig gets shorter
-//!   (1–3 Hz, cantilever-like), both mainly along the wind, and a cross-wind
+//!   (1–3 Hz, like a cantilever), both mainly along the wind, and a cross-wind
 //!   mode about a third as large. Peak displacements come out at 1–6 cm.
 //!
 //! [`Truth::position`]: super::Truth::position
@@ -85,7 +85,8 @@ pub(crate) fn tips(
             let reach = lever / max_lever;
             let along = limb_amp * (0.4 + 0.6 * reach) * sway_scale;
             let twig = tree.twig_length(node).max(0.02);
-            let twig_freq = (0.55 / twig.sqrt()).clamp(1.0, 3.0) * rng.range(0.9, 1.1);
+            // 1 Hz for a long twig, approaching 3 Hz for a very short one.
+            let twig_freq = ((1.0 + 2.0 * 0.08 / (0.08 + twig)) * rng.range(0.93, 1.07)).min(3.0);
             let twig_amp = rng.range(0.002, 0.007) * (0.5 + reach) * sway_scale;
             // Twigs are not aligned with the wind: turn their mode by up to 25°.
             let turn = rng.range(-25f64, 25.0).to_radians();
@@ -111,4 +112,52 @@ pub(crate) fn tips(
             }
         })
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sim::tree::{grow, CrownShape};
+
+    #[test]
+    fn sway_is_branch_dependent_and_in_range() {
+        for shape in [CrownShape::Maple, CrownShape::Pine] {
+            let tree = grow(shape, &mut Rng::new(2));
+            let nodes = tree.choose_tips(40, 0.06).unwrap();
+            let wind = DVec3::new(0.6, 0.0, 0.8);
+            let tips = tips(&tree, &nodes, wind, 0.0004, 1.0, &Rng::new(3));
+            let mut freqs = Vec::new();
+            for t in &tips {
+                assert!(t.wobble.iter().all(|s| s.amplitude <= 0.0004 + 1e-12));
+                let peak: f64 = t.bend.length() + t.sway.iter().map(|s| s.amplitude).sum::<f64>();
+                assert!((0.005..=0.06).contains(&peak), "peak {peak} m");
+                assert!(t.bend.dot(wind) > 0.0);
+                for s in &t.sway {
+                    assert!((0.5..=3.0).contains(&s.frequency), "{} Hz", s.frequency);
+                    freqs.push(s.frequency);
+                }
+                // Mainly along the wind: the along-wind amplitudes outweigh
+                // the cross-wind one.
+                let along: f64 = t
+                    .sway
+                    .iter()
+                    .map(|s| (s.amplitude * s.direction.dot(wind)).abs())
+                    .sum();
+                let cross: f64 = t
+                    .sway
+                    .iter()
+                    .map(|s| (s.amplitude * s.direction.cross(wind).y).abs())
+                    .sum();
+                assert!(along > 1.5 * cross, "{along} vs {cross}");
+            }
+            // Different branches, different frequencies.
+            freqs.sort_by(f64::total_cmp);
+            freqs.dedup();
+            assert!(
+                freqs.len() > 2 * tips.len(),
+                "{shape}: {} distinct frequencies",
+                freqs.len()
+            );
+        }
+    }
 }

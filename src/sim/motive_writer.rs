@@ -118,3 +118,85 @@ pub fn write_motive_csv(syn: &Synthetic, out: &mut impl Write) -> io::Result<()>
     }
     out.flush()
 }
+
+#[cfg(test)]
+mod tests {
+    use glam::DVec3;
+
+    use super::*;
+    use crate::frame::{Marker, MarkerFrame};
+    use crate::sim::{generate, ColumnTruth, SynthOptions};
+
+    fn column(name: &str, tip: Option<usize>) -> ColumnTruth {
+        ColumnTruth {
+            name: name.into(),
+            tip,
+            first_frame: 0,
+            last_frame: 0,
+        }
+    }
+
+    #[test]
+    fn writes_motive_layout_by_hand() {
+        let mut syn = generate(&SynthOptions {
+            tips: 2,
+            still_s: 0.02,
+            wind_s: 0.0,
+            gap_fraction: 0.0,
+            spurious_per_s: 0.0,
+            take_name: "hand".into(),
+            ..SynthOptions::default()
+        })
+        .unwrap();
+        syn.columns = vec![
+            column("Unlabeled 1000", Some(0)),
+            column("Unlabeled 1001", Some(1)),
+            column("Unlabeled 1002", None),
+        ];
+        let m = |x: f64, y: f64, z: f64, id: i64| Marker {
+            position: DVec3::new(x, y, z),
+            id: Some(id),
+        };
+        syn.frames = vec![
+            MarkerFrame::new(0, 0.0, vec![m(0.1, 1.5, -0.25, 0), m(-1.0, 2.0, 0.0005, 2)]),
+            MarkerFrame::new(1, 0.01, vec![m(0.1000004, 1.5, -0.25, 1)]),
+        ];
+        let mut out = Vec::new();
+        write_motive_csv(&syn, &mut out).unwrap();
+        let text = String::from_utf8(out).unwrap();
+        let suffix = format!("{:016X}", stream(&Rng::new(1), ID_SUFFIX).next_u64());
+        let expected = format!(
+            "Format Version,1.23,Take Name,hand,Take Notes,,Capture Frame Rate,100.000000,\
+             Export Frame Rate,100.000000,Capture Start Time,2013-05-08 10.00.00.000 AM,\
+             Total Frames in Take,2,Total Exported Frames,2,Rotation Type,Quaternion,\
+             Length Units,Millimeters,Coordinate Space,Global\r\n\
+             \r\n\
+             ,Type,Marker,Marker,Marker,Marker,Marker,Marker,Marker,Marker,Marker\r\n\
+             ,Name,Unlabeled 1000,Unlabeled 1000,Unlabeled 1000,Unlabeled 1001,Unlabeled 1001,\
+             Unlabeled 1001,Unlabeled 1002,Unlabeled 1002,Unlabeled 1002\r\n\
+             ,ID,\"1{s}\",\"1{s}\",\"1{s}\",\"2{s}\",\"2{s}\",\"2{s}\",\"3{s}\",\"3{s}\",\"3{s}\"\r\n\
+             ,,Position,Position,Position,Position,Position,Position,Position,Position,Position\r\n\
+             Frame,Time (Seconds),X,Y,Z,X,Y,Z,X,Y,Z\r\n\
+             0,0.000000,100.000000,1500.000000,-250.000000,,,,-1000.000000,2000.000000,0.500000\r\n\
+             1,0.010000,,,,100.000400,1500.000000,-250.000000,,,\r\n",
+            s = suffix
+        );
+        assert_eq!(text, expected);
+    }
+
+    #[test]
+    fn rejects_markers_out_of_column_order() {
+        let mut syn = generate(&SynthOptions {
+            tips: 2,
+            still_s: 0.01,
+            wind_s: 0.0,
+            ..SynthOptions::default()
+        })
+        .unwrap();
+        syn.frames[0].markers.reverse();
+        let err = write_motive_csv(&syn, &mut Vec::new()).unwrap_err();
+        assert!(err.to_string().contains("frame 0"), "{err}");
+        syn.frames[0].markers = vec![Marker::new(DVec3::ZERO)];
+        assert!(write_motive_csv(&syn, &mut Vec::new()).is_err());
+    }
+}
