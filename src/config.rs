@@ -21,6 +21,7 @@ pub struct Config {
     pub osc: OscConfig,
     pub output: OutputConfig,
     pub natnet: NatNetConfig,
+    pub tracking: TrackingConfig,
     pub wind: WindConfig,
     pub c3d: C3dConfig,
 }
@@ -83,6 +84,63 @@ pub struct NatNetConfig {
     pub silence_timeout_s: f64,
     /// Unicast keep-alive period (s).
     pub keepalive_interval_s: f64,
+}
+
+/// Marker processing: tracking, gap filling, noise removal, rest phase
+/// (spec/pipeline.md sections 2–4).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TrackingConfig {
+    /// Gate radius around a trace's prediction (mm).
+    pub gate_mm: f64,
+    /// Frames a trace survives without a marker before it ends.
+    pub max_gap: u32,
+    /// Longest gap that is filled by interpolation (s).
+    pub max_fill_s: f64,
+    /// Largest plausible disagreement between a gap's far end and a linear
+    /// extrapolation across it (mm); beyond it the fill (or join) is refused.
+    pub max_jump_mm: f64,
+    /// Pieces whose rest positions are this close are one marker (mm).
+    pub merge_radius_mm: f64,
+    /// Traces measured in fewer than this fraction of frames are noise.
+    pub noise_fraction: f64,
+    /// Motion (standard deviation, mm) below which a marker counts as still.
+    pub rest_motion_mm: f64,
+    /// A fixed rest window `[start_s, end_s]`, or empty for automatic.
+    pub rest_window_s: Vec<f64>,
+    /// Markers of one frame closer than this are duplicates (mm).
+    pub duplicate_mm: f64,
+}
+
+impl Default for TrackingConfig {
+    fn default() -> Self {
+        Config::default().tracking
+    }
+}
+
+impl TrackingConfig {
+    /// Range checks, each naming the key and its allowed range.
+    pub fn validate(&self) -> Result<()> {
+        check_range("tracking.gate_mm", self.gate_mm, 1.0, 500.0)?;
+        check_range("tracking.max_gap", f64::from(self.max_gap), 0.0, 100_000.0)?;
+        check_range("tracking.max_fill_s", self.max_fill_s, 0.0, 10.0)?;
+        check_range("tracking.max_jump_mm", self.max_jump_mm, 1.0, 1000.0)?;
+        check_range("tracking.merge_radius_mm", self.merge_radius_mm, 0.0, 100.0)?;
+        check_range("tracking.noise_fraction", self.noise_fraction, 0.0, 1.0)?;
+        check_range("tracking.rest_motion_mm", self.rest_motion_mm, 0.01, 100.0)?;
+        check_range("tracking.duplicate_mm", self.duplicate_mm, 0.0, 10.0)?;
+        match self.rest_window_s.as_slice() {
+            [] => {}
+            [a, b] if a.is_finite() && b.is_finite() && *a >= 0.0 && a < b => {}
+            _ => {
+                return Err(Error::config(
+                    "tracking.rest_window_s",
+                    "must be [] (automatic) or [start_s, end_s] with 0 <= start_s < end_s",
+                ))
+            }
+        }
+        Ok(())
+    }
 }
 
 /// Where the wind estimate comes from (see `wind`).
@@ -256,6 +314,7 @@ impl Config {
         if self.output.dir.is_empty() {
             return Err(Error::config("output.dir", "must not be empty"));
         }
+        self.tracking.validate()?;
         Ok(())
     }
 }
@@ -407,6 +466,19 @@ mod tests {
         assert_eq!(c.natnet.markers, MarkerSelection::All);
         let e = Config::from_toml_str("[natnet]\nmarkers = \"some\"\n").unwrap_err();
         assert!(e.to_string().contains("some"), "{e}");
+    }
+
+    #[test]
+    fn tracking_section_checks_ranges_and_rest_window() {
+        let c = Config::default();
+        assert_eq!(c.tracking.gate_mm, 25.0);
+        assert!(c.tracking.rest_window_s.is_empty());
+        let c = Config::from_toml_str("[tracking]\nrest_window_s = [1, 5.5]\n").unwrap();
+        assert_eq!(c.tracking.rest_window_s, vec![1.0, 5.5]);
+        let e = Config::from_toml_str("[tracking]\nrest_window_s = [5, 1]\n").unwrap_err();
+        assert!(e.to_string().contains("tracking.rest_window_s"), "{e}");
+        let e = Config::from_toml_str("[tracking]\nnoise_fraction = 2\n").unwrap_err();
+        assert!(e.to_string().contains("tracking.noise_fraction"), "{e}");
     }
 
     #[test]

@@ -13,6 +13,7 @@ pub mod output;
 pub mod rng;
 pub mod sim;
 pub mod source;
+pub mod track;
 pub mod wind;
 
 pub use error::{Error, Location, Result};

@@ -51,6 +51,21 @@ enum Command {
         #[arg(long, value_name = "DIR")]
         out: Option<PathBuf>,
     },
+    /// Find the branch tips in a recording: track the markers, fill gaps,
+    /// drop noise, average each marker over the still phase. Prints a table
+    /// of tips and a summary.
+    Tips {
+        /// A Motive CSV export or a treemocap log (detected by content).
+        file: PathBuf,
+        #[command(flatten)]
+        config: ConfigArgs,
+        /// Write the tips as JSON (tips.json, what reconstruction reads).
+        #[arg(long, value_name = "OUT")]
+        json: Option<PathBuf>,
+        /// Draw each marker's x, y, z over time, with gaps and fills, as PNG.
+        #[arg(long, value_name = "OUT.png")]
+        plot: Option<PathBuf>,
+    },
     /// Describe a recording: format, rate, units, frames, markers, gaps.
     Inspect {
         /// A Motive CSV export or a treemocap log (detected by content).
@@ -266,6 +281,18 @@ fn run(command: Command) -> Result<()> {
             )?;
             let report = treemocap::inspect::inspect_recording(&file, rec.as_mut())?;
             print!("{report}");
+            Ok(())
+        }
+        Command::Tips {
+            file,
+            config,
+            json,
+            plot,
+        } => {
+            let config = config.load()?;
+            let (_, _, text) =
+                treemocap::track::tips_command(&file, &config, json.as_deref(), plot.as_deref())?;
+            print!("{text}");
             Ok(())
         }
         Command::Inspect { file, json } => {

@@ -1,0 +1,326 @@
+//! Marker processing (paper §4, spec/pipeline.md sections 2–4): unindexed
+//! markers per frame in, one rest position per branch tip out.
+//!
+//! The steps, in order:
+//! 1. [`tracker`]: frame by frame, markers become traces (forward
+//!    differencing, kd-tree gating, global assignment);
+//! 2. [`noise`]: pieces of one marker are joined (by motion across a gap,
+//!    then by rest position);
+//! 3. [`rest`]: the still phase is found (or taken from the config);
+//! 4. [`noise`]: traces measured in fewer than 1/4 of the frames are dropped;
+//! 5. [`gaps`]: gaps are filled where plausible;
+//! 6. [`rest`]: each remaining trace's rest position → [`Tips`].
+//!
+//! The live daemon runs step 1 as frames arrive and steps 2–6 ([`clean`])
+//! when it wants tips; a replay does both in [`process`].
+
+pub mod assign;
+pub mod gaps;
+pub mod noise;
+pub mod report;
+pub mod rest;
+pub mod trace;
+pub mod tracker;
+
+use std::fmt;
+
+use glam::DVec3;
+use serde::Serialize;
+
+pub use gaps::GapStats;
+pub use noise::DroppedTrace;
+pub use report::tips_command;
+pub use rest::{RestSource, RestWindow, Tip, Tips, WindEstimate};
+pub use trace::{Sample, SampleKind, Trace};
+pub use tracker::{Timeline, TrackStats, Tracked, Tracker};
+
+use crate::config::TrackingConfig;
+use crate::error::Result;
+use crate::source::replay::Recording;
+
+/// What the marker stage did, for the user (printed by `tips` and `replay`).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Summary {
+    pub source: String,
+    pub frame_rate: f64,
+    /// Frames received and the time they span (s).
+    pub frames: u64,
+    pub duration_s: f64,
+    /// Counters of the tracker, including the bad input it skipped.
+    pub tracking: TrackStats,
+    /// Traces the tracker made (before joining).
+    pub traces: usize,
+    /// Pieces joined to an earlier piece of the same marker.
+    pub joined_by_motion: usize,
+    pub joined_by_rest: usize,
+    /// Long fragments without a rest position put into a gap of the marker
+    /// whose neighbourhood they occupy.
+    pub joined_into_gaps: usize,
+    /// Traces dropped as noise (measured in fewer than `noise_fraction` of
+    /// the frames), longest first.
+    pub dropped: Vec<DroppedTrace>,
+    pub noise_fraction: f64,
+    pub gaps: GapStats,
+    /// The rest window (s) and where it came from.
+    pub rest_window_s: [f64; 2],
+    pub rest_source: RestSource,
+    /// Tips found.
+    pub tips: usize,
+    /// Things the user should look at.
+    pub warnings: Vec<String>,
+}
+
+impl fmt::Display for Summary {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let t = &self.tracking;
+        writeln!(
+            f,
+            "{}: {} frames at {} Hz ({:.2} s), {} marker samples",
+            self.source, self.frames, self.frame_rate, self.duration_s, t.markers
+        )?;
+        writeln!(
+            f,
+            "markers found: {} tips, from {} traces (pieces joined: {} by motion across a gap, {} by rest position, {} into a gap of their neighbourhood)",
+            self.tips, self.traces, self.joined_by_motion, self.joined_by_rest, self.joined_into_gaps
+        )?;
+        let longest = self.dropped.first().map_or(String::new(), |d| {
+            format!(
+                "; longest: trace {} measured in {} frames ({:.1} %)",
+                d.id,
+                d.measured,
+                d.fraction * 100.0
+            )
+        });
+        writeln!(
+            f,
+            "dropped as noise: {} traces measured in fewer than {:.0} % of the frames ({} samples){}",
+            self.dropped.len(),
+            self.noise_fraction * 100.0,
+            self.dropped.iter().map(|d| d.measured).sum::<usize>(),
+            longest
+        )?;
+        let g = &self.gaps;
+        writeln!(
+            f,
+            "gaps: {} filled ({} frames); left open: {} longer than max_fill ({} frames), {} with an implausible jump ({} frames)",
+            g.filled, g.filled_frames, g.too_long, g.too_long_frames, g.rejected_jump, g.rejected_jump_frames
+        )?;
+        let source = match self.rest_source {
+            RestSource::Auto => "found automatically",
+            RestSource::Config => "from the config",
+            RestSource::WholeRecording => "no still phase found, whole recording used",
+        };
+        writeln!(
+            f,
+            "rest window: {:.2}–{:.2} s ({source})",
+            self.rest_window_s[0], self.rest_window_s[1]
+        )?;
+        write!(
+            f,
+            "bad input: {} non-finite markers, {} duplicates, {} empty frames, {} restarts, {} jumps ({} frames skipped)",
+            t.nonfinite_markers, t.duplicate_markers, t.empty_frames, t.restarts, t.jumps, t.skipped_frames
+        )?;
+        for w in &self.warnings {
+            write!(f, "\nwarning: {w}")?;
+        }
+        Ok(())
+    }
+}
+
+/// Runs the whole marker stage over a recording: reads, tracks, joins,
+/// drops noise, fills gaps, finds the rest phase and averages.
+pub fn process(recording: &mut dyn Recording, cfg: &TrackingConfig) -> Result<(Tips, Summary)> {
+    let frame_rate = recording.info().frame_rate;
+    let source = recording.info().source.clone();
+    let mut tracker = Tracker::new(cfg, Some(frame_rate));
+    for frame in &mut *recording {
+        tracker.push(&frame?);
+    }
+    let mut warnings: Vec<String> = recording.warnings().to_vec();
+    let (tips, mut summary) = clean(tracker.finish(), cfg, &source, frame_rate);
+    warnings.append(&mut summary.warnings);
+    summary.warnings = warnings;
+    Ok((tips, summary))
+}
+
+/// Steps 2–6 on the tracker's output.
+pub fn clean(
+    tracked: Tracked,
+    cfg: &TrackingConfig,
+    source: &str,
+    frame_rate: f64,
+) -> (Tips, Summary) {
+    let Tracked {
+        traces,
+        timeline,
+        stats,
+    } = tracked;
+    let n_traces = traces.len();
+    let frames = stats.frames;
+    let mut warnings = Vec::new();
+    if let Some(d) = stats.closest_spacing_m {
+        warnings.push(format!(
+            "two markers came within {:.1} mm of each other: more than half of that is less than \
+             the gate ({:.1} mm), so their paths may have swapped; consider a smaller tracking.gate_mm",
+            d * 1000.0,
+            cfg.gate_mm
+        ));
+    }
+
+    let mut assigner = assign::Assigner::default();
+    let (traces, joined_by_motion) = noise::join_by_motion(
+        traces,
+        i64::from(cfg.max_gap),
+        cfg.max_jump_mm / 1000.0,
+        &mut assigner,
+    );
+
+    let total = timeline.len() as i64;
+    let window = match cfg.rest_window_s.as_slice() {
+        [a, b] => {
+            let start = timeline.frame_at(*a);
+            let end = timeline.frame_at(*b).max(start);
+            if end <= start {
+                warnings.push(format!(
+                    "tracking.rest_window_s [{a}, {b}] lies outside the recording; whole recording used"
+                ));
+                None
+            } else {
+                Some(RestWindow {
+                    start,
+                    end,
+                    source: RestSource::Config,
+                })
+            }
+        }
+        _ => rest::find_rest_window(&traces, &timeline, cfg.rest_motion_mm / 1000.0),
+    };
+    let window = window.unwrap_or(RestWindow {
+        start: 0,
+        end: total,
+        source: RestSource::WholeRecording,
+    });
+    if window.source == RestSource::WholeRecording && cfg.rest_window_s.is_empty() {
+        warnings.push(format!(
+            "no still phase found (no window where every marker moved less than {} mm): \
+             rest positions are means over the whole recording; name the still phase with \
+             tracking.rest_window_s",
+            cfg.rest_motion_mm
+        ));
+    }
+
+    let rests: Vec<Option<DVec3>> = traces
+        .iter()
+        .map(|t| {
+            rest::rest_of(t, window.start, window.end)
+                .filter(|r| r.2 >= rest::MIN_REST_SAMPLES)
+                .map(|r| r.0)
+        })
+        .collect();
+    let rest_by_id: std::collections::HashMap<usize, bool> = traces
+        .iter()
+        .zip(&rests)
+        .flat_map(|(t, r)| t.pieces.iter().map(move |p| (*p, r.is_some())))
+        .collect();
+    let (traces, joined_by_rest) =
+        noise::join_by_rest(traces, &rests, cfg.merge_radius_mm / 1000.0);
+    // After joining by rest, a trace has a rest position if any piece had.
+    let has_rest: Vec<bool> = traces
+        .iter()
+        .map(|t| {
+            t.pieces
+                .iter()
+                .any(|p| rest_by_id.get(p).copied().unwrap_or(false))
+        })
+        .collect();
+    let one_second = timeline
+        .frame_interval()
+        .map_or(100, |dt| (1.0 / dt).round().max(1.0) as i64);
+    let (traces, joined_into_gaps) = noise::join_into_gaps(
+        traces,
+        &has_rest,
+        one_second as usize,
+        one_second,
+        cfg.max_jump_mm / 1000.0,
+        &mut assigner,
+    );
+    let (mut kept, mut dropped) = noise::drop_noise(traces, frames, cfg.noise_fraction);
+    dropped.sort_by(|a, b| b.measured.cmp(&a.measured).then(a.id.cmp(&b.id)));
+
+    let settings = gaps::GapSettings {
+        max_fill_s: cfg.max_fill_s,
+        max_jump_m: cfg.max_jump_mm / 1000.0,
+    };
+    let mut gap_stats = GapStats::default();
+    for t in kept.iter_mut() {
+        let s = gaps::fill_gaps(t, &timeline, settings);
+        gap_stats.filled += s.filled;
+        gap_stats.filled_frames += s.filled_frames;
+        gap_stats.too_long += s.too_long;
+        gap_stats.too_long_frames += s.too_long_frames;
+        gap_stats.rejected_jump += s.rejected_jump;
+        gap_stats.rejected_jump_frames += s.rejected_jump_frames;
+    }
+
+    kept.sort_by_key(|t| (t.first_frame(), t.id));
+    let mut tips = Vec::with_capacity(kept.len());
+    for trace in kept {
+        let in_window = rest::rest_of(&trace, window.start, window.end)
+            .filter(|r| r.2 >= rest::MIN_REST_SAMPLES);
+        let (rest, spread, samples) = match in_window {
+            Some(r) => r,
+            None => {
+                warnings.push(format!(
+                    "trace {} has fewer than {} samples in the rest window; its rest position \
+                     is its mean over the whole recording",
+                    trace.id,
+                    rest::MIN_REST_SAMPLES
+                ));
+                rest::rest_of(&trace, 0, total).unwrap_or((trace.last_position(), 0.0, 0))
+            }
+        };
+        let gap_fraction = 1.0 - trace.measured() as f64 / frames.max(1) as f64;
+        tips.push(Tip {
+            marker: tips.len(),
+            rest,
+            samples,
+            gap_fraction: gap_fraction.clamp(0.0, 1.0),
+            spread_m: spread,
+            trace,
+        });
+    }
+
+    let rest_window_s = [timeline.time(window.start), timeline.time(window.end - 1)];
+    let duration_s = match (timeline.times.first(), timeline.times.last()) {
+        (Some(a), Some(b)) => b - a + timeline.frame_interval().unwrap_or(0.0),
+        _ => 0.0,
+    };
+    let summary = Summary {
+        source: source.to_string(),
+        frame_rate,
+        frames,
+        duration_s,
+        tracking: stats,
+        traces: n_traces,
+        joined_by_motion,
+        joined_by_rest,
+        joined_into_gaps,
+        dropped,
+        noise_fraction: cfg.noise_fraction,
+        gaps: gap_stats,
+        rest_window_s,
+        rest_source: window.source,
+        tips: tips.len(),
+        warnings,
+    };
+    let tips = Tips {
+        version: 1,
+        source: source.to_string(),
+        frame_rate,
+        rest_window_s,
+        tips,
+        wind: None,
+        timeline,
+    };
+    (tips, summary)
+}

@@ -1,0 +1,739 @@
+//! Frame-by-frame tracking by forward differencing (paper §4, spec §2).
+//!
+//! Each live trace predicts where its marker will be, `p̂(M) = 2p(M−1) −
+//! p(M−2)` (across a jump of k frames: last position + k × last velocity),
+//! and takes one marker of the new frame within the gate. Which trace takes
+//! which marker is decided for all of them at once ([`assign`]): the
+//! cheapest total distance, where a trace left without a marker costs the
+//! gate radius. Candidates come from a kd-tree of the frame's markers
+//! (for small frames, a direct scan of all pairs, which is cheaper). A
+//! trace that finds nothing for more than `max_gap` frames ends; markers
+//! nobody took start new traces.
+//!
+//! The tracker keeps only the traces and a per-frame time line, so the live
+//! daemon can feed it for hours.
+//!
+//! Bad input rules (each counted in [`TrackStats`], none panics):
+//! - a marker with a NaN or infinite coordinate is skipped;
+//! - markers of one frame closer than `duplicate_mm` are one marker seen
+//!   twice: the first is kept, the copies dropped;
+//! - an empty frame is a frame in which every trace misses its marker;
+//! - a frame number that does not increase (a restarted source) ends every
+//!   trace; tracking starts afresh, and the internal frame index jumps by
+//!   more than `max_gap` so nothing is bridged or filled across the restart;
+//! - a jump forward longer than `max_gap` ends every trace the same way and
+//!   is shortened in the internal frame index (so a corrupt frame number
+//!   cannot make the time line huge).
+
+use glam::DVec3;
+use kiddo::{ImmutableKdTree, SquaredEuclidean};
+use serde::Serialize;
+
+use super::assign::{Assigner, Edge};
+use super::trace::Trace;
+use crate::config::TrackingConfig;
+use crate::frame::MarkerFrame;
+
+/// Counters of what the tracker saw, for the summary and the daemon's metrics.
+#[derive(Debug, Clone, Default, PartialEq, Serialize)]
+pub struct TrackStats {
+    /// Frames received.
+    pub frames: u64,
+    /// Frames without a single usable marker.
+    pub empty_frames: u64,
+    /// Marker positions accepted.
+    pub markers: u64,
+    /// Markers skipped for a NaN or infinite coordinate.
+    pub nonfinite_markers: u64,
+    /// Markers dropped as copies of another marker of the same frame.
+    pub duplicate_markers: u64,
+    /// Times the frame number did not increase (source restarted).
+    pub restarts: u64,
+    /// Forward jumps in frame numbers (dropped frames).
+    pub jumps: u64,
+    /// Frame numbers skipped over by those jumps.
+    pub skipped_frames: u64,
+    /// Traces started.
+    pub traces_started: u64,
+    /// Assignment problems too large to solve exactly (gate far too wide).
+    pub greedy_components: u64,
+    /// The smallest distance seen between two established traces'
+    /// predictions (m), when closer than twice the gate.
+    pub closest_spacing_m: Option<f64>,
+}
+
+/// Time of every internal frame index, and where the source's frame
+/// numbers map to it.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Timeline {
+    /// Seconds for internal frames 0, 1, 2, … (skipped frames interpolated).
+    pub times: Vec<f64>,
+    /// `(internal index, source frame number)` at the first frame and after
+    /// every discontinuity; in between the two advance together.
+    pub anchors: Vec<(i64, i64)>,
+}
+
+impl Timeline {
+    /// Number of internal frames.
+    pub fn len(&self) -> usize {
+        self.times.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.times.is_empty()
+    }
+
+    /// Time of internal frame `t` (clamped to the recorded range; 0 if none).
+    pub fn time(&self, t: i64) -> f64 {
+        if self.times.is_empty() {
+            return 0.0;
+        }
+        let i = t.clamp(0, self.times.len() as i64 - 1) as usize;
+        self.times[i]
+    }
+
+    /// The first internal frame at or after `time_s`.
+    pub fn frame_at(&self, time_s: f64) -> i64 {
+        self.times.partition_point(|&t| t < time_s) as i64
+    }
+
+    /// Median frame interval (s), or `None` with fewer than two frames.
+    pub fn frame_interval(&self) -> Option<f64> {
+        if self.times.len() < 2 {
+            return None;
+        }
+        let step = (self.times.len() / 2001).max(1);
+        let mut d: Vec<f64> = self
+            .times
+            .windows(2)
+            .step_by(step)
+            .map(|w| w[1] - w[0])
+            .filter(|d| *d > 0.0)
+            .collect();
+        if d.is_empty() {
+            return None;
+        }
+        d.sort_by(f64::total_cmp);
+        Some(d[d.len() / 2])
+    }
+
+    /// The source's frame number of internal frame `t`.
+    pub fn source_frame(&self, t: i64) -> Option<i64> {
+        let i = self.anchors.partition_point(|a| a.0 <= t);
+        let (at, frame) = *self.anchors.get(i.checked_sub(1)?)?;
+        frame.checked_add(t - at)
+    }
+}
+
+/// What the tracker hands on when the session is over.
+#[derive(Debug, Clone, Default)]
+pub struct Tracked {
+    /// Every trace, in order of appearance (`trace.id` = index).
+    pub traces: Vec<Trace>,
+    pub timeline: Timeline,
+    pub stats: TrackStats,
+}
+
+/// A trace still looking for markers.
+#[derive(Debug, Clone, Copy)]
+struct Live {
+    trace: usize,
+    last: DVec3,
+    last_t: i64,
+    /// Motion per frame from the last two measurements.
+    velocity: DVec3,
+    /// The oldest of the last few measurements: across a gap the velocity
+    /// is taken over this longer baseline, because a two-sample difference
+    /// carries the full measurement noise, multiplied by the gap length.
+    base: (i64, DVec3),
+    recent: [(i64, DVec3); BASELINE],
+    recent_len: usize,
+    measured: u32,
+    prediction: DVec3,
+}
+
+/// Up to this many trace × marker pairs per frame, candidates are found by
+/// comparing every pair; beyond, from a kd-tree of the frame's markers
+/// (O(n log n)). Building the tree costs more than the whole scan for a
+/// typical tree capture of 24–70 markers (see benches/tracking.rs).
+const DIRECT_SCAN_MAX: usize = 4096;
+
+/// Measurements over which the velocity across a gap is taken.
+const BASELINE: usize = 5;
+
+impl Live {
+    fn new(trace: usize, p: DVec3, t: i64) -> Self {
+        let mut recent = [(t, p); BASELINE];
+        recent[0] = (t, p);
+        Live {
+            trace,
+            last: p,
+            last_t: t,
+            velocity: DVec3::ZERO,
+            base: (t, p),
+            recent,
+            recent_len: 1,
+            measured: 1,
+            prediction: p,
+        }
+    }
+
+    fn update(&mut self, p: DVec3, t: i64) {
+        let k = (t - self.last_t).max(1) as f64;
+        self.velocity = (p - self.last) / k;
+        self.last = p;
+        self.last_t = t;
+        self.measured += 1;
+        // Keep the last BASELINE measurements (a tiny ring, oldest at
+        // recent_len % BASELINE once full).
+        let slot = self.recent_len % BASELINE;
+        self.recent[slot] = (t, p);
+        self.recent_len += 1;
+        self.base = if self.recent_len >= BASELINE {
+            self.recent[self.recent_len % BASELINE]
+        } else {
+            self.recent[0]
+        };
+    }
+
+    /// `p̂(M) = 2p(M−1) − p(M−2)` for the next frame; across a gap of k
+    /// frames, the last position plus k × the velocity over the baseline.
+    fn predict(&self, t: i64) -> DVec3 {
+        let k = (t - self.last_t) as f64;
+        if k <= 1.0 || self.base.0 >= self.last_t {
+            return self.last + self.velocity * k;
+        }
+        let v = (self.last - self.base.1) / (self.last_t - self.base.0) as f64;
+        self.last + v * k
+    }
+}
+
+/// The online tracker; feed it frames in order with [`Tracker::push`].
+pub struct Tracker {
+    gate_m: f64,
+    max_gap: i64,
+    duplicate_m: f64,
+    traces: Vec<Trace>,
+    live: Vec<Live>,
+    timeline: Timeline,
+    stats: TrackStats,
+    last_frame: Option<i64>,
+    last_t: i64,
+    time_offset: f64,
+    dt: f64,
+    warned: bool,
+    assigner: Assigner,
+    // Per-frame scratch, kept to avoid allocating on every frame.
+    points: Vec<[f64; 3]>,
+    ids: Vec<Option<i64>>,
+    order: Vec<usize>,
+    keep: Vec<bool>,
+    edges: Vec<Edge>,
+    out: Vec<Option<usize>>,
+    taken: Vec<bool>,
+}
+
+impl Tracker {
+    /// `frame_rate` (if known) gives the frame interval until two frames
+    /// have been seen.
+    pub fn new(cfg: &TrackingConfig, frame_rate: Option<f64>) -> Self {
+        let dt = frame_rate
+            .filter(|r| r.is_finite() && *r > 0.0)
+            .map_or(0.01, |r| 1.0 / r);
+        Tracker {
+            gate_m: cfg.gate_mm / 1000.0,
+            max_gap: i64::from(cfg.max_gap),
+            duplicate_m: cfg.duplicate_mm / 1000.0,
+            traces: Vec::new(),
+            live: Vec::new(),
+            timeline: Timeline::default(),
+            stats: TrackStats::default(),
+            last_frame: None,
+            last_t: -1,
+            time_offset: 0.0,
+            dt,
+            warned: false,
+            assigner: Assigner::default(),
+            points: Vec::new(),
+            ids: Vec::new(),
+            order: Vec::new(),
+            keep: Vec::new(),
+            edges: Vec::new(),
+            out: Vec::new(),
+            taken: Vec::new(),
+        }
+    }
+
+    /// Counters so far.
+    pub fn stats(&self) -> &TrackStats {
+        &self.stats
+    }
+
+    /// All traces so far (live ones still growing).
+    pub fn traces(&self) -> &[Trace] {
+        &self.traces
+    }
+
+    /// The live traces measured in the latest frame: `(trace id, position)`.
+    pub fn current(&self) -> impl Iterator<Item = (usize, DVec3)> + '_ {
+        let t = self.last_t;
+        self.live
+            .iter()
+            .filter(move |l| l.last_t == t)
+            .map(|l| (l.trace, l.last))
+    }
+
+    /// Ends the session and hands over the traces.
+    pub fn finish(mut self) -> Tracked {
+        self.stats.greedy_components = self.assigner.greedy_components;
+        for t in self.traces.iter_mut() {
+            t.seal();
+        }
+        Tracked {
+            traces: self.traces,
+            timeline: self.timeline,
+            stats: self.stats,
+        }
+    }
+
+    /// Processes one frame.
+    pub fn push(&mut self, frame: &MarkerFrame) {
+        self.stats.frames += 1;
+        let t = self.advance(frame);
+        self.clean_markers(frame);
+        if self.points.is_empty() {
+            self.stats.empty_frames += 1;
+        }
+        self.stats.markers += self.points.len() as u64;
+
+        // Traces that have missed more than max_gap frames end now.
+        let max_gap = self.max_gap;
+        let traces = &mut self.traces;
+        self.live.retain(|l| {
+            let alive = t - l.last_t - 1 <= max_gap;
+            if !alive {
+                if let Some(tr) = traces.get_mut(l.trace) {
+                    tr.seal();
+                }
+            }
+            alive
+        });
+        for l in self.live.iter_mut() {
+            l.prediction = l.predict(t);
+        }
+        if !self.warned {
+            self.check_spacing();
+        }
+
+        self.edges.clear();
+        let r2 = self.gate_m * self.gate_m;
+        if self.points.len() * self.live.len() <= DIRECT_SCAN_MAX {
+            // Few markers: comparing every pair is cheaper than building a tree.
+            for (row, l) in self.live.iter().enumerate() {
+                for (col, p) in self.points.iter().enumerate() {
+                    let d2 = l.prediction.distance_squared(DVec3::from_array(*p));
+                    if d2 <= r2 {
+                        self.edges.push(Edge {
+                            row,
+                            col,
+                            cost: d2.sqrt(),
+                        });
+                    }
+                }
+            }
+        } else if !self.points.is_empty() && !self.live.is_empty() {
+            if let Ok(tree) = ImmutableKdTree::<f64, 3>::new_from_slice(&self.points) {
+                for (row, l) in self.live.iter().enumerate() {
+                    let q = l.prediction.to_array();
+                    let found = tree.query(&q).within::<SquaredEuclidean<f64>>(r2).execute();
+                    for item in found {
+                        self.edges.push(Edge {
+                            row,
+                            col: item.item as usize,
+                            cost: item.distance.sqrt(),
+                        });
+                    }
+                }
+            }
+        }
+        self.assigner.solve(
+            self.live.len(),
+            self.points.len(),
+            &self.edges,
+            self.gate_m,
+            &mut self.out,
+        );
+
+        self.taken.clear();
+        self.taken.resize(self.points.len(), false);
+        for (row, col) in self.out.iter().enumerate() {
+            let (Some(col), Some(l)) = (*col, self.live.get_mut(row)) else {
+                continue;
+            };
+            let Some(p) = self.points.get(col).map(|p| DVec3::from_array(*p)) else {
+                continue;
+            };
+            self.taken[col] = true;
+            l.update(p, t);
+            if let Some(trace) = self.traces.get_mut(l.trace) {
+                trace.push(t, p, self.ids.get(col).copied().flatten());
+            }
+        }
+        for (col, p) in self.points.iter().enumerate() {
+            if self.taken[col] {
+                continue;
+            }
+            let id = self.traces.len();
+            let p = DVec3::from_array(*p);
+            self.traces
+                .push(Trace::new(id, t, p, self.ids.get(col).copied().flatten()));
+            self.stats.traces_started += 1;
+            self.live.push(Live::new(id, p, t));
+        }
+    }
+
+    /// Maps the frame to the internal frame index and extends the time line.
+    fn advance(&mut self, frame: &MarkerFrame) -> i64 {
+        let Some(last_frame) = self.last_frame else {
+            let time = if frame.time_s.is_finite() {
+                frame.time_s
+            } else {
+                0.0
+            };
+            self.time_offset = 0.0;
+            self.last_frame = Some(frame.frame);
+            self.last_t = 0;
+            self.timeline.times.push(time);
+            self.timeline.anchors.push((0, frame.frame));
+            return 0;
+        };
+        let last_time = self.timeline.times.last().copied().unwrap_or(0.0);
+        let d = frame.frame.checked_sub(last_frame);
+        let restart = d.is_none_or(|d| d <= 0);
+        let long_jump = d.is_some_and(|d| d > self.max_gap + 1);
+        let t;
+        let mut time;
+        if restart || long_jump {
+            // Nothing is bridged across: all traces end, and the internal
+            // index moves on by more than max_gap.
+            for l in self.live.drain(..) {
+                if let Some(tr) = self.traces.get_mut(l.trace) {
+                    tr.seal();
+                }
+            }
+            t = self.last_t + self.max_gap + 2;
+            self.timeline.anchors.push((t, frame.frame));
+            if restart {
+                self.stats.restarts += 1;
+                // The source's clock restarted too: continue our own.
+                time = last_time + self.dt * (t - self.last_t) as f64;
+                self.time_offset = time - frame.time_s;
+            } else {
+                self.stats.jumps += 1;
+                self.stats.skipped_frames += d.map_or(0, |d| (d - 1) as u64);
+                time = frame.time_s + self.time_offset;
+            }
+        } else {
+            let d = d.unwrap_or(1);
+            t = self.last_t + d;
+            if d > 1 {
+                self.stats.jumps += 1;
+                self.stats.skipped_frames += (d - 1) as u64;
+            }
+            time = frame.time_s + self.time_offset;
+        }
+        let steps = (t - self.last_t) as f64;
+        if !time.is_finite() || time <= last_time {
+            time = last_time + self.dt * steps;
+        } else if !restart && !long_jump {
+            self.dt = (time - last_time) / steps;
+        }
+        for k in 1..(t - self.last_t) {
+            let f = k as f64 / steps;
+            self.timeline.times.push(last_time + (time - last_time) * f);
+        }
+        self.timeline.times.push(time);
+        self.last_frame = Some(frame.frame);
+        self.last_t = t;
+        t
+    }
+
+    /// Copies the usable markers of `frame` into `points`/`ids`.
+    fn clean_markers(&mut self, frame: &MarkerFrame) {
+        self.points.clear();
+        self.ids.clear();
+        for m in &frame.markers {
+            if m.position.is_finite() {
+                self.points.push(m.position.to_array());
+                self.ids.push(m.id);
+            } else {
+                self.stats.nonfinite_markers += 1;
+            }
+        }
+        if self.points.len() < 2 || self.duplicate_m <= 0.0 {
+            return;
+        }
+        // Sweep along x: only markers within duplicate_m in x can be copies.
+        self.order.clear();
+        self.order.extend(0..self.points.len());
+        let pts = &self.points;
+        self.order
+            .sort_unstable_by(|&a, &b| pts[a][0].total_cmp(&pts[b][0]).then(a.cmp(&b)));
+        self.keep.clear();
+        self.keep.resize(pts.len(), true);
+        let r2 = self.duplicate_m * self.duplicate_m;
+        for (k, &i) in self.order.iter().enumerate() {
+            if !self.keep[i] {
+                continue;
+            }
+            for &j in &self.order[k + 1..] {
+                if pts[j][0] - pts[i][0] > self.duplicate_m {
+                    break;
+                }
+                let d = DVec3::from_array(pts[j]) - DVec3::from_array(pts[i]);
+                if self.keep[j] && d.length_squared() <= r2 {
+                    // Keep the one that came first in the frame.
+                    let drop = i.max(j);
+                    self.keep[drop] = false;
+                    if drop == i {
+                        break;
+                    }
+                }
+            }
+        }
+        let dropped = self.keep.iter().filter(|k| !**k).count();
+        if dropped > 0 {
+            self.stats.duplicate_markers += dropped as u64;
+            let mut n = 0;
+            for i in 0..self.points.len() {
+                if self.keep[i] {
+                    self.points[n] = self.points[i];
+                    self.ids[n] = self.ids[i];
+                    n += 1;
+                }
+            }
+            self.points.truncate(n);
+            self.ids.truncate(n);
+        }
+    }
+
+    /// Warns (once) when two established traces are predicted closer than
+    /// twice the gate: their gates overlap and their paths could swap.
+    fn check_spacing(&mut self) {
+        self.order.clear();
+        self.order.extend(
+            self.live
+                .iter()
+                .enumerate()
+                .filter(|(_, l)| l.measured >= 10 && l.last_t == self.last_t - 1)
+                .map(|(i, _)| i),
+        );
+        let live = &self.live;
+        self.order
+            .sort_unstable_by(|&a, &b| live[a].prediction.x.total_cmp(&live[b].prediction.x));
+        let limit = 2.0 * self.gate_m;
+        let mut closest = f64::INFINITY;
+        let mut pair = (0, 0);
+        for (k, &i) in self.order.iter().enumerate() {
+            for &j in &self.order[k + 1..] {
+                let (a, b) = (live[i].prediction, live[j].prediction);
+                if b.x - a.x >= limit.min(closest) {
+                    break;
+                }
+                let d = a.distance(b);
+                if d < closest {
+                    closest = d;
+                    pair = (live[i].trace, live[j].trace);
+                }
+            }
+        }
+        if closest < limit {
+            self.warned = true;
+            self.stats.closest_spacing_m = Some(closest);
+            tracing::warn!(
+                "tracking gate {:.1} mm is more than half the distance between traces {} and {} \
+                 ({:.1} mm) at {:.2} s: their paths may swap; lower tracking.gate_mm",
+                self.gate_m * 1000.0,
+                pair.0,
+                pair.1,
+                closest * 1000.0,
+                self.timeline.times.last().copied().unwrap_or(0.0)
+            );
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::frame::Marker;
+
+    fn cfg() -> TrackingConfig {
+        TrackingConfig::default()
+    }
+
+    fn frame(n: i64, pts: &[DVec3]) -> MarkerFrame {
+        MarkerFrame::new(
+            n,
+            n as f64 / 100.0,
+            pts.iter().map(|p| Marker::new(*p)).collect(),
+        )
+    }
+
+    #[test]
+    fn two_crossing_paths_keep_their_identity() {
+        // Two markers 60 mm apart moving toward each other at 4 mm/frame,
+        // passing at 20 mm apart in y: forward differencing follows each.
+        let mut tr = Tracker::new(&cfg(), Some(100.0));
+        for n in 0..40 {
+            let x = -0.08 + 0.004 * n as f64;
+            let a = DVec3::new(x, 0.0, 0.0);
+            let b = DVec3::new(-x, 0.02, 0.0);
+            // Source order alternates, so order carries no identity.
+            let pts = if n % 2 == 0 { [a, b] } else { [b, a] };
+            tr.push(&frame(n, &pts));
+        }
+        let done = tr.finish();
+        assert_eq!(done.traces.len(), 2);
+        for t in &done.traces {
+            let xs: Vec<f64> = t.measurements().map(|(_, p)| p.x).collect();
+            assert_eq!(xs.len(), 40);
+            // Monotone x: no swap.
+            let up = xs[1] > xs[0];
+            assert!(xs.windows(2).all(|w| (w[1] > w[0]) == up));
+        }
+    }
+
+    #[test]
+    fn prediction_bridges_a_gap_and_a_frame_jump() {
+        let mut tr = Tracker::new(&cfg(), Some(100.0));
+        // 5 mm per frame: without prediction the gate (25 mm) would be lost
+        // after a gap of 5 frames.
+        for n in (0..10).chain(20..30).chain(40..50) {
+            tr.push(&frame(n, &[DVec3::new(0.005 * n as f64, 0.0, 0.0)]));
+        }
+        let done = tr.finish();
+        assert_eq!(done.traces.len(), 1);
+        assert_eq!(done.traces[0].measured(), 30);
+        assert_eq!(done.traces[0].len(), 50);
+        assert_eq!(done.stats.jumps, 2);
+        assert_eq!(done.stats.skipped_frames, 20);
+        assert_eq!(done.timeline.len(), 50);
+        assert!((done.timeline.time(15) - 0.15).abs() < 1e-9);
+    }
+
+    #[test]
+    fn trace_ends_after_max_gap_and_leftovers_start_traces() {
+        let mut c = cfg();
+        c.max_gap = 3;
+        let mut tr = Tracker::new(&c, Some(100.0));
+        let p = DVec3::new(0.1, 1.0, 0.0);
+        for n in 0..5 {
+            tr.push(&frame(n, &[p]));
+        }
+        for n in 5..10 {
+            tr.push(&frame(n, &[]));
+        }
+        tr.push(&frame(10, &[p, p + DVec3::X]));
+        let done = tr.finish();
+        assert_eq!(done.stats.empty_frames, 5);
+        assert_eq!(done.traces.len(), 3);
+        assert_eq!(done.traces[0].last_frame(), 4);
+        assert_eq!(done.traces[1].first_frame(), 10);
+    }
+
+    #[test]
+    fn global_assignment_not_first_come() {
+        // Trace A (listed first) is predicted 10 mm from marker m1 and
+        // 12 mm from m2; trace B is 20 mm from m1 and out of gate of m2.
+        // Greedy would give m1 to A and leave B out.
+        let mut tr = Tracker::new(&cfg(), Some(100.0));
+        let a = DVec3::new(0.0, 0.0, 0.0);
+        let b = DVec3::new(0.03, 0.0, 0.0);
+        tr.push(&frame(0, &[a, b]));
+        let m1 = DVec3::new(0.010, 0.0, 0.0);
+        let m2 = DVec3::new(-0.012, 0.0, 0.0);
+        tr.push(&frame(1, &[m1, m2]));
+        let done = tr.finish();
+        assert_eq!(done.traces.len(), 2);
+        assert_eq!(done.traces[0].last_position(), m2);
+        assert_eq!(done.traces[1].last_position(), m1);
+    }
+
+    #[test]
+    fn bad_input_is_skipped_and_counted() {
+        let mut tr = Tracker::new(&cfg(), Some(100.0));
+        let p = DVec3::new(0.2, 1.0, 0.3);
+        let q = DVec3::new(0.5, 1.0, 0.3);
+        tr.push(&frame(100, &[p, q]));
+        tr.push(&frame(101, &[p, DVec3::new(f64::NAN, 0.0, 0.0), q]));
+        tr.push(&frame(
+            102,
+            &[p, p + DVec3::splat(1e-5), q, DVec3::INFINITY],
+        ));
+        tr.push(&frame(103, &[]));
+        // Restart: frame numbers go back; new traces begin.
+        tr.push(&frame(0, &[p, q]));
+        tr.push(&frame(1, &[p, q]));
+        // Extreme frame numbers must not overflow.
+        tr.push(&frame(i64::MAX, &[p]));
+        tr.push(&frame(i64::MIN, &[p]));
+        let done = tr.finish();
+        let s = &done.stats;
+        assert_eq!(s.nonfinite_markers, 2);
+        assert_eq!(s.duplicate_markers, 1);
+        assert_eq!(s.empty_frames, 1);
+        assert_eq!(s.restarts, 2);
+        assert_eq!(s.jumps, 1);
+        assert_eq!(done.traces.len(), 2 + 2 + 1 + 1);
+        assert_eq!(done.traces[0].measured(), 3);
+        // Times keep increasing across the restart (the absurd frame
+        // numbers at the end give absurd but ordered, finite times).
+        let times = &done.timeline.times;
+        assert!(times.windows(2).all(|w| w[1] >= w[0] && w[1].is_finite()));
+        let restart = (4 + 121) as usize;
+        assert!(times[..restart + 2].windows(2).all(|w| w[1] > w[0]));
+        assert_eq!(done.timeline.source_frame(0), Some(100));
+    }
+
+    #[test]
+    fn kd_tree_path_tracks_many_markers() {
+        // 100 markers (10 000 pairs: the kd-tree path), 80 mm apart, each
+        // moving 3 mm per frame in its own direction, listed in rotating
+        // order; every marker must stay one trace.
+        let mut tr = Tracker::new(&cfg(), Some(100.0));
+        let start = |i: usize| DVec3::new((i % 10) as f64, (i / 10) as f64, 0.0) * 0.08;
+        let dir =
+            |i: usize| DVec3::new((i as f64).cos(), (i as f64).sin(), 0.5).normalize() * 0.003;
+        for n in 0..50 {
+            let mut pts: Vec<DVec3> = (0..100).map(|i| start(i) + dir(i) * n as f64).collect();
+            pts.rotate_left(n as usize % 100);
+            tr.push(&frame(n, &pts));
+        }
+        let done = tr.finish();
+        assert_eq!(done.traces.len(), 100);
+        for t in &done.traces {
+            assert_eq!(t.measured(), 50);
+            let ms: Vec<DVec3> = t.measurements().map(|m| m.1).collect();
+            let step = ms[1] - ms[0];
+            assert!(ms.windows(2).all(|w| (w[1] - w[0] - step).length() < 1e-4));
+        }
+    }
+
+    #[test]
+    fn warns_once_when_gate_is_wide_for_the_spacing() {
+        let mut tr = Tracker::new(&cfg(), Some(100.0));
+        let a = DVec3::ZERO;
+        let b = DVec3::new(0.03, 0.0, 0.0);
+        for n in 0..20 {
+            tr.push(&frame(n, &[a, b]));
+        }
+        let s = tr.stats().closest_spacing_m.unwrap();
+        assert!((s - 0.03).abs() < 1e-9);
+        let mut tr = Tracker::new(&cfg(), Some(100.0));
+        for n in 0..20 {
+            tr.push(&frame(n, &[a, b * 3.0]));
+        }
+        assert_eq!(tr.stats().closest_spacing_m, None);
+    }
+}
