@@ -91,7 +91,11 @@ fn whole_stage(c: &mut Criterion) {
     let config = Config::default();
     c.bench_function("tips stage on replays/pine-35.csv", |b| {
         b.iter(|| {
-            let mut rec = treemocap::source::replay::open_with(&path, &config.replay).unwrap();
+            let mut rec = treemocap::source::replay::open_with(
+                &path,
+                &treemocap::source::replay::ReplayOptions::from_config(&config),
+            )
+            .unwrap();
             let (tips, _) = treemocap::track::process(rec.as_mut(), &config.tracking).unwrap();
             assert_eq!(tips.tips.len(), 35);
             black_box(tips)

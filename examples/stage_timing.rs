@@ -13,9 +13,12 @@ fn main() {
     let path = std::path::Path::new(&path);
     let config = Config::default();
     let t0 = Instant::now();
-    let frames: Vec<_> = treemocap::source::replay::open_with(path, &config.replay)
-        .and_then(|rec| rec.collect::<treemocap::Result<Vec<_>>>())
-        .unwrap_or_else(|e| panic!("{e}"));
+    let frames: Vec<_> = treemocap::source::replay::open_with(
+        path,
+        &treemocap::source::replay::ReplayOptions::from_config(&config),
+    )
+    .and_then(|rec| rec.collect::<treemocap::Result<Vec<_>>>())
+    .unwrap_or_else(|e| panic!("{e}"));
     let read = t0.elapsed();
     let t1 = Instant::now();
     let mut tracker = Tracker::new(&config.tracking, Some(100.0));

@@ -16,7 +16,11 @@ fn run(name: &str) -> (treemocap::track::Tips, treemocap::track::Summary) {
         .join("tests/fixtures/motive")
         .join(name);
     let config = Config::default();
-    let mut rec = treemocap::source::replay::open_with(&path, &config.replay).unwrap();
+    let mut rec = treemocap::source::replay::open_with(
+        &path,
+        &treemocap::source::replay::ReplayOptions::from_config(&config),
+    )
+    .unwrap();
     process(rec.as_mut(), &config.tracking).unwrap()
 }
 
