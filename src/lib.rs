@@ -7,6 +7,8 @@
 pub mod config;
 pub mod error;
 pub mod frame;
+pub mod output;
+pub mod reconstruct;
 pub mod rng;
 pub mod sim;
 pub mod source;

@@ -1,0 +1,160 @@
+//! Reconstruction of the branching structure from the captured tips by
+//! particle flow (Long & Jones 2013 §5–6; spec §6–8).
+//!
+//! `reconstruct` turns captured tips and the wind into a `Tree`;
+//! `run_and_write` also writes tree.glb, tree.json and tree.png, and is what
+//! `treemocap reconstruct` and `treemocap replay` call.
+
+pub mod flow;
+pub mod hull;
+pub mod leaves;
+pub mod mesh;
+pub mod radii;
+pub mod tips_file;
+pub mod tree;
+pub mod trunk;
+pub mod volume;
+
+use std::path::{Path, PathBuf};
+
+use glam::DVec3;
+use serde::{Deserialize, Serialize};
+
+use crate::config::{Config, ReconstructConfig};
+use crate::error::{Error, Result};
+use crate::rng::Rng;
+
+pub use tips_file::{parse_tips, read_tips, TipsInput};
+pub use tree::{Kind, Node, Tree};
+
+/// A captured branch tip: a marker's rest position (contract 3).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct CapturedTip {
+    /// The marker's index in tips.json, kept through to the outputs so a
+    /// captured tip can be matched to its live motion.
+    pub marker: usize,
+    /// Rest position (m, Y up).
+    pub position: DVec3,
+}
+
+/// Labels of the independent random streams, so that e.g. a change in the
+/// number of trunk nodes does not move every random tip.
+const TRUNK_STREAM: u64 = 1;
+const VOLUME_STREAM: u64 = 2;
+
+/// Reconstructs a tree from captured tips (contract 3): trunk, random tips
+/// in the crown volume, particle flow, pipe-model radii. `wind` is direction
+/// × speed (zero when unknown). The same inputs and seed give the same tree.
+pub fn reconstruct(
+    tips: &[CapturedTip],
+    wind: DVec3,
+    cfg: &ReconstructConfig,
+    seed: u64,
+) -> Result<Tree> {
+    Ok(reconstruct_with_volume(tips, wind, cfg, seed)?.0)
+}
+
+/// `reconstruct`, also returning the crown volume used (for checks and
+/// reports).
+pub fn reconstruct_with_volume(
+    tips: &[CapturedTip],
+    wind: DVec3,
+    cfg: &ReconstructConfig,
+    seed: u64,
+) -> Result<(Tree, volume::Volume)> {
+    cfg.validate()?;
+    if tips.is_empty() {
+        return Err(Error::Runtime(
+            "no captured tips to reconstruct from".into(),
+        ));
+    }
+    if let Some(t) = tips.iter().find(|t| !t.position.is_finite()) {
+        return Err(Error::Runtime(format!(
+            "captured tip of marker {} has a non-finite position",
+            t.marker
+        )));
+    }
+    if !wind.is_finite() {
+        return Err(Error::Runtime("the wind vector is not finite".into()));
+    }
+    let positions: Vec<DVec3> = tips.iter().map(|t| t.position).collect();
+    let crown = trunk::Bounds::of(positions.iter().copied())
+        .ok_or_else(|| Error::Runtime("no captured tips".into()))?;
+    let trunk = trunk::Trunk::build(crown, cfg, &mut Rng::new(seed).fork(TRUNK_STREAM))?;
+    let (volume, random) =
+        volume::random_tips(&positions, cfg, &mut Rng::new(seed).fork(VOLUME_STREAM))?;
+
+    let mut starts: Vec<(DVec3, Kind)> = tips
+        .iter()
+        .map(|t| (t.position, Kind::Captured { marker: t.marker }))
+        .collect();
+    starts.extend(random.into_iter().map(|p| (p, Kind::Tip)));
+    let mut tree = flow::run(&starts, &trunk, wind, cfg)?;
+    radii::assign(&mut tree, cfg.tip_radius, cfg.gamma);
+    Ok((tree, volume))
+}
+
+/// What a reconstruction produced, for the CLI and the daemon to print.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Report {
+    /// Captured tips used.
+    pub captured_tips: usize,
+    /// Random tips added in the crown volume.
+    pub random_tips: usize,
+    /// Nodes in the skeleton.
+    pub nodes: usize,
+    /// Flow steps taken.
+    pub steps: usize,
+    /// Particles joined to the trunk after `max_steps` (should be 0).
+    pub forced_joins: usize,
+    /// Triangles of the branch mesh.
+    pub branch_triangles: usize,
+    /// Leaves (0 when leaves are off).
+    pub leaves: usize,
+    /// Files written, in order.
+    pub files: Vec<PathBuf>,
+}
+
+/// Reconstructs and writes `tree.glb`, `tree.json` and `tree.png` into
+/// `out_dir` (created if missing), each atomically. Uses
+/// `config.reconstruct` and its seed.
+pub fn run_and_write(
+    tips: &[CapturedTip],
+    wind: DVec3,
+    config: &Config,
+    out_dir: &Path,
+) -> Result<Report> {
+    let cfg = &config.reconstruct;
+    let tree = reconstruct(tips, wind, cfg, cfg.seed)?;
+    let branch_mesh = mesh::branches(&tree, cfg.sides)?;
+    let leaf_mesh = if cfg.leaves {
+        Some(leaves::leaves(&tree, cfg, cfg.seed)?)
+    } else {
+        None
+    };
+    std::fs::create_dir_all(out_dir).map_err(|e| Error::io(out_dir, e))?;
+
+    let glb = crate::output::gltf::to_glb(&tree, &branch_mesh, leaf_mesh.as_ref())?;
+    let glb_path = out_dir.join("tree.glb");
+    crate::output::write_atomic(&glb_path, &glb)?;
+
+    let json = crate::output::json::to_json(&tree, cfg)?;
+    let json_path = out_dir.join("tree.json");
+    crate::output::write_atomic(&json_path, json.as_bytes())?;
+
+    let png = crate::output::picture::tree_png(&tree)?;
+    let png_path = out_dir.join("tree.png");
+    crate::output::write_atomic(&png_path, &png)?;
+
+    let random_tips = tree.nodes.iter().filter(|n| n.kind == Kind::Tip).count();
+    Ok(Report {
+        captured_tips: tips.len(),
+        random_tips,
+        nodes: tree.nodes.len(),
+        steps: tree.steps,
+        forced_joins: tree.forced_joins,
+        branch_triangles: branch_mesh.triangles(),
+        leaves: leaf_mesh.map_or(0, |m| m.triangles() / 2),
+        files: vec![glb_path, json_path, png_path],
+    })
+}
