@@ -48,6 +48,17 @@ enum Command {
         #[arg(long)]
         json: bool,
     },
+    /// Re-run the particle flow on saved tips (tips.json) and write
+    /// tree.glb, tree.json and tree.png.
+    Reconstruct {
+        /// A tips.json written by `treemocap replay` (or by hand).
+        tips: PathBuf,
+        #[command(flatten)]
+        config: ConfigArgs,
+        /// Output folder (default: output.dir from the config).
+        #[arg(long, value_name = "DIR")]
+        out: Option<PathBuf>,
+    },
 }
 
 fn main() -> ExitCode {
@@ -93,6 +104,27 @@ fn run(command: Command) -> Result<()> {
         Command::Inspect { file, json } => {
             let _ = (file, json);
             Err(Error::Runtime("inspect is not written yet".into()))
+        }
+        Command::Reconstruct { tips, config, out } => {
+            let config = config.load()?;
+            let input = treemocap::reconstruct::read_tips(&tips)?;
+            let out = out.unwrap_or_else(|| PathBuf::from(&config.output.dir));
+            let report =
+                treemocap::reconstruct::run_and_write(&input.tips, input.wind, &config, &out)?;
+            println!(
+                "{} captured + {} random tips, {} nodes, {} steps, {} forced joins, {} triangles, {} leaves",
+                report.captured_tips,
+                report.random_tips,
+                report.nodes,
+                report.steps,
+                report.forced_joins,
+                report.branch_triangles,
+                report.leaves
+            );
+            for f in &report.files {
+                println!("wrote {}", f.display());
+            }
+            Ok(())
         }
     }
 }

@@ -133,6 +133,6 @@ pub fn render(tree: &Tree) -> Canvas {
         tree.steps,
         tree.forced_joins
     );
-    canvas.text(MARGIN + 220.0, y - 7.0, &info, 2, INK);
+    canvas.text(MARGIN + 330.0, y - 7.0, &info, 2, INK);
     canvas
 }

@@ -10,6 +10,12 @@
 //! - D = (ω1 G + ω2 S + ω3 W) / 3, and the particle moves by β d · D/|D|
 //!   (ours: D normalised so β alone sets the step length).
 //!
+//! Ours, after the paper's "the bounding space ... bounds particle flow":
+//! a particle never leaves the bounding box of the tips and the trunk.
+//! Without that bound a negative gravity weight (the willow) pushes a
+//! particle above the trunk top further up each step, by a growing step,
+//! to infinity.
+//!
 //! After all particles moved, particles closer than `merge_distance` merge
 //! and a particle closer than `trunk_distance` to a trunk node joins it.
 //! Neighbour searches use a k-d tree (kiddo) built once per step, so a step
@@ -21,7 +27,7 @@ use kiddo::{ImmutableKdTree, SquaredEuclidean};
 use crate::config::ReconstructConfig;
 use crate::error::{Error, Result};
 use crate::reconstruct::tree::{Kind, Node, Tree};
-use crate::reconstruct::trunk::Trunk;
+use crate::reconstruct::trunk::{Bounds, Trunk};
 
 /// A particle still flowing: where it is and the tree node it last left.
 #[derive(Debug, Clone, Copy)]
@@ -72,7 +78,13 @@ pub fn run(
             .sum::<f64>()
             / tips.len() as f64
     };
+    let bounds =
+        Bounds::of(tips.iter().map(|t| t.0).chain(trunk.nodes.iter().copied())).unwrap_or(Bounds {
+            min: DVec3::ZERO,
+            max: DVec3::ZERO,
+        });
     let forces = Forces {
+        bounds,
         attractor: trunk.attractor_point(),
         shape_magnitude: cfg.alpha * mean_height,
         wind,
@@ -140,6 +152,7 @@ pub fn run(
 
 /// The three forces of Table 1 and the step of equations 1–3.
 struct Forces<'a> {
+    bounds: Bounds,
     attractor: DVec3,
     shape_magnitude: f64,
     wind: DVec3,
@@ -159,7 +172,7 @@ impl Forces<'_> {
         let unit = dir
             .try_normalize()
             .unwrap_or_else(|| (trunk.nodes[t] - p).normalize_or_zero());
-        p + c.beta * d * unit
+        (p + c.beta * d * unit).clamp(self.bounds.min, self.bounds.max)
     }
 }
 
