@@ -194,6 +194,23 @@ fn more_captured_than_total_tips_adds_none_and_single_tip_works() {
         .unwrap_err()
         .to_string();
     assert!(e.contains("hull") && e.contains("boxes"), "{e}");
+    // Fifty markers at one point (a user's copy-paste error): a tree, not a
+    // panic, even though every random tip lands on the same spot.
+    let same: Vec<CapturedTip> = (0..50)
+        .map(|m| CapturedTip {
+            marker: m,
+            position: DVec3::new(0.1, 1.5, 0.2),
+        })
+        .collect();
+    let cfg = ReconstructConfig::default();
+    let tree = reconstruct(&same, DVec3::ZERO, &cfg, 1).unwrap();
+    assert!(
+        tree.nodes
+            .iter()
+            .filter(|n| matches!(n.kind, Kind::Captured { .. }))
+            .count()
+            == 50
+    );
     // Bad input is an error, not a panic.
     let bad = [CapturedTip {
         marker: 0,

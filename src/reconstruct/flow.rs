@@ -250,4 +250,11 @@ mod tests {
         assert_eq!(groups, expect);
         assert!(groups.iter().any(|g| g.len() > 1));
     }
+
+    #[test]
+    fn many_identical_points_merge_into_one() {
+        let pts = vec![DVec3::new(0.5, 1.0, -0.25); 300];
+        let groups = merge_groups(&pts, 0.01).unwrap();
+        assert_eq!(groups, vec![(0..300).collect::<Vec<_>>()]);
+    }
 }
