@@ -19,6 +19,7 @@ pub struct Config {
     pub replay: ReplayConfig,
     pub record: RecordConfig,
     pub output: OutputConfig,
+    pub wind: WindConfig,
     pub reconstruct: ReconstructConfig,
 }
 
@@ -44,6 +45,47 @@ pub struct RecordConfig {
 pub struct OutputConfig {
     /// Output folder for replay results and the daemon's files.
     pub dir: String,
+}
+
+/// Where the wind estimate comes from (see `wind`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct WindConfig {
+    /// Source names in order of trust: "sensor", "fan", "pca".
+    pub priority: Vec<String>,
+    /// Age after which a sensor or PCA estimate is ignored (s).
+    pub max_age_s: f64,
+    /// The fan's position (m, Y up), or empty for no fan.
+    pub fan_position: Vec<f64>,
+    /// The fan's wind speed at the tree (m/s), 0 when unknown.
+    pub fan_speed_m_s: f64,
+    /// Serial device of a wind sensor, empty for none.
+    pub sensor_port: String,
+    pub sensor_baud: u32,
+    /// Capture azimuth of the sensor's 0° mark (degrees).
+    pub sensor_heading_deg: f64,
+    /// PCA window (s).
+    pub pca_window_s: f64,
+    /// RMS sway below which PCA gives no estimate (mm).
+    pub pca_min_sway_mm: f64,
+}
+
+impl WindConfig {
+    /// The priority list as sources (validated by `Config::validate`).
+    pub fn priority(&self) -> Vec<crate::wind::WindSource> {
+        self.priority
+            .iter()
+            .filter_map(|n| crate::wind::WindSource::from_name(n))
+            .collect()
+    }
+
+    /// The fan's position, when one is configured.
+    pub fn fan(&self) -> Option<glam::DVec3> {
+        match self.fan_position[..] {
+            [x, y, z] => Some(glam::DVec3::new(x, y, z)),
+            _ => None,
+        }
+    }
 }
 
 /// Which crown volume the random tips are placed in (paper §5, Figure 10).
@@ -218,6 +260,33 @@ impl Config {
             0.01,
             1.0,
         )?;
+        let w = &self.wind;
+        let mut seen = Vec::new();
+        for name in &w.priority {
+            if crate::wind::WindSource::from_name(name).is_none() || seen.contains(&name) {
+                return Err(Error::config(
+                    "wind.priority",
+                    format!(
+                        "'{name}' is unknown or repeated; allowed: \"sensor\", \"fan\", \"pca\""
+                    ),
+                ));
+            }
+            seen.push(name);
+        }
+        check_range("wind.max_age_s", w.max_age_s, 0.5, 600.0)?;
+        if !(w.fan_position.is_empty()
+            || (w.fan_position.len() == 3 && w.fan_position.iter().all(|v| v.is_finite())))
+        {
+            return Err(Error::config(
+                "wind.fan_position",
+                "must be [] or three numbers [x, y, z] in metres",
+            ));
+        }
+        check_range("wind.fan_speed_m_s", w.fan_speed_m_s, 0.0, 50.0)?;
+        check_range("wind.sensor_baud", w.sensor_baud as f64, 300.0, 921_600.0)?;
+        check_range("wind.sensor_heading_deg", w.sensor_heading_deg, 0.0, 360.0)?;
+        check_range("wind.pca_window_s", w.pca_window_s, 1.0, 120.0)?;
+        check_range("wind.pca_min_sway_mm", w.pca_min_sway_mm, 0.1, 100.0)?;
         if self.output.dir.is_empty() {
             return Err(Error::config("output.dir", "must not be empty"));
         }
@@ -261,6 +330,23 @@ fn merge(base: &mut toml::Table, over: toml::Table, prefix: &str) -> Result<()> 
             }
             (slot @ toml::Value::Float(_), toml::Value::Integer(i)) => {
                 *slot = toml::Value::Float(i as f64)
+            }
+            (slot @ toml::Value::Array(_), toml::Value::Array(items)) => {
+                // `[1, 2, 3]` for a list of floats: integers stand for floats
+                // unless the default list holds integers.
+                let ints_wanted = matches!(
+                    slot.as_array().and_then(|a| a.first()),
+                    Some(toml::Value::Integer(_))
+                );
+                *slot = toml::Value::Array(
+                    items
+                        .into_iter()
+                        .map(|v| match v {
+                            toml::Value::Integer(i) if !ints_wanted => toml::Value::Float(i as f64),
+                            v => v,
+                        })
+                        .collect(),
+                );
             }
             (slot, value) => {
                 if std::mem::discriminant(slot) != std::mem::discriminant(&value) {
@@ -346,6 +432,19 @@ mod tests {
     fn wrong_type_is_an_error() {
         let e = Config::from_toml_str("[output]\ndir = 3\n").unwrap_err();
         assert!(e.to_string().contains("output.dir"), "{e}");
+    }
+
+    #[test]
+    fn wind_settings() {
+        let c =
+            Config::from_toml_str("[wind]\nfan_position = [-3, 1.2, 0]\npriority = [\"fan\"]\n")
+                .unwrap();
+        assert_eq!(c.wind.fan(), Some(glam::DVec3::new(-3.0, 1.2, 0.0)));
+        assert_eq!(c.wind.priority(), vec![crate::wind::WindSource::Fan]);
+        let e = Config::from_toml_str("[wind]\nfan_position = [1, 2]\n").unwrap_err();
+        assert!(e.to_string().contains("wind.fan_position"), "{e}");
+        let e = Config::from_toml_str("[wind]\npriority = [\"fan\", \"moon\"]\n").unwrap_err();
+        assert!(e.to_string().contains("moon"), "{e}");
     }
 
     #[test]

@@ -7,11 +7,13 @@
 pub mod config;
 pub mod error;
 pub mod frame;
+pub mod inspect;
 pub mod output;
 pub mod reconstruct;
 pub mod rng;
 pub mod sim;
 pub mod source;
+pub mod wind;
 
 pub use error::{Error, Location, Result};
 pub use frame::{Marker, MarkerFrame};

@@ -40,6 +40,17 @@ impl ConfigArgs {
 
 #[derive(Subcommand)]
 enum Command {
+    /// Run the whole job on a recorded session: read it, and report what was
+    /// found. Results go to --out (default: output.dir of the config).
+    Replay {
+        /// A Motive CSV export or a treemocap log (detected by content).
+        file: PathBuf,
+        #[command(flatten)]
+        config: ConfigArgs,
+        /// Output folder (overrides output.dir).
+        #[arg(long, value_name = "DIR")]
+        out: Option<PathBuf>,
+    },
     /// Describe a recording: format, rate, units, frames, markers, gaps.
     Inspect {
         /// A Motive CSV export or a treemocap log (detected by content).
@@ -59,6 +70,87 @@ enum Command {
         #[arg(long, value_name = "DIR")]
         out: Option<PathBuf>,
     },
+    /// Make a synthetic capture session of a simulated tree: a Motive 1.23
+    /// CSV of unlabeled markers plus NAME.truth.json beside it (the true tree,
+    /// rest positions, wind and every gap), for testing without a mocap lab.
+    ///
+    /// Example (how replays/maple-24.csv was made):
+    /// treemocap synth --seed 24 --tips 24 --shape maple --out replays/maple-24.csv
+    Synth(SynthArgs),
+}
+
+/// Options of `treemocap synth`; every one left out takes the default shown.
+#[derive(clap::Args, Debug)]
+struct SynthArgs {
+    /// Seed of every random draw: the same options give the same bytes.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Markers on the tree, placed on its outermost branch tips (1-70).
+    #[arg(long, default_value_t = 24)]
+    tips: usize,
+    /// Crown habit: maple (round) or pine (conical).
+    #[arg(long, default_value = "maple")]
+    shape: treemocap::sim::CrownShape,
+    /// The CSV to write; the truth goes to the same name with .truth.json.
+    #[arg(long, value_name = "FILE")]
+    out: PathBuf,
+    /// Frames per second [default: 100].
+    #[arg(long, value_name = "HZ")]
+    rate: Option<f64>,
+    /// Seconds of still tree at the start [default: 20].
+    #[arg(long, value_name = "S")]
+    still: Option<f64>,
+    /// Seconds of wind after the still phase [default: 20].
+    #[arg(long, value_name = "S")]
+    wind: Option<f64>,
+    /// Measurement noise, standard deviation per axis in mm [default: 0.2].
+    #[arg(long, value_name = "MM")]
+    noise_mm: Option<f64>,
+    /// Scale of the wind sway (1 = up to a few cm) [default: 1].
+    #[arg(long, value_name = "X")]
+    sway_scale: Option<f64>,
+    /// Fraction of tip samples lost to occlusion, 0-0.3 [default: 0.05].
+    #[arg(long, value_name = "F")]
+    gap_fraction: Option<f64>,
+    /// Longest short occlusion burst in frames [default: 50].
+    #[arg(long, value_name = "FRAMES")]
+    max_burst: Option<u32>,
+    /// Markers hidden for seconds (1-4 s each) [default: one per 12 tips].
+    #[arg(long, value_name = "N")]
+    long_gaps: Option<usize>,
+    /// Spurious reflections appearing per second, each living 1-50 frames
+    /// [default: 0.5].
+    #[arg(long, value_name = "RATE")]
+    spurious: Option<f64>,
+    /// Least distance between marked tips in mm [default: 60].
+    #[arg(long, value_name = "MM")]
+    min_spacing_mm: Option<f64>,
+    /// Take Name written in the CSV [default: the output file's stem].
+    #[arg(long, value_name = "NAME")]
+    take_name: Option<String>,
+}
+
+impl SynthArgs {
+    fn options(&self) -> treemocap::sim::SynthOptions {
+        let d = treemocap::sim::SynthOptions::default();
+        treemocap::sim::SynthOptions {
+            seed: self.seed,
+            tips: self.tips,
+            shape: self.shape,
+            frame_rate: self.rate.unwrap_or(d.frame_rate),
+            still_s: self.still.unwrap_or(d.still_s),
+            wind_s: self.wind.unwrap_or(d.wind_s),
+            noise_mm: self.noise_mm.unwrap_or(d.noise_mm),
+            sway_scale: self.sway_scale.unwrap_or(d.sway_scale),
+            gap_fraction: self.gap_fraction.unwrap_or(d.gap_fraction),
+            max_burst_frames: self.max_burst.unwrap_or(d.max_burst_frames),
+            long_gaps: self.long_gaps.or(d.long_gaps),
+            spurious_per_s: self.spurious.unwrap_or(d.spurious_per_s),
+            min_spacing_mm: self.min_spacing_mm.unwrap_or(d.min_spacing_mm),
+            take_name: self.take_name.clone().unwrap_or(d.take_name),
+            ..d
+        }
+    }
 }
 
 fn main() -> ExitCode {
@@ -99,11 +191,33 @@ fn init_logging(verbose: u8) {
         .try_init();
 }
 
+fn to_json(value: &impl serde::Serialize) -> Result<String> {
+    serde_json::to_string_pretty(value).map_err(|e| Error::Runtime(format!("JSON output: {e}")))
+}
+
 fn run(command: Command) -> Result<()> {
     match command {
+        Command::Replay { file, config, out } => {
+            let config = config.load()?;
+            let _out = out.unwrap_or_else(|| PathBuf::from(&config.output.dir));
+            let mut rec = treemocap::source::replay::open_with(&file, &config.replay)?;
+            let report = treemocap::inspect::inspect_recording(&file, rec.as_mut())?;
+            print!("{report}");
+            Ok(())
+        }
         Command::Inspect { file, json } => {
-            let _ = (file, json);
-            Err(Error::Runtime("inspect is not written yet".into()))
+            let report = treemocap::inspect::inspect(&file)?;
+            if json {
+                println!("{}", to_json(&report)?);
+            } else {
+                print!("{report}");
+            }
+            Ok(())
+        }
+        Command::Synth(args) => {
+            let summary = treemocap::sim::write_session(&args.options(), &args.out)?;
+            print!("{summary}");
+            Ok(())
         }
         Command::Reconstruct { tips, config, out } => {
             let config = config.load()?;

@@ -1,12 +1,16 @@
-//! Everything that leaves the program as a file: the tree as binary glTF
-//! and JSON, and a picture of it. Every file is written atomically, so a
-//! reader (a viewer watching the folder, the HTTP server) never sees half a
-//! file and a crash never leaves a truncated one behind.
+//! Everything that leaves treemocap: files, OSC, HTTP/WebSocket. Outputs read
+//! an immutable [`snapshot::TreeSnapshot`]; none of them can slow the pipeline.
+//! Files (tree.glb, tree.json, tree.png) are written atomically, so a reader
+//! (a viewer watching the folder) never sees half a file and a crash never
+//! leaves a truncated one behind.
 
 pub mod gltf;
+pub mod http;
 pub mod json;
+pub mod osc;
 pub mod picture;
 pub mod raster;
+pub mod snapshot;
 
 use std::io::Write;
 use std::path::Path;

@@ -1,2 +1,341 @@
 //! Synthetic trees and capture sessions with ground truth: the project's own
 //! test bench, since no public motion capture of trees exists.
+//!
+//! [`generate`] grows a seeded tree ([`tree`]), puts markers on its outermost
+//! tips, moves them through a still phase and a wind phase ([`motion`]), and
+//! simulates what Motive records ([`capture`]): noise, occlusion gaps,
+//! spurious reflections and a new `Unlabeled N` column after every gap.
+//! [`write_motive_csv`] writes the result as a Motive 1.23 export and
+//! [`write_session`] writes that plus `NAME.truth.json` ([`Truth`]).
+//!
+//! Every random draw comes from [`crate::rng::Rng`] streams split by purpose
+//! (tree, motion, wind, capture) and then by tip, so the same options give the
+//! same bytes, and changing one option (say the gap fraction) leaves the
+//! tree, the motion and the noise of the remaining samples as they were.
+
+pub mod capture;
+pub mod motion;
+pub mod motive_writer;
+pub mod tree;
+pub mod truth;
+
+use std::f64::consts::TAU;
+use std::fmt;
+use std::io::BufWriter;
+use std::path::{Path, PathBuf};
+
+use glam::DVec3;
+use serde::{Deserialize, Serialize};
+
+use crate::error::{Error, Result};
+use crate::frame::MarkerFrame;
+use crate::rng::Rng;
+
+pub use motive_writer::write_motive_csv;
+pub use tree::{CrownShape, TreeNode, TreeTruth};
+pub use truth::{ColumnTruth, GapTruth, Sinusoid, SpuriousTruth, TipTruth, Truth};
+
+/// Stream labels under the session seed.
+const TREE: u64 = 1;
+const MOTION: u64 = 2;
+const WIND: u64 = 3;
+const CAPTURE: u64 = 4;
+
+/// Longest session `generate` makes (frames).
+pub const MAX_FRAMES: usize = 360_000;
+
+/// Number of the first `Unlabeled N` column (Motive's numbers are arbitrary).
+const FIRST_UNLABELED: u64 = 1000;
+
+/// Everything that shapes a synthetic session. Defaults follow the paper's
+/// maple session (§7: 24 markers, 100 Hz, about 20 s still) plus a 20 s wind
+/// phase and the imperfections of a real capture.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct SynthOptions {
+    /// Seed of every random draw.
+    pub seed: u64,
+    /// Markers placed on the tree (1–70; the paper uses 24 and 35).
+    pub tips: usize,
+    pub shape: CrownShape,
+    /// Frames per second (Hz).
+    pub frame_rate: f64,
+    /// Length of the still phase at the start of the take (s).
+    pub still_s: f64,
+    /// Length of the wind phase that follows (s).
+    pub wind_s: f64,
+    /// Time the fan takes to reach full strength (s).
+    pub wind_ramp_s: f64,
+    /// Measurement noise, standard deviation per axis (mm).
+    pub noise_mm: f64,
+    /// Largest peak amplitude of the tips' periodic motion without wind (mm);
+    /// the paper sees motion within 1 mm (§7).
+    pub still_motion_mm: f64,
+    /// Scales every wind displacement (1 = sway up to a few cm).
+    pub sway_scale: f64,
+    /// Fraction of tip samples lost to occlusion (0–0.3).
+    pub gap_fraction: f64,
+    /// Longest short occlusion burst (frames); bursts are 1 to this long.
+    pub max_burst_frames: u32,
+    /// Number of long occlusions (a marker hidden for seconds); `None` = one
+    /// per 12 tips, rounded up.
+    pub long_gaps: Option<usize>,
+    /// Shortest and longest long occlusion (s).
+    pub long_gap_min_s: f64,
+    pub long_gap_max_s: f64,
+    /// Mean number of spurious reflections appearing per second.
+    pub spurious_per_s: f64,
+    /// Longest life of a spurious reflection (frames); lives are 1 to this long.
+    pub spurious_max_frames: u32,
+    /// Least distance between two marked tips (mm), so tracking can be tested
+    /// with a 25 mm gate without paths swapping at rest.
+    pub min_spacing_mm: f64,
+    /// `Take Name` in the CSV header; empty = the output file's stem.
+    pub take_name: String,
+}
+
+impl Default for SynthOptions {
+    fn default() -> Self {
+        SynthOptions {
+            seed: 1,
+            tips: 24,
+            shape: CrownShape::Maple,
+            frame_rate: 100.0,
+            still_s: 20.0,
+            wind_s: 20.0,
+            wind_ramp_s: 2.0,
+            noise_mm: 0.2,
+            still_motion_mm: 0.4,
+            sway_scale: 1.0,
+            gap_fraction: 0.05,
+            max_burst_frames: 50,
+            long_gaps: None,
+            long_gap_min_s: 1.0,
+            long_gap_max_s: 4.0,
+            spurious_per_s: 0.5,
+            spurious_max_frames: 50,
+            min_spacing_mm: 60.0,
+            take_name: String::new(),
+        }
+    }
+}
+
+fn check(key: &str, value: f64, lo: f64, hi: f64) -> Result<()> {
+    if value.is_finite() && (lo..=hi).contains(&value) {
+        Ok(())
+    } else {
+        Err(Error::config(
+            key,
+            format!("{value} is outside the allowed range {lo} to {hi}"),
+        ))
+    }
+}
+
+impl SynthOptions {
+    /// Rejects options that make no session (errors name the option).
+    pub fn validate(&self) -> Result<()> {
+        check("tips", self.tips as f64, 1.0, 70.0)?;
+        check("frame_rate", self.frame_rate, 1.0, 10_000.0)?;
+        check("still_s", self.still_s, 0.0, 3600.0)?;
+        check("wind_s", self.wind_s, 0.0, 3600.0)?;
+        check("wind_ramp_s", self.wind_ramp_s, 0.001, 60.0)?;
+        check("noise_mm", self.noise_mm, 0.0, 10.0)?;
+        check("still_motion_mm", self.still_motion_mm, 0.0, 10.0)?;
+        check("sway_scale", self.sway_scale, 0.0, 10.0)?;
+        check("gap_fraction", self.gap_fraction, 0.0, 0.3)?;
+        check(
+            "max_burst_frames",
+            self.max_burst_frames as f64,
+            1.0,
+            10_000.0,
+        )?;
+        check("long_gap_min_s", self.long_gap_min_s, 0.0, 600.0)?;
+        check(
+            "long_gap_max_s",
+            self.long_gap_max_s,
+            self.long_gap_min_s,
+            600.0,
+        )?;
+        check("spurious_per_s", self.spurious_per_s, 0.0, 1000.0)?;
+        check(
+            "spurious_max_frames",
+            self.spurious_max_frames as f64,
+            1.0,
+            10_000.0,
+        )?;
+        check("min_spacing_mm", self.min_spacing_mm, 0.0, 1000.0)?;
+        // The whole session is held in memory (about 1 kB per frame at 35
+        // tips), so the length is capped at an hour at 100 Hz.
+        let frames = ((self.still_s + self.wind_s) * self.frame_rate).round();
+        if !(1.0..=MAX_FRAMES as f64).contains(&frames) {
+            return Err(Error::config(
+                "still_s",
+                format!(
+                    "(still_s + wind_s) × frame_rate gives {frames} frames; need 1 to {MAX_FRAMES}"
+                ),
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// A generated session: what a capture would give, and the truth behind it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Synthetic {
+    /// One frame per capture instant, frame numbers from 0. Each marker's
+    /// `id` is `Some(column index)` into `columns`, markers in column order;
+    /// positions are exactly what a reader gets back from the CSV.
+    pub frames: Vec<MarkerFrame>,
+    /// The CSV's columns (same as `truth.columns`).
+    pub columns: Vec<ColumnTruth>,
+    pub truth: Truth,
+}
+
+/// Generates a session. Same options → same session, bit for bit.
+pub fn generate(opts: &SynthOptions) -> Result<Synthetic> {
+    opts.validate()?;
+    let root = Rng::new(opts.seed);
+    let tree = tree::grow(opts.shape, &mut motion::stream(&root, TREE));
+    let nodes = tree.choose_tips(opts.tips, opts.min_spacing_mm / 1000.0)?;
+
+    let mut wind_rng = motion::stream(&root, WIND);
+    let angle = wind_rng.range(0.0, TAU);
+    let wind_direction = DVec3::new(tree::q9(angle.cos()), 0.0, tree::q9(angle.sin()));
+    let crown_centre = DVec3::new(0.0, 0.5 * (tree.crown_base + tree.height), 0.0);
+    let fan = crown_centre - wind_direction * 2.0;
+    let fan_position = DVec3::new(tree::q9(fan.x), tree::q9(fan.y), tree::q9(fan.z));
+
+    let tips = motion::tips(
+        &tree,
+        &nodes,
+        wind_direction,
+        opts.still_motion_mm / 1000.0,
+        opts.sway_scale,
+        &motion::stream(&root, MOTION),
+    );
+    let frames = ((opts.still_s + opts.wind_s) * opts.frame_rate).round() as usize;
+    let capture_rng = motion::stream(&root, CAPTURE);
+    let gaps = capture::gaps(opts, frames as i64, tips.len(), &capture_rng);
+    let rests: Vec<DVec3> = tips.iter().map(|t| t.rest).collect();
+    let spurious = capture::spurious(opts, frames as i64, &rests, &capture_rng);
+    let mut truth = Truth {
+        version: truth::TRUTH_VERSION,
+        options: opts.clone(),
+        frame_rate: opts.frame_rate,
+        frames,
+        still: (0.0, opts.still_s),
+        wind: (opts.still_s, opts.still_s + opts.wind_s),
+        wind_ramp_s: opts.wind_ramp_s,
+        wind_direction,
+        fan_position,
+        tree,
+        tips,
+        gaps,
+        columns: Vec::new(),
+        spurious,
+    };
+    capture::columns(&mut truth, FIRST_UNLABELED);
+    let frames = capture::frames(&truth, opts.noise_mm / 1000.0, &capture_rng);
+    Ok(Synthetic {
+        frames,
+        columns: truth.columns.clone(),
+        truth,
+    })
+}
+
+/// The truth file that belongs beside `csv`: `replays/x.csv` →
+/// `replays/x.truth.json`.
+pub fn truth_path(csv: &Path) -> PathBuf {
+    csv.with_extension("truth.json")
+}
+
+/// What `write_session` wrote, for the CLI to print.
+#[derive(Debug, Clone, Serialize)]
+pub struct SessionSummary {
+    pub csv: PathBuf,
+    pub truth: PathBuf,
+    pub csv_bytes: u64,
+    pub frames: usize,
+    pub tips: usize,
+    pub columns: usize,
+    pub gaps: usize,
+    /// Fraction of tip samples missing.
+    pub gap_fraction: f64,
+    pub spurious: usize,
+    pub tree_height_m: f64,
+    pub tree_nodes: usize,
+    pub wind_direction: DVec3,
+}
+
+impl fmt::Display for SessionSummary {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        writeln!(f, "wrote {} ({} bytes)", self.csv.display(), self.csv_bytes)?;
+        writeln!(f, "wrote {}", self.truth.display())?;
+        writeln!(
+            f,
+            "tree: {:.2} m tall, {} nodes; wind towards ({:.3}, {:.3}, {:.3})",
+            self.tree_height_m,
+            self.tree_nodes,
+            self.wind_direction.x,
+            self.wind_direction.y,
+            self.wind_direction.z
+        )?;
+        writeln!(
+            f,
+            "{} frames, {} tips, {} columns, {} gaps ({:.1} % of tip samples), {} spurious reflections",
+            self.frames,
+            self.tips,
+            self.columns,
+            self.gaps,
+            self.gap_fraction * 100.0,
+            self.spurious
+        )
+    }
+}
+
+/// Generates a session and writes the Motive CSV to `csv` and the truth to
+/// [`truth_path`]`(csv)`. An empty `take_name` becomes the file's stem.
+pub fn write_session(opts: &SynthOptions, csv: &Path) -> Result<SessionSummary> {
+    let mut opts = opts.clone();
+    if opts.take_name.is_empty() {
+        opts.take_name = csv
+            .file_stem()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_default();
+    }
+    let syn = generate(&opts)?;
+    let truth_file = truth_path(csv);
+    if let Some(dir) = csv.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+    }
+    let file = std::fs::File::create(csv).map_err(|e| Error::io(csv, e))?;
+    let mut out = BufWriter::with_capacity(1 << 20, file);
+    write_motive_csv(&syn, &mut out).map_err(|e| Error::io(csv, e))?;
+    drop(out);
+    let mut json = serde_json::to_string_pretty(&syn.truth)
+        .map_err(|e| Error::Runtime(format!("{}: {e}", truth_file.display())))?;
+    json.push('\n');
+    std::fs::write(&truth_file, json).map_err(|e| Error::io(&truth_file, e))?;
+
+    let csv_bytes = std::fs::metadata(csv).map_err(|e| Error::io(csv, e))?.len();
+    let t = &syn.truth;
+    let missing: i64 = t
+        .gaps
+        .iter()
+        .map(|g| g.last_frame - g.first_frame + 1)
+        .sum();
+    Ok(SessionSummary {
+        csv: csv.to_path_buf(),
+        truth: truth_file,
+        csv_bytes,
+        frames: t.frames,
+        tips: t.tips.len(),
+        columns: t.columns.len(),
+        gaps: t.gaps.len(),
+        gap_fraction: missing as f64 / (t.frames * t.tips.len()).max(1) as f64,
+        spurious: t.spurious.len(),
+        tree_height_m: t.tree.height,
+        tree_nodes: t.tree.nodes.len(),
+        wind_direction: t.wind_direction,
+    })
+}

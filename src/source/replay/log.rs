@@ -90,19 +90,38 @@ impl LogWriter {
 
     /// Appends one frame. It reaches the disk at the latest one flush interval later.
     pub fn write_frame(&mut self, frame: &MarkerFrame) -> Result<()> {
-        use std::io::Write as _;
+        // The "frame,time," prefix is the same for every row of the frame:
+        // format it once. ryu and itoa give the shortest round-trip text,
+        // several times faster than `Display`.
+        let mut f = ryu::Buffer::new();
+        let mut i = itoa::Buffer::new();
+        let mut prefix = [0u8; 64];
+        let mut n = 0;
+        for part in [
+            i.format(frame.frame).as_bytes(),
+            b",",
+            f.format(frame.time_s).as_bytes(),
+            b",",
+        ] {
+            prefix[n..n + part.len()].copy_from_slice(part);
+            n += part.len();
+        }
+        let prefix = &prefix[..n];
         let buf = &mut self.buf;
-        // Writing into a Vec cannot fail.
         if frame.markers.is_empty() {
-            let _ = writeln!(buf, "{},{},,,,", frame.frame, frame.time_s);
+            buf.extend_from_slice(prefix);
+            buf.extend_from_slice(b",,,\n");
         }
         for m in &frame.markers {
-            let _ = write!(buf, "{},{},", frame.frame, frame.time_s);
+            buf.extend_from_slice(prefix);
             if let Some(id) = m.id {
-                let _ = write!(buf, "{id}");
+                buf.extend_from_slice(i.format(id).as_bytes());
             }
-            let p = m.position;
-            let _ = writeln!(buf, ",{},{},{}", p.x, p.y, p.z);
+            for v in m.position.to_array() {
+                buf.push(b',');
+                buf.extend_from_slice(f.format(v).as_bytes());
+            }
+            buf.push(b'\n');
         }
         self.samples += frame.markers.len() as u64;
         if self.buf.len() >= BUFFER_LIMIT || self.last_flush.elapsed() >= self.flush_interval {
@@ -161,8 +180,9 @@ pub struct LogReader {
     line_no: u64,
     /// A line read without its newline, completed on the next read.
     partial: String,
-    /// The first row of the next frame, read while finishing the previous one.
-    pending: Option<Row>,
+    /// The first row of the next frame (or the error found there), read while
+    /// finishing the previous frame; the finished frame is returned first.
+    pending: Option<Result<Row>>,
     warnings: Vec<String>,
 }
 
@@ -183,7 +203,9 @@ impl LogReader {
         let mut line = String::new();
         loop {
             line.clear();
-            let n = reader.read_line(&mut line).map_err(|e| Error::io(path, e))?;
+            let n = reader
+                .read_line(&mut line)
+                .map_err(|e| Error::io(path, e))?;
             line_no += 1;
             if n == 0 || !line.ends_with('\n') {
                 return Err(Error::at_line(
@@ -223,24 +245,49 @@ impl LogReader {
                 "source" => source = value.to_string(),
                 "frame_rate" => {
                     let rate: f64 = value.parse().map_err(|_| {
-                        Error::at_line(path, line_no, None, format!("frame_rate '{value}' is not a number"))
+                        Error::at_line(
+                            path,
+                            line_no,
+                            None,
+                            format!("frame_rate '{value}' is not a number"),
+                        )
                     })?;
                     if !(rate.is_finite() && rate > 0.0) {
-                        return Err(Error::at_line(path, line_no, None, "frame_rate must be positive"));
+                        return Err(Error::at_line(
+                            path,
+                            line_no,
+                            None,
+                            "frame_rate must be positive",
+                        ));
                     }
                     frame_rate = Some(rate);
                 }
                 "units" if value != "m" => {
-                    return Err(Error::at_line(path, line_no, None, format!("units '{value}': logs are in metres ('m')")))
+                    return Err(Error::at_line(
+                        path,
+                        line_no,
+                        None,
+                        format!("units '{value}': logs are in metres ('m')"),
+                    ))
                 }
                 "up_axis" if value != "Y" => {
-                    return Err(Error::at_line(path, line_no, None, format!("up_axis '{value}': logs are Y up")))
+                    return Err(Error::at_line(
+                        path,
+                        line_no,
+                        None,
+                        format!("up_axis '{value}': logs are Y up"),
+                    ))
                 }
                 _ => {} // unknown header keys are kept for newer writers
             }
         }
         let Some(frame_rate) = frame_rate else {
-            return Err(Error::at_line(path, line_no, None, "log header has no frame_rate"));
+            return Err(Error::at_line(
+                path,
+                line_no,
+                None,
+                "log header has no frame_rate",
+            ));
         };
         Ok(LogReader {
             path: path.to_path_buf(),
@@ -285,9 +332,10 @@ impl LogReader {
             if l.is_empty() || l.starts_with('#') {
                 continue;
             }
-            return Some(parse_row(l).map_err(|(col, msg)| {
-                Error::at_line(&self.path, self.line_no, Some(col), msg)
-            }));
+            return Some(
+                parse_row(l)
+                    .map_err(|(col, msg)| Error::at_line(&self.path, self.line_no, Some(col), msg)),
+            );
         }
     }
 }
@@ -312,7 +360,11 @@ fn parse_row(l: &str) -> std::result::Result<Row, (u64, String)> {
         .parse()
         .map_err(|_| (2, format!("time_s '{time_s}' is not a number")))?;
     if xs.iter().all(|s| s.is_empty()) {
-        return Ok(Row { frame, time_s: time, marker: None });
+        return Ok(Row {
+            frame,
+            time_s: time,
+            marker: None,
+        });
     }
     let mut p = [0.0; 3];
     for (i, s) in xs.iter().enumerate() {
@@ -342,24 +394,26 @@ impl Iterator for LogReader {
     type Item = Result<MarkerFrame>;
 
     fn next(&mut self) -> Option<Self::Item> {
-        let first = match self.pending.take() {
-            Some(r) => r,
-            None => match self.next_row()? {
-                Ok(r) => r,
-                Err(e) => return Some(Err(e)),
-            },
+        let first = match self.pending.take().or_else(|| self.next_row())? {
+            Ok(r) => r,
+            Err(e) => return Some(Err(e)),
         };
         let mut frame = MarkerFrame::new(first.frame, first.time_s, Vec::new());
         frame.markers.extend(first.marker);
         loop {
             match self.next_row() {
                 None => break,
-                Some(Err(e)) => return Some(Err(e)),
-                Some(Ok(r)) if r.frame == frame.frame && r.time_s.to_bits() == frame.time_s.to_bits() => {
+                Some(Err(e)) => {
+                    self.pending = Some(Err(e));
+                    break;
+                }
+                Some(Ok(r))
+                    if r.frame == frame.frame && r.time_s.to_bits() == frame.time_s.to_bits() =>
+                {
                     frame.markers.extend(r.marker)
                 }
                 Some(Ok(r)) => {
-                    self.pending = Some(r);
+                    self.pending = Some(Ok(r));
                     break;
                 }
             }

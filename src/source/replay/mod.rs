@@ -12,6 +12,7 @@ use serde::Serialize;
 use crate::error::{Error, Result};
 use crate::frame::MarkerFrame;
 
+mod csv_rows;
 pub mod log;
 pub mod motive_csv;
 
@@ -124,7 +125,11 @@ pub fn detect(path: &Path) -> Result<Format> {
                 .into(),
         })
     } else if n == 0 {
-        Err(Error::parse(path, crate::Location::Offset(0), "file is empty"))
+        Err(Error::parse(
+            path,
+            crate::Location::Offset(0),
+            "file is empty",
+        ))
     } else {
         Err(Error::Unsupported {
             path: path.into(),
@@ -146,10 +151,19 @@ fn read_up_to(r: &mut impl Read, buf: &mut [u8]) -> std::io::Result<usize> {
     Ok(n)
 }
 
-/// Opens a recording of any supported format, detected by content.
+/// Opens a recording of any supported format, detected by content, with
+/// default settings.
 pub fn open(path: &Path) -> Result<Box<dyn Recording>> {
+    open_with(path, &crate::config::Config::default().replay)
+}
+
+/// Opens a recording with the `[replay]` settings of a config.
+pub fn open_with(path: &Path, config: &crate::config::ReplayConfig) -> Result<Box<dyn Recording>> {
     match detect(path)? {
-        Format::MotiveCsv => Ok(Box::new(motive_csv::MotiveCsvReader::open(path)?)),
+        Format::MotiveCsv => Ok(Box::new(motive_csv::MotiveCsvReader::open_with(
+            path,
+            config.time_tolerance_s,
+        )?)),
         Format::Log => Ok(Box::new(log::LogReader::open(path)?)),
     }
 }

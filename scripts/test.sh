@@ -1,0 +1,22 @@
+#!/usr/bin/env bash
+# Runs every test of treemocap, installing first the third-party peers the
+# tests talk to (Python packages from PyPI, node packages from npm). A fresh
+# machine needs only the Rust toolchain, Python 3 with pip, and node with npm.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+if [ -s tests/peers/requirements.txt ]; then
+  echo "== installing Python test peers (tests/peers/requirements.txt)"
+  python3 -m pip install --quiet --disable-pip-version-check -r tests/peers/requirements.txt
+fi
+if [ -f tests/peers/package.json ]; then
+  echo "== installing node test peers (tests/peers/package.json)"
+  if [ -f tests/peers/package-lock.json ]; then
+    npm ci --prefix tests/peers --no-audit --no-fund --loglevel=error
+  else
+    npm install --prefix tests/peers --no-audit --no-fund --loglevel=error
+  fi
+fi
+
+echo "== cargo test"
+cargo test --all-targets "$@"

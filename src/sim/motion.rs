@@ -1,0 +1,163 @@
+//! How the marked tips move: the parameters behind [`Truth::position`].
+//!
+//! **ours** (the paper only shows that still tips wobble within 1 mm, §7):
+//! - Still phase: one slow sinusoid per tip with a random direction, peak
+//!   amplitude up to `still_motion_mm` (so its range stays within 1 mm).
+//! - Wind phase: the tip bends downwind by a fixed mean deflection and sways
+//!   around it with three sinusoids: a *limb mode* shared by every tip on the
+//!   same limb (0.5–1.2 Hz, amplitude growing with the tip's lever), a *twig
+//!   mode* of its own whose frequency rises as its last twig gets shorter
+//!   (1–3 Hz, like a cantilever), both mainly along the wind, and a cross-wind
+//!   mode about a third as large. Peak displacements come out at 1–6 cm.
+//!
+//! [`Truth::position`]: super::Truth::position
+
+use std::f64::consts::TAU;
+
+use glam::DVec3;
+
+use super::tree::{q9, TreeTruth};
+use super::truth::{Sinusoid, TipTruth};
+use crate::rng::Rng;
+
+/// A random stream that depends only on `base`'s state and `label`, not on
+/// how many other streams were taken before (fork() advances its parent).
+pub(crate) fn stream(base: &Rng, label: u64) -> Rng {
+    base.clone().fork(label)
+}
+
+fn sinusoid(direction: DVec3, amplitude: f64, frequency: f64, phase: f64) -> Sinusoid {
+    let d = direction.normalize();
+    Sinusoid {
+        direction: DVec3::new(q9(d.x), q9(d.y), q9(d.z)),
+        amplitude: q9(amplitude),
+        frequency: q9(frequency),
+        phase: q9(phase),
+    }
+}
+
+/// A random unit vector, uniform on the sphere.
+fn unit(rng: &mut Rng) -> DVec3 {
+    loop {
+        let v = DVec3::new(
+            rng.range(-1.0, 1.0),
+            rng.range(-1.0, 1.0),
+            rng.range(-1.0, 1.0),
+        );
+        let l = v.length();
+        if l > 0.1 && l <= 1.0 {
+            return v / l;
+        }
+    }
+}
+
+/// Builds each chosen tip's motion. `base` is the motion stream of the
+/// session; every tip and limb draws from its own sub-stream.
+pub(crate) fn tips(
+    tree: &TreeTruth,
+    nodes: &[usize],
+    wind: DVec3,
+    still_motion: f64,
+    sway_scale: f64,
+    base: &Rng,
+) -> Vec<TipTruth> {
+    let levers: Vec<f64> = nodes.iter().map(|&n| tree.lever(n)).collect();
+    let max_lever = levers.iter().copied().fold(0.0, f64::max).max(1e-6);
+    let cross = DVec3::Y.cross(wind).normalize();
+    let limb_base = stream(base, 1);
+    let tip_base = stream(base, 2);
+    nodes
+        .iter()
+        .zip(&levers)
+        .map(|(&node, &lever)| {
+            let mut limb_rng = stream(&limb_base, tree.limb(node) as u64);
+            let limb_freq = limb_rng.range(0.5, 1.2);
+            let limb_phase = limb_rng.range(0.0, TAU);
+            let limb_amp = limb_rng.range(0.010, 0.022);
+
+            let mut rng = stream(&tip_base, node as u64);
+            let wobble = vec![sinusoid(
+                unit(&mut rng),
+                still_motion * rng.range(0.1, 1.0),
+                rng.range(0.2, 2.0),
+                rng.range(0.0, TAU),
+            )];
+            let reach = lever / max_lever;
+            let along = limb_amp * (0.4 + 0.6 * reach) * sway_scale;
+            let twig = tree.twig_length(node).max(0.02);
+            // 1 Hz for a long twig, approaching 3 Hz for a very short one.
+            let twig_freq = ((1.0 + 2.0 * 0.08 / (0.08 + twig)) * rng.range(0.93, 1.07)).min(3.0);
+            let twig_amp = rng.range(0.002, 0.007) * (0.5 + reach) * sway_scale;
+            // Twigs are not aligned with the wind: turn their mode by up to 25°.
+            let turn = rng.range(-25f64, 25.0).to_radians();
+            let twig_dir = wind * turn.cos() + cross * turn.sin();
+            let sway = vec![
+                sinusoid(wind, along, limb_freq, limb_phase),
+                sinusoid(twig_dir, twig_amp, twig_freq, rng.range(0.0, TAU)),
+                sinusoid(
+                    cross,
+                    along * rng.range(0.25, 0.4),
+                    rng.range(0.5, 2.5),
+                    rng.range(0.0, TAU),
+                ),
+            ];
+            let bend = wind * ((along + twig_amp) * rng.range(0.4, 0.7));
+            TipTruth {
+                node,
+                rest: tree.nodes[node].position,
+                lever: q9(lever),
+                wobble,
+                bend: DVec3::new(q9(bend.x), q9(bend.y), q9(bend.z)),
+                sway,
+            }
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sim::tree::{grow, CrownShape};
+
+    #[test]
+    fn sway_is_branch_dependent_and_in_range() {
+        for shape in [CrownShape::Maple, CrownShape::Pine] {
+            let tree = grow(shape, &mut Rng::new(2));
+            let nodes = tree.choose_tips(40, 0.06).unwrap();
+            let wind = DVec3::new(0.6, 0.0, 0.8);
+            let tips = tips(&tree, &nodes, wind, 0.0004, 1.0, &Rng::new(3));
+            let mut freqs = Vec::new();
+            for t in &tips {
+                assert!(t.wobble.iter().all(|s| s.amplitude <= 0.0004 + 1e-12));
+                let peak: f64 = t.bend.length() + t.sway.iter().map(|s| s.amplitude).sum::<f64>();
+                assert!((0.005..=0.06).contains(&peak), "peak {peak} m");
+                assert!(t.bend.dot(wind) > 0.0);
+                for s in &t.sway {
+                    assert!((0.5..=3.0).contains(&s.frequency), "{} Hz", s.frequency);
+                    freqs.push(s.frequency);
+                }
+                // Mainly along the wind: the along-wind amplitudes outweigh
+                // the cross-wind one.
+                let along: f64 = t
+                    .sway
+                    .iter()
+                    .map(|s| (s.amplitude * s.direction.dot(wind)).abs())
+                    .sum();
+                let cross: f64 = t
+                    .sway
+                    .iter()
+                    .map(|s| (s.amplitude * s.direction.cross(wind).y).abs())
+                    .sum();
+                assert!(along > 1.5 * cross, "{along} vs {cross}");
+            }
+            // Different branches, different frequencies.
+            freqs.sort_by(f64::total_cmp);
+            freqs.dedup();
+            assert!(
+                freqs.len() > 2 * tips.len(),
+                "{shape}: {} distinct frequencies",
+                freqs.len()
+            );
+        }
+    }
+}

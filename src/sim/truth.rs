@@ -1,0 +1,179 @@
+//! The ground truth of a synthetic session (`NAME.truth.json`): the tree, the
+//! tips' rest positions and motion, the wind, every gap and every column.
+//! It holds the motion's parameters rather than sampled positions, so
+//! [`Truth::position`] gives the noiseless position at any time, which is what
+//! gap fills, rest estimates and wind estimates are scored against.
+
+use std::f64::consts::TAU;
+
+use glam::DVec3;
+use serde::{Deserialize, Serialize};
+
+use super::tree::TreeTruth;
+use super::SynthOptions;
+
+/// Version of the truth file's layout; bumped when fields change meaning.
+pub const TRUTH_VERSION: u32 = 1;
+
+/// One sinusoidal motion component of a tip: `direction · amplitude ·
+/// sin(2π · frequency · t + phase)`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Sinusoid {
+    /// Unit vector the component moves along.
+    pub direction: DVec3,
+    /// Peak displacement (m).
+    pub amplitude: f64,
+    /// Hz.
+    pub frequency: f64,
+    /// Radians at the component's time origin.
+    pub phase: f64,
+}
+
+impl Sinusoid {
+    /// Displacement at `t` seconds after the component's time origin.
+    pub fn at(&self, t: f64) -> DVec3 {
+        self.direction * (self.amplitude * (TAU * self.frequency * t + self.phase).sin())
+    }
+}
+
+/// One marked branch tip.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct TipTruth {
+    /// The tip's node in `Truth::tree.nodes`.
+    pub node: usize,
+    /// Where the tip is when nothing moves it (m): what rest estimation must
+    /// recover.
+    pub rest: DVec3,
+    /// Path length from the tip down to the trunk (m). The tip swings on an
+    /// arc of this radius, so sideways sway also lowers it slightly.
+    pub lever: f64,
+    /// The tiny periodic motion seen even without wind (paper §7, Fig. 9:
+    /// within 1 mm); time origin = the start of the take.
+    pub wobble: Vec<Sinusoid>,
+    /// Mean deflection under full wind (m), pointing downwind: a real branch
+    /// bends with the wind, and the PCA wind estimator takes its sign from it.
+    pub bend: DVec3,
+    /// Sway around the bent position under full wind; time origin = the
+    /// start of the wind phase.
+    pub sway: Vec<Sinusoid>,
+}
+
+/// One occlusion: the tip is missing from every frame in
+/// `first_frame..=last_frame`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub struct GapTruth {
+    pub tip: usize,
+    pub first_frame: i64,
+    pub last_frame: i64,
+}
+
+/// One `Unlabeled N` column of the CSV (= `Marker.id` in the frames).
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub struct ColumnTruth {
+    /// The column's name in the CSV, `Unlabeled N`.
+    pub name: String,
+    /// The tip whose marker this column shows; `None` for a spurious
+    /// reflection.
+    pub tip: Option<usize>,
+    /// First and last frame with data in this column (it is full in between).
+    pub first_frame: i64,
+    pub last_frame: i64,
+}
+
+/// One spurious reflection (a stray marker that is not on a tip).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SpuriousTruth {
+    /// Its column in `Truth::columns`.
+    pub column: usize,
+    pub first_frame: i64,
+    pub last_frame: i64,
+    /// Where it is (m); it does not move apart from measurement noise.
+    pub position: DVec3,
+}
+
+/// Everything the simulator knows about a session.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Truth {
+    /// Layout version of this file ([`TRUTH_VERSION`]).
+    pub version: u32,
+    /// The options the session was made with: rerunning `synth` with them
+    /// gives the same bytes.
+    pub options: SynthOptions,
+    /// Frames per second of the CSV.
+    pub frame_rate: f64,
+    /// Number of frames; frame numbers are 0..frames, time = frame / rate.
+    pub frames: usize,
+    /// The still phase, [start, end) in seconds.
+    pub still: (f64, f64),
+    /// The wind phase, [start, end) in seconds.
+    pub wind: (f64, f64),
+    /// Seconds the fan takes to reach full strength after `wind.0`; the sway
+    /// is scaled by a smoothstep over this time, so motion starts smoothly.
+    pub wind_ramp_s: f64,
+    /// Unit horizontal vector the wind blows towards.
+    pub wind_direction: DVec3,
+    /// Where a fan producing this wind would stand (2 m upwind of the crown's
+    /// centre, at crown-centre height), for the fan-position wind source.
+    pub fan_position: DVec3,
+    pub tree: TreeTruth,
+    /// The marked tips, in tip-index order.
+    pub tips: Vec<TipTruth>,
+    /// Every occlusion, sorted by tip then frame.
+    pub gaps: Vec<GapTruth>,
+    /// Every CSV column, in CSV order: the column → tip map.
+    pub columns: Vec<ColumnTruth>,
+    pub spurious: Vec<SpuriousTruth>,
+}
+
+impl Truth {
+    /// 0 before the wind phase, rising smoothly to 1 over `wind_ramp_s`.
+    pub fn wind_strength(&self, time_s: f64) -> f64 {
+        let dt = time_s - self.wind.0;
+        if dt <= 0.0 {
+            0.0
+        } else if dt >= self.wind_ramp_s {
+            1.0
+        } else {
+            let x = dt / self.wind_ramp_s;
+            x * x * (3.0 - 2.0 * x)
+        }
+    }
+
+    /// The noiseless true position of `tip` at `time_s` (m, Y up).
+    ///
+    /// # Panics
+    /// If `tip >= self.tips.len()` (a caller's bug, like slice indexing).
+    pub fn position(&self, tip: usize, time_s: f64) -> DVec3 {
+        let t = &self.tips[tip];
+        let mut p = t.rest;
+        for s in &t.wobble {
+            p += s.at(time_s);
+        }
+        let w = self.wind_strength(time_s);
+        if w > 0.0 {
+            let since = time_s - self.wind.0;
+            let mut d = t.bend;
+            for s in &t.sway {
+                d += s.at(since);
+            }
+            d *= w;
+            p += d;
+            // Swinging on an arc of radius `lever` lowers the tip by about
+            // h²/(2·lever) for a sideways displacement h.
+            p.y -= (d.x * d.x + d.z * d.z) / (2.0 * t.lever.max(0.1));
+        }
+        p
+    }
+
+    /// Frame number → seconds.
+    pub fn time_of(&self, frame: i64) -> f64 {
+        frame as f64 / self.frame_rate
+    }
+
+    /// Whether `tip` is occluded in `frame`.
+    pub fn is_gap(&self, tip: usize, frame: i64) -> bool {
+        self.gaps
+            .iter()
+            .any(|g| g.tip == tip && g.first_frame <= frame && frame <= g.last_frame)
+    }
+}
