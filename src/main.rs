@@ -225,7 +225,11 @@ fn run(command: Command) -> Result<()> {
             let out = out.unwrap_or_else(|| PathBuf::from(&config.output.dir));
             let report =
                 treemocap::reconstruct::run_and_write(&input.tips, input.wind, &config, &out)?;
-            println!(
+            // A closed pipe (`| head`) is not an error worth a panic.
+            use std::io::Write;
+            let mut stdout = std::io::stdout().lock();
+            let _ = writeln!(
+                stdout,
                 "{} captured + {} random tips, {} nodes, {} steps, {} forced joins, {} triangles, {} leaves",
                 report.captured_tips,
                 report.random_tips,
@@ -236,7 +240,7 @@ fn run(command: Command) -> Result<()> {
                 report.leaves
             );
             for f in &report.files {
-                println!("wrote {}", f.display());
+                let _ = writeln!(stdout, "wrote {}", f.display());
             }
             Ok(())
         }

@@ -7,11 +7,12 @@ mod common;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-use common::crowns::{crown_tips, tips_json, Shape};
+use common::crowns::{crown_tips, replay_truth, sim_tips, tips_json, Shape};
 use glam::DVec3;
 use treemocap::config::{Config, ReconstructConfig, VolumeKind};
 use treemocap::reconstruct::{reconstruct, run_and_write, CapturedTip, Kind, Tree};
 use treemocap::rng::Rng;
+use treemocap::sim::CrownShape;
 
 fn cfg_with(f: impl FnOnce(&mut ReconstructConfig)) -> ReconstructConfig {
     let mut c = ReconstructConfig::default();
@@ -174,6 +175,44 @@ fn invariants_hold_on_twenty_generated_crowns() {
             match volume {
                 VolumeKind::Hull => check_inside_hull(&tree, &tips, &what),
                 VolumeKind::Boxes => check_box_counts(&tree, &tips, cfg.boxes, &what),
+            }
+        }
+    }
+}
+
+/// The `sim` helper's trees (20 generated sessions' tips) and the two
+/// shipped replays, both volume kinds, default parameters.
+#[test]
+fn invariants_hold_on_simulated_trees_and_shipped_replays() {
+    let mut cases: Vec<(String, Vec<CapturedTip>, DVec3)> = Vec::new();
+    for seed in 1..=20u64 {
+        let shape = if seed % 2 == 0 {
+            CrownShape::Maple
+        } else {
+            CrownShape::Pine
+        };
+        let count = 20 + (seed as usize * 11) % 41; // 20 to 60 markers
+        let wind = DVec3::new(-0.8, 0.0, 0.6) * (seed % 3) as f64;
+        cases.push((
+            format!("sim {shape} seed {seed} ({count} tips)"),
+            sim_tips(shape, count, seed),
+            wind,
+        ));
+    }
+    for name in ["maple-24", "pine-35"] {
+        let (tips, direction) = replay_truth(name);
+        // The truth gives the wind's direction; 2 m/s is a lab fan.
+        cases.push((format!("replay {name}"), tips, direction * 2.0));
+    }
+    for (what, tips, wind) in &cases {
+        for volume in [VolumeKind::Boxes, VolumeKind::Hull] {
+            let cfg = cfg_with(|c| c.volume = volume);
+            let what = format!("{what} {volume:?}");
+            let tree = reconstruct(tips, *wind, &cfg, 1).unwrap();
+            check_invariants(&tree, tips, &cfg, &what);
+            match volume {
+                VolumeKind::Hull => check_inside_hull(&tree, tips, &what),
+                VolumeKind::Boxes => check_box_counts(&tree, tips, cfg.boxes, &what),
             }
         }
     }
@@ -440,8 +479,14 @@ fn out_dir(name: &str) -> (tempfile::TempDir, PathBuf) {
 
 #[test]
 fn gltf_validator_reports_no_errors_or_warnings() {
-    for (shape, seed) in [(Shape::Maple, 21), (Shape::Pine, 22)] {
-        let tips = crown_tips(shape, 35, seed);
+    let mut sets = vec![
+        ("maple crown".to_string(), crown_tips(Shape::Maple, 35, 21)),
+        ("pine crown".to_string(), crown_tips(Shape::Pine, 35, 22)),
+    ];
+    for name in ["maple-24", "pine-35"] {
+        sets.push((format!("replay {name}"), replay_truth(name).0));
+    }
+    for (shape, tips) in sets {
         for volume in ["boxes", "hull"] {
             for leaves in [false, true] {
                 let config = Config::load(
@@ -457,7 +502,7 @@ fn gltf_validator_reports_no_errors_or_warnings() {
                     run_and_write(&tips, DVec3::new(2.0, 0.0, 0.0), &config, &dir).unwrap();
                 let glb = dir.join("tree.glb");
                 let (errors, warnings, messages) = validate(&glb);
-                let what = format!("{shape:?} {volume} leaves={leaves}");
+                let what = format!("{shape} {volume} leaves={leaves}");
                 assert_eq!((errors, warnings), (0, 0), "{what}: {messages}");
 
                 // What a user's viewer will find in the file.

@@ -6,7 +6,7 @@
 use glam::DVec3;
 
 use crate::error::Result;
-use crate::output::raster::{Canvas, Rgba};
+use crate::output::raster::{Canvas, Rgb};
 use crate::reconstruct::{Kind, Tree};
 
 const WIDTH: u32 = 1400;
@@ -15,12 +15,12 @@ const MARGIN: f64 = 40.0;
 const TOP: f64 = 70.0;
 const BOTTOM: f64 = 60.0;
 
-const TRUNK: Rgba = [74, 50, 32, 255];
-const BRANCH: Rgba = [122, 88, 58, 255];
-const TIP_FILL: Rgba = [220, 30, 30, 255];
-const TIP_EDGE: Rgba = [90, 0, 0, 255];
-const INK: Rgba = [30, 30, 30, 255];
-const GROUND: Rgba = [170, 170, 170, 255];
+const TRUNK: Rgb = [74, 50, 32];
+const BRANCH: Rgb = [122, 88, 58];
+const TIP_FILL: Rgb = [220, 30, 30];
+const TIP_EDGE: Rgb = [90, 0, 0];
+const INK: Rgb = [30, 30, 30];
+const GROUND: Rgb = [170, 170, 170];
 
 /// A view: title, the horizontal coordinate of a point, its lowest value
 /// and its span.
@@ -50,8 +50,8 @@ pub fn render(tree: &Tree) -> Canvas {
     let scale = (panel_w / span.x.max(span.z)).min(panel_h / span.y);
 
     let views: [View; 2] = [
-        ("FRONT (X RIGHT, Y UP)", |p| p.x, lo.x, span.x),
-        ("SIDE (Z RIGHT, Y UP)", |p| p.z, lo.z, span.z),
+        ("front (x right, y up)", |p| p.x, lo.x, span.x),
+        ("side (z right, y up)", |p| p.z, lo.z, span.z),
     ];
     // Segments thickest first, so thin branches stay visible on top.
     let mut segments: Vec<usize> = (0..tree.nodes.len())
@@ -73,7 +73,7 @@ pub fn render(tree: &Tree) -> Canvas {
                 base - (p.y - lo.y) * scale,
             )
         };
-        canvas.text(MARGIN + v as f64 * (panel_w + MARGIN), 20.0, title, 2, INK);
+        canvas.text_scaled(MARGIN + v as f64 * (panel_w + MARGIN), 20.0, title, 2, INK);
         // Ground under the trunk base.
         let (_, gy) = to_px(first.position);
         canvas.line(
@@ -114,7 +114,7 @@ pub fn render(tree: &Tree) -> Canvas {
         .unwrap_or(0.05);
     let y = HEIGHT as f64 - 25.0;
     canvas.line(MARGIN, y, MARGIN + bar * scale, y, 3.0, INK);
-    canvas.text(
+    canvas.text_scaled(
         MARGIN + bar * scale + 10.0,
         y - 7.0,
         &format!("{bar} M"),
@@ -128,11 +128,11 @@ pub fn render(tree: &Tree) -> Canvas {
         .count();
     let tips = tree.nodes.iter().filter(|n| n.kind.is_tip()).count();
     let info = format!(
-        "CAPTURED TIPS {captured} (RED)   ALL TIPS {tips}   NODES {}   STEPS {}   FORCED JOINS {}",
+        "captured tips {captured} (red)   all tips {tips}   nodes {}   steps {}   forced joins {}",
         tree.nodes.len(),
         tree.steps,
         tree.forced_joins
     );
-    canvas.text(MARGIN + 330.0, y - 7.0, &info, 2, INK);
+    canvas.text_scaled(MARGIN + 330.0, y - 7.0, &info, 2, INK);
     canvas
 }

@@ -71,3 +71,40 @@ pub fn tips_json(tips: &[CapturedTip], wind: Option<(DVec3, f64)>) -> String {
         "rest_window_s": [0.0, 20.0], "tips": tips, "wind": wind})
     .to_string()
 }
+
+/// Rest positions of `n` marked tips of a tree grown by the simulator
+/// (`treemocap::sim`, the same trees as `treemocap synth`), with their
+/// marker numbers in order.
+pub fn sim_tips(shape: treemocap::sim::CrownShape, n: usize, seed: u64) -> Vec<CapturedTip> {
+    let tree = treemocap::sim::tree::grow(shape, &mut Rng::new(seed));
+    let chosen = tree
+        .choose_tips(n, 0.06)
+        .expect("simulated tree has enough tips");
+    chosen
+        .iter()
+        .enumerate()
+        .map(|(marker, &node)| CapturedTip {
+            marker,
+            position: tree.nodes[node].position,
+        })
+        .collect()
+}
+
+/// The captured tips and wind direction of a shipped replay, from its
+/// NAME.truth.json (the true rest positions).
+pub fn replay_truth(name: &str) -> (Vec<CapturedTip>, DVec3) {
+    let path =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join(format!("replays/{name}.truth.json"));
+    let text = std::fs::read_to_string(&path).expect("shipped replay truth");
+    let truth: treemocap::sim::Truth = serde_json::from_str(&text).expect("truth parses");
+    let tips = truth
+        .tips
+        .iter()
+        .enumerate()
+        .map(|(marker, t)| CapturedTip {
+            marker,
+            position: t.rest,
+        })
+        .collect();
+    (tips, truth.wind_direction)
+}
