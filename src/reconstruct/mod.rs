@@ -90,6 +90,10 @@ pub fn reconstruct_with_volume(
         .collect();
     starts.extend(random.into_iter().map(|p| (p, Kind::Tip)));
     let mut tree = flow::run(&starts, &trunk, wind, cfg)?;
+    // Cheap (linear) and every output relies on it: fail loudly rather than
+    // write a broken tree.
+    tree.check()
+        .map_err(|e| Error::Runtime(format!("reconstruction produced a broken tree: {e}")))?;
     radii::assign(&mut tree, cfg.tip_radius, cfg.gamma);
     Ok((tree, volume))
 }
@@ -115,6 +119,56 @@ pub struct Report {
     pub files: Vec<PathBuf>,
 }
 
+/// Everything one reconstruction produces, in memory: the daemon shares
+/// these very bytes with its viewers (`output::snapshot::TreeSnapshot`), and
+/// `run_and_write` writes them to disk.
+#[derive(Debug, Clone)]
+pub struct Outputs {
+    /// The tree itself.
+    pub tree: Tree,
+    /// tree.glb bytes.
+    pub glb: Vec<u8>,
+    /// tree.json text.
+    pub tree_json: String,
+    /// tree.png bytes.
+    pub png: Vec<u8>,
+    /// Counts for printing (its `files` is empty until written).
+    pub report: Report,
+}
+
+/// Reconstructs with `config.reconstruct` (and its seed) and encodes the
+/// three outputs, without touching the disk.
+pub fn build_outputs(tips: &[CapturedTip], wind: DVec3, config: &Config) -> Result<Outputs> {
+    let cfg = &config.reconstruct;
+    let tree = reconstruct(tips, wind, cfg, cfg.seed)?;
+    let branch_mesh = mesh::branches(&tree, cfg.sides)?;
+    let leaf_mesh = if cfg.leaves {
+        Some(leaves::leaves(&tree, cfg, cfg.seed)?)
+    } else {
+        None
+    };
+    let glb = crate::output::gltf::to_glb(&tree, &branch_mesh, leaf_mesh.as_ref())?;
+    let tree_json = crate::output::json::to_json(&tree, cfg)?;
+    let png = crate::output::picture::tree_png(&tree)?;
+    let report = Report {
+        captured_tips: tips.len(),
+        random_tips: tree.nodes.iter().filter(|n| n.kind == Kind::Tip).count(),
+        nodes: tree.nodes.len(),
+        steps: tree.steps,
+        forced_joins: tree.forced_joins,
+        branch_triangles: branch_mesh.triangles(),
+        leaves: leaf_mesh.map_or(0, |m| m.triangles() / 2),
+        files: Vec::new(),
+    };
+    Ok(Outputs {
+        tree,
+        glb,
+        tree_json,
+        png,
+        report,
+    })
+}
+
 /// Reconstructs and writes `tree.glb`, `tree.json` and `tree.png` into
 /// `out_dir` (created if missing), each atomically. Uses
 /// `config.reconstruct` and its seed.
@@ -124,37 +178,17 @@ pub fn run_and_write(
     config: &Config,
     out_dir: &Path,
 ) -> Result<Report> {
-    let cfg = &config.reconstruct;
-    let tree = reconstruct(tips, wind, cfg, cfg.seed)?;
-    let branch_mesh = mesh::branches(&tree, cfg.sides)?;
-    let leaf_mesh = if cfg.leaves {
-        Some(leaves::leaves(&tree, cfg, cfg.seed)?)
-    } else {
-        None
-    };
+    let outputs = build_outputs(tips, wind, config)?;
     std::fs::create_dir_all(out_dir).map_err(|e| Error::io(out_dir, e))?;
-
-    let glb = crate::output::gltf::to_glb(&tree, &branch_mesh, leaf_mesh.as_ref())?;
-    let glb_path = out_dir.join("tree.glb");
-    crate::output::write_atomic(&glb_path, &glb)?;
-
-    let json = crate::output::json::to_json(&tree, cfg)?;
-    let json_path = out_dir.join("tree.json");
-    crate::output::write_atomic(&json_path, json.as_bytes())?;
-
-    let png = crate::output::picture::tree_png(&tree)?;
-    let png_path = out_dir.join("tree.png");
-    crate::output::write_atomic(&png_path, &png)?;
-
-    let random_tips = tree.nodes.iter().filter(|n| n.kind == Kind::Tip).count();
-    Ok(Report {
-        captured_tips: tips.len(),
-        random_tips,
-        nodes: tree.nodes.len(),
-        steps: tree.steps,
-        forced_joins: tree.forced_joins,
-        branch_triangles: branch_mesh.triangles(),
-        leaves: leaf_mesh.map_or(0, |m| m.triangles() / 2),
-        files: vec![glb_path, json_path, png_path],
-    })
+    let mut report = outputs.report;
+    for (name, bytes) in [
+        ("tree.glb", outputs.glb.as_slice()),
+        ("tree.json", outputs.tree_json.as_bytes()),
+        ("tree.png", outputs.png.as_slice()),
+    ] {
+        let path = out_dir.join(name);
+        crate::output::write_atomic(&path, bytes)?;
+        report.files.push(path);
+    }
+    Ok(report)
 }

@@ -161,6 +161,18 @@ impl Tree {
         best
     }
 
+    /// The skeleton as the OSC and HTTP outputs carry it (node id = index).
+    pub fn snapshot_nodes(&self) -> Vec<crate::output::snapshot::SnapshotNode> {
+        self.nodes
+            .iter()
+            .map(|n| crate::output::snapshot::SnapshotNode {
+                parent: n.parent.and_then(|p| u32::try_from(p).ok()),
+                position: n.position,
+                radius: n.radius,
+            })
+            .collect()
+    }
+
     /// Checks the structural promises every output relies on: exactly one
     /// root (node 0, a trunk node), every parent index valid, no cycles.
     /// Returns a description of the first violation.
