@@ -257,6 +257,19 @@ fn more_captured_than_total_tips_adds_none_and_single_tip_works() {
     }];
     assert!(reconstruct(&bad, DVec3::ZERO, &ReconstructConfig::default(), 1).is_err());
     assert!(reconstruct(&[], DVec3::ZERO, &ReconstructConfig::default(), 1).is_err());
+    let far = [CapturedTip {
+        marker: 0,
+        position: DVec3::new(0.0, 1e300, 0.0),
+    }];
+    assert!(reconstruct(&far, DVec3::ZERO, &ReconstructConfig::default(), 1).is_err());
+    let tips = crown_tips(Shape::Pine, 10, 1);
+    assert!(reconstruct(
+        &tips,
+        DVec3::splat(f64::INFINITY),
+        &ReconstructConfig::default(),
+        1
+    )
+    .is_err());
 }
 
 // ---------------------------------------------------------- paper's effects

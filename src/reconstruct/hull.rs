@@ -455,6 +455,34 @@ mod tests {
     }
 
     #[test]
+    fn duplicates_and_near_coplanar_jitter_stay_closed() {
+        // Marker data: repeated positions and points a hair off the faces
+        // of a box, in a place far from the origin (capture coordinates).
+        let mut rng = Rng::new(8);
+        let offset = DVec3::new(1200.0, 3.0, -800.0);
+        let mut pts = Vec::new();
+        for _ in 0..400 {
+            let mut p = DVec3::new(rng.f64(), rng.f64(), rng.f64());
+            let axis = rng.int(0, 2) as usize;
+            p[axis] = if rng.chance(0.5) { 0.0 } else { 1.0 };
+            p += DVec3::new(rng.normal(), rng.normal(), rng.normal()) * 1e-12;
+            pts.push(p + offset);
+            if rng.chance(0.2) {
+                pts.push(p + offset);
+            }
+        }
+        for k in 0..8 {
+            pts.push(
+                offset + DVec3::new((k & 1) as f64, ((k >> 1) & 1) as f64, ((k >> 2) & 1) as f64),
+            );
+        }
+        let h = Hull::build(&pts).unwrap();
+        edge_count_ok(&h);
+        assert!((h.volume() - 1.0).abs() < 1e-6, "{}", h.volume());
+        assert!(pts.iter().all(|p| h.contains(*p)));
+    }
+
+    #[test]
     fn degenerate_inputs_are_errors() {
         let flat: Vec<DVec3> = (0..10)
             .map(|i| DVec3::new(i as f64, (i * i) as f64, 0.0))

@@ -68,14 +68,22 @@ pub fn reconstruct_with_volume(
             "no captured tips to reconstruct from".into(),
         ));
     }
-    if let Some(t) = tips.iter().find(|t| !t.position.is_finite()) {
+    // A capture volume is metres across; anything beyond 10 km is a unit or
+    // file error, and would only overflow the geometry further down.
+    const FAR: f64 = 1e4;
+    if let Some(t) = tips
+        .iter()
+        .find(|t| !t.position.is_finite() || t.position.abs().max_element() > FAR)
+    {
         return Err(Error::Runtime(format!(
-            "captured tip of marker {} has a non-finite position",
-            t.marker
+            "captured tip of marker {} is not a finite position within {FAR} m: {}",
+            t.marker, t.position
         )));
     }
-    if !wind.is_finite() {
-        return Err(Error::Runtime("the wind vector is not finite".into()));
+    if !wind.is_finite() || wind.length() > FAR {
+        return Err(Error::Runtime(format!(
+            "the wind vector {wind} is not finite or absurdly large"
+        )));
     }
     let positions: Vec<DVec3> = tips.iter().map(|t| t.position).collect();
     let crown = trunk::Bounds::of(positions.iter().copied())
