@@ -10,6 +10,7 @@ pub mod error;
 pub mod frame;
 pub mod inspect;
 pub mod output;
+pub mod reconstruct;
 pub mod rng;
 pub mod sim;
 pub mod source;

@@ -145,6 +145,17 @@ enum Command {
         #[arg(long)]
         now: bool,
     },
+    /// Re-run the particle flow on saved tips (tips.json) and write
+    /// tree.glb, tree.json and tree.png.
+    Reconstruct {
+        /// A tips.json written by `treemocap replay` (or by hand).
+        tips: PathBuf,
+        #[command(flatten)]
+        config: ConfigArgs,
+        /// Output folder (default: output.dir from the config).
+        #[arg(long, value_name = "DIR")]
+        out: Option<PathBuf>,
+    },
     /// Make a synthetic capture session of a simulated tree: a Motive 1.23
     /// CSV of unlabeled markers plus NAME.truth.json beside it (the true tree,
     /// rest positions, wind and every gap), for testing without a mocap lab.
@@ -423,6 +434,31 @@ fn run(command: Command) -> Result<()> {
         Command::Synth(args) => {
             let summary = treemocap::sim::write_session(&args.options(), &args.out)?;
             print!("{summary}");
+            Ok(())
+        }
+        Command::Reconstruct { tips, config, out } => {
+            let config = config.load()?;
+            let input = treemocap::reconstruct::read_tips(&tips)?;
+            let out = out.unwrap_or_else(|| PathBuf::from(&config.output.dir));
+            let report =
+                treemocap::reconstruct::run_and_write(&input.tips, input.wind, &config, &out)?;
+            // A closed pipe (`| head`) is not an error worth a panic.
+            use std::io::Write;
+            let mut stdout = std::io::stdout().lock();
+            let _ = writeln!(
+                stdout,
+                "{} captured + {} random tips, {} nodes, {} steps, {} forced joins, {} triangles, {} leaves",
+                report.captured_tips,
+                report.random_tips,
+                report.nodes,
+                report.steps,
+                report.forced_joins,
+                report.branch_triangles,
+                report.leaves
+            );
+            for f in &report.files {
+                let _ = writeln!(stdout, "wrote {}", f.display());
+            }
             Ok(())
         }
     }

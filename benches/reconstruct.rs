@@ -1,0 +1,104 @@
+//! Reconstruction speed: flow + radii + mesh for the paper's tree sizes
+//! (35 captured + 500 total tips: target < 20 ms; 70 + 5000: < 500 ms), and
+//! how the time grows from 500 to 50 000 total tips (near n log n per step
+//! thanks to the k-d tree, not n²).
+
+use std::hint::black_box;
+use std::time::Duration;
+
+use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
+use glam::DVec3;
+use treemocap::config::ReconstructConfig;
+use treemocap::reconstruct::{mesh, reconstruct, CapturedTip};
+
+#[path = "../tests/common/crowns.rs"]
+mod crowns;
+
+fn flow_radii_mesh(tips: &[CapturedTip], cfg: &ReconstructConfig) -> usize {
+    let tree = reconstruct(tips, DVec3::new(2.0, 0.0, 0.0), cfg, cfg.seed).expect("reconstruct");
+    let m = mesh::branches(&tree, cfg.sides).expect("mesh");
+    tree.nodes.len() + m.indices.len()
+}
+
+fn targets(c: &mut Criterion) {
+    let mut group = c.benchmark_group("flow_radii_mesh");
+    for (captured, total) in [(35usize, 500usize), (70, 5000)] {
+        let tips = crowns::crown_tips(crowns::Shape::Pine, captured, 1);
+        let cfg = ReconstructConfig {
+            total_tips: total,
+            ..Default::default()
+        };
+        let tree =
+            reconstruct(&tips, DVec3::new(2.0, 0.0, 0.0), &cfg, cfg.seed).expect("reconstruct");
+        eprintln!(
+            "{captured}+{total}: {} nodes, {} steps, {} forced joins",
+            tree.nodes.len(),
+            tree.steps,
+            tree.forced_joins
+        );
+        group.bench_with_input(
+            BenchmarkId::new("pine", format!("{captured}+{total}")),
+            &tips,
+            |b, tips| b.iter(|| black_box(flow_radii_mesh(tips, &cfg))),
+        );
+    }
+    group.finish();
+}
+
+fn growth(c: &mut Criterion) {
+    let mut group = c.benchmark_group("growth");
+    group
+        .sample_size(10)
+        .measurement_time(Duration::from_secs(8));
+    let tips = crowns::crown_tips(crowns::Shape::Maple, 70, 2);
+    for total in [500usize, 2000, 5000, 20_000, 50_000] {
+        let cfg = ReconstructConfig {
+            total_tips: total,
+            ..Default::default()
+        };
+        let tree =
+            reconstruct(&tips, DVec3::new(2.0, 0.0, 0.0), &cfg, cfg.seed).expect("reconstruct");
+        eprintln!(
+            "70+{total}: {} nodes, {} steps, {} forced joins",
+            tree.nodes.len(),
+            tree.steps,
+            tree.forced_joins
+        );
+        group.bench_with_input(BenchmarkId::new("maple_70", total), &tips, |b, tips| {
+            b.iter(|| black_box(flow_radii_mesh(tips, &cfg)))
+        });
+    }
+    group.finish();
+}
+
+/// The same growth with merging nearly off (1 mm): particles stay many for
+/// every step, so this shows the cost per step of the neighbour searches.
+fn growth_few_merges(c: &mut Criterion) {
+    let mut group = c.benchmark_group("growth_few_merges");
+    group
+        .sample_size(10)
+        .measurement_time(Duration::from_secs(8));
+    let tips = crowns::crown_tips(crowns::Shape::Maple, 70, 2);
+    for total in [500usize, 5000, 50_000] {
+        let cfg = ReconstructConfig {
+            total_tips: total,
+            merge_distance: 0.001,
+            ..Default::default()
+        };
+        let tree =
+            reconstruct(&tips, DVec3::new(2.0, 0.0, 0.0), &cfg, cfg.seed).expect("reconstruct");
+        eprintln!(
+            "70+{total}, merge 1 mm: {} nodes, {} steps, {} forced joins",
+            tree.nodes.len(),
+            tree.steps,
+            tree.forced_joins
+        );
+        group.bench_with_input(BenchmarkId::new("maple_70", total), &tips, |b, tips| {
+            b.iter(|| black_box(flow_radii_mesh(tips, &cfg)))
+        });
+    }
+    group.finish();
+}
+
+criterion_group!(benches, targets, growth, growth_few_merges);
+criterion_main!(benches);
