@@ -11,6 +11,7 @@ pub mod frame;
 pub mod inspect;
 pub mod output;
 pub mod reconstruct;
+pub mod replay;
 pub mod rng;
 pub mod sim;
 pub mod source;

@@ -40,8 +40,10 @@ impl ConfigArgs {
 
 #[derive(Subcommand)]
 enum Command {
-    /// Run the whole job on a recorded session: read it, and report what was
-    /// found. Results go to --out (default: output.dir of the config).
+    /// Run the whole job on a recorded session: track the markers, find the
+    /// tips' rest positions, estimate the wind, reconstruct the tree. Writes
+    /// tips.json, tree.glb, tree.json and tree.png to --out (default:
+    /// output.dir of the config, "out").
     Replay {
         /// A Motive CSV export or a treemocap log (detected by content).
         file: PathBuf,
@@ -285,12 +287,8 @@ fn run(command: Command) -> Result<()> {
     match command {
         Command::Replay { file, config, out } => {
             let config = config.load()?;
-            let _out = out.unwrap_or_else(|| PathBuf::from(&config.output.dir));
-            let mut rec = treemocap::source::replay::open_with(
-                &file,
-                &treemocap::source::replay::ReplayOptions::from_config(&config),
-            )?;
-            let report = treemocap::inspect::inspect_recording(&file, rec.as_mut())?;
+            let out = out.unwrap_or_else(|| PathBuf::from(&config.output.dir));
+            let report = treemocap::replay::run(&file, &config, &out)?;
             print!("{report}");
             Ok(())
         }
