@@ -23,6 +23,7 @@ pub struct Config {
     pub natnet: NatNetConfig,
     pub tracking: TrackingConfig,
     pub wind: WindConfig,
+    pub daemon: DaemonConfig,
     pub c3d: C3dConfig,
     pub reconstruct: ReconstructConfig,
 }
@@ -183,6 +184,38 @@ impl WindConfig {
             _ => None,
         }
     }
+}
+
+/// `treemocap run`: sources, triggers and outputs of the daemon.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct DaemonConfig {
+    /// "replay", "natnet" or "osc".
+    pub source: String,
+    pub replay_file: String,
+    pub replay_speed: f64,
+    pub replay_loop: bool,
+    pub natnet_server: String,
+    /// "auto", "unicast" or "multicast".
+    pub natnet_transport: String,
+    /// Seconds of frames kept for analysis.
+    pub window_s: f64,
+    /// Seconds of capture time between analyses.
+    pub analysis_interval_s: f64,
+    pub rest_min_s: f64,
+    pub tip_change_s: f64,
+    pub moved_mm: f64,
+    pub wind_turn_deg: f64,
+    /// 0 disables the periodic rebuild.
+    pub period_s: f64,
+    /// Gate of the live tip follower (mm).
+    pub follow_gate_mm: f64,
+    pub channel_frames: u32,
+    pub record: bool,
+    /// "" disables HTTP.
+    pub http: String,
+    pub osc_targets: Vec<String>,
+    pub history: bool,
 }
 
 /// Reading C3D files.
@@ -419,6 +452,59 @@ impl Config {
         check_range("wind.sensor_heading_deg", w.sensor_heading_deg, 0.0, 360.0)?;
         check_range("wind.pca_window_s", w.pca_window_s, 1.0, 120.0)?;
         check_range("wind.pca_min_sway_mm", w.pca_min_sway_mm, 0.1, 100.0)?;
+        let d = &self.daemon;
+        if !matches!(d.source.as_str(), "replay" | "natnet" | "osc") {
+            return Err(Error::config(
+                "daemon.source",
+                format!("'{}': allowed \"replay\", \"natnet\", \"osc\"", d.source),
+            ));
+        }
+        if !matches!(
+            d.natnet_transport.as_str(),
+            "auto" | "unicast" | "multicast"
+        ) {
+            return Err(Error::config(
+                "daemon.natnet_transport",
+                format!(
+                    "'{}': allowed \"auto\", \"unicast\", \"multicast\"",
+                    d.natnet_transport
+                ),
+            ));
+        }
+        check_range("daemon.replay_speed", d.replay_speed, 0.0, 100.0)?;
+        check_range("daemon.window_s", d.window_s, 5.0, 600.0)?;
+        check_range(
+            "daemon.analysis_interval_s",
+            d.analysis_interval_s,
+            0.1,
+            60.0,
+        )?;
+        check_range("daemon.rest_min_s", d.rest_min_s, 1.0, 600.0)?;
+        check_range("daemon.tip_change_s", d.tip_change_s, 0.0, 600.0)?;
+        check_range("daemon.moved_mm", d.moved_mm, 1.0, 1000.0)?;
+        check_range("daemon.wind_turn_deg", d.wind_turn_deg, 1.0, 180.0)?;
+        check_range("daemon.period_s", d.period_s, 0.0, 86_400.0)?;
+        check_range("daemon.follow_gate_mm", d.follow_gate_mm, 5.0, 500.0)?;
+        check_range(
+            "daemon.channel_frames",
+            d.channel_frames as f64,
+            16.0,
+            1_000_000.0,
+        )?;
+        if !d.http.is_empty() && d.http.parse::<std::net::SocketAddr>().is_err() {
+            return Err(Error::config(
+                "daemon.http",
+                format!("'{}' is not ADDRESS:PORT", d.http),
+            ));
+        }
+        for t in &d.osc_targets {
+            if t.parse::<std::net::SocketAddr>().is_err() {
+                return Err(Error::config(
+                    "daemon.osc_targets",
+                    format!("'{t}' is not ADDRESS:PORT"),
+                ));
+            }
+        }
         if self.output.dir.is_empty() {
             return Err(Error::config("output.dir", "must not be empty"));
         }

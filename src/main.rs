@@ -40,6 +40,17 @@ impl ConfigArgs {
 
 #[derive(Subcommand)]
 enum Command {
+    /// Run the daemon beside the rig: ingest the live markers (or a replay
+    /// at recorded speed), rebuild the tree on the triggers, stream it out
+    /// (files in --out, HTTP/WebSocket, OSC). With no config it plays
+    /// replays/maple-24.csv and serves http://127.0.0.1:8080. Ctrl-C stops it.
+    Run {
+        #[command(flatten)]
+        config: ConfigArgs,
+        /// Output folder (overrides output.dir).
+        #[arg(long, value_name = "DIR")]
+        out: Option<PathBuf>,
+    },
     /// Run the whole job on a recorded session: track the markers, find the
     /// tips' rest positions, estimate the wind, reconstruct the tree. Writes
     /// tips.json, tree.glb, tree.json and tree.png to --out (default:
@@ -285,6 +296,12 @@ fn to_json(value: &impl serde::Serialize) -> Result<String> {
 
 fn run(command: Command) -> Result<()> {
     match command {
+        Command::Run { config, out } => {
+            let config = config.load()?;
+            let out = out.unwrap_or_else(|| PathBuf::from(&config.output.dir));
+            let shutdown = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+            treemocap::daemon::run(config, &out, shutdown, true)
+        }
         Command::Replay { file, config, out } => {
             let config = config.load()?;
             let out = out.unwrap_or_else(|| PathBuf::from(&config.output.dir));

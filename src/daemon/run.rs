@@ -1,0 +1,697 @@
+//! `treemocap run`: the wiring of the live daemon.
+//!
+//! ```text
+//! source task ──FrameSink (bounded, drop-oldest)──► pipeline thread
+//!   (NatNet, OSC, or a replay player)                 │ every frame: record, window,
+//!                                                     │ live tips → WebSocket/OSC, sway PCA
+//!                                                     ▼ every analysis_interval_s
+//!                                               analysis thread: track::process on the
+//!                                               window, triggers ──latest wins──► recon thread:
+//!                                               flow, files, TreeSnapshot → HTTP, OSC, WebSocket
+//! ```
+//!
+//! Only the latest reconstruction request is kept; outputs read an
+//! `Arc<TreeSnapshot>`; a slow viewer never slows the pipeline. Shutdown is one
+//! flag: every thread finishes its item, flushes and exits.
+
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::{Arc, Condvar, Mutex};
+use std::time::{Duration, Instant};
+
+use crossbeam_channel::{bounded, Receiver, Sender, TrySendError};
+use glam::DVec3;
+use tokio::sync::{broadcast, watch};
+
+use super::follow::TipFollower;
+use super::status::Status;
+use super::triggers::{compare_tips, Reason, TriggerConfig, Triggers};
+use super::window::{FrameWindow, WindowRecording};
+use crate::config::Config;
+use crate::error::{Error, Result};
+use crate::output::osc::{tips_datagram, tree_datagrams, wind_datagram, OscSender};
+use crate::output::snapshot::TreeSnapshot;
+use crate::output::{http, write_atomic};
+use crate::reconstruct::{self, CapturedTip};
+use crate::source::channel::{frame_channel, FrameReceiver, FrameSink};
+use crate::source::live::LiveSource;
+use crate::source::replay::log::{LogHeader, LogWriter};
+use crate::source::replay::{self, ReplayOptions};
+use crate::wind::log::WindLog;
+use crate::wind::pca::SwayPca;
+use crate::wind::{fan, serial, WindEstimate, WindSelector};
+
+/// A request to build a tree (only the latest pending one is kept).
+struct Build {
+    reason: Reason,
+    time_s: f64,
+    tips: Vec<CapturedTip>,
+    tips_json: String,
+    wind: DVec3,
+}
+
+/// "Latest wins" hand-off from analysis to reconstruction.
+#[derive(Default)]
+struct Slot {
+    pending: Mutex<Option<Build>>,
+    ready: Condvar,
+}
+
+/// Everything the threads share.
+struct Shared {
+    config: Config,
+    out: PathBuf,
+    status: Arc<Status>,
+    shutdown: Arc<AtomicBool>,
+    wind: Mutex<WindSelector>,
+    wind_log: Mutex<Option<WindLog>>,
+    rebuild: Arc<AtomicBool>,
+    live: broadcast::Sender<Arc<str>>,
+    tree_tx: watch::Sender<Option<Arc<TreeSnapshot>>>,
+    slot: Slot,
+}
+
+/// Runs the daemon until `shutdown` is set (Ctrl-C and SIGTERM set it when
+/// `handle_signals`). Returns once every thread has flushed and stopped.
+pub fn run(
+    config: Config,
+    out: &Path,
+    shutdown: Arc<AtomicBool>,
+    handle_signals: bool,
+) -> Result<()> {
+    std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
+    let d = config.daemon.clone();
+    let rt = tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .thread_name("treemocap-io")
+        .enable_all()
+        .build()
+        .map_err(|e| Error::Runtime(format!("cannot start the async runtime: {e}")))?;
+    let (stop_tx, stop_rx) = watch::channel(false);
+    {
+        let flag = shutdown.clone();
+        rt.spawn(async move {
+            loop {
+                if flag.load(Ordering::Relaxed) {
+                    let _ = stop_tx.send(true);
+                    return;
+                }
+                tokio::time::sleep(Duration::from_millis(20)).await;
+            }
+        });
+    }
+    if handle_signals {
+        let flag = shutdown.clone();
+        rt.spawn(async move {
+            wait_for_signal().await;
+            tracing::info!("shutting down");
+            flag.store(true, Ordering::Relaxed);
+        });
+    }
+
+    let status = Arc::new(Status::default());
+    let (live_tx, _) = broadcast::channel(1024);
+    let (tree_tx, tree_rx) = watch::channel(None);
+    let rebuild = Arc::new(AtomicBool::new(false));
+    let wind_log = match WindLog::create(&out.join("wind.csv")) {
+        Ok(l) => Some(l),
+        Err(e) => {
+            tracing::warn!("{e}");
+            None
+        }
+    };
+    let shared = Arc::new(Shared {
+        out: out.to_path_buf(),
+        status: status.clone(),
+        shutdown: shutdown.clone(),
+        wind: Mutex::new(WindSelector::new(
+            config.wind.priority(),
+            config.wind.max_age_s,
+        )),
+        wind_log: Mutex::new(wind_log),
+        rebuild: rebuild.clone(),
+        live: live_tx.clone(),
+        tree_tx,
+        slot: Slot::default(),
+        config,
+    });
+
+    // HTTP first: a busy port is an error the user must see at once.
+    if !d.http.is_empty() {
+        let listener = rt
+            .block_on(tokio::net::TcpListener::bind(&d.http))
+            .map_err(|e| Error::Runtime(format!("HTTP on {}: {e}", d.http)))?;
+        let st = status.clone();
+        let st2 = status.clone();
+        let rb = rebuild.clone();
+        let state = http::HttpState {
+            tree: tree_rx,
+            live: live_tx.clone(),
+            status: Arc::new(move || st.to_json()),
+            metrics: Arc::new(move || st2.to_prometheus()),
+            rebuild: Arc::new(move || rb.store(true, Ordering::Relaxed)),
+            shutdown: stop_rx.clone(),
+        };
+        rt.spawn(async move {
+            if let Err(e) = http::serve(listener, state).await {
+                tracing::error!("HTTP server: {e}");
+            }
+        });
+        tracing::info!("HTTP on http://{}", d.http);
+    }
+
+    let (sink, rx) = frame_channel(d.channel_frames as usize);
+    let source_thread = start_source(&shared, &rt, sink.clone(), stop_rx.clone())?;
+
+    let mut threads = Vec::new();
+    if !shared.config.wind.sensor_port.is_empty() {
+        threads.push(start_serial(&shared));
+    }
+    let (analysis_tx, analysis_rx) = bounded::<(WindowRecording, f64)>(1);
+    let (tips_tx, tips_rx) = bounded::<Vec<(usize, DVec3)>>(4);
+    {
+        let s = shared.clone();
+        threads.push(spawn("treemocap-analysis", move || {
+            analysis_loop(&s, analysis_rx)
+        }));
+    }
+    {
+        let s = shared.clone();
+        threads.push(spawn("treemocap-recon", move || recon_loop(&s, tips_tx)));
+    }
+    let result = pipeline_loop(&shared, rx, &sink, analysis_tx, tips_rx);
+    shutdown.store(true, Ordering::Relaxed);
+    shared.slot.ready.notify_all();
+    for t in threads {
+        let _ = t.join();
+    }
+    if let Some(t) = source_thread {
+        let _ = t.join();
+    }
+    rt.shutdown_timeout(Duration::from_millis(500));
+    result
+}
+
+async fn wait_for_signal() {
+    #[cfg(unix)]
+    {
+        use tokio::signal::unix::{signal, SignalKind};
+        if let Ok(mut term) = signal(SignalKind::terminate()) {
+            tokio::select! {
+                _ = tokio::signal::ctrl_c() => {}
+                _ = term.recv() => {}
+            }
+            return;
+        }
+    }
+    let _ = tokio::signal::ctrl_c().await;
+}
+
+fn spawn(name: &str, f: impl FnOnce() + Send + 'static) -> std::thread::JoinHandle<()> {
+    std::thread::Builder::new()
+        .name(name.into())
+        .spawn(f)
+        .expect("spawn a daemon thread")
+}
+
+/// Starts the configured source; a replay runs on its own thread.
+fn start_source(
+    shared: &Arc<Shared>,
+    rt: &tokio::runtime::Runtime,
+    sink: FrameSink,
+    stop: watch::Receiver<bool>,
+) -> Result<Option<std::thread::JoinHandle<()>>> {
+    let c = &shared.config;
+    let d = &c.daemon;
+    let set_source = |s: String| {
+        if let Ok(mut g) = shared.status.source.lock() {
+            *g = s;
+        }
+    };
+    match d.source.as_str() {
+        "replay" => {
+            let path = PathBuf::from(&d.replay_file);
+            let opts = ReplayOptions::from_config(c);
+            let first = replay::open_with(&path, &opts)?;
+            set_source(format!("replay {} at {}×", path.display(), d.replay_speed));
+            let (speed, repeat) = (d.replay_speed, d.replay_loop);
+            let s = shared.clone();
+            Ok(Some(spawn("treemocap-replay", move || {
+                let reopen = || replay::open_with(&path, &opts);
+                match super::player::play(first, &reopen, &sink, speed, repeat, &s.shutdown) {
+                    Ok(r) => tracing::info!("replay finished: {} frames", r.frames),
+                    Err(e) => {
+                        tracing::error!("{e}");
+                        if let Ok(mut g) = s.status.source_error.lock() {
+                            *g = Some(e.to_string());
+                        }
+                    }
+                }
+            })))
+        }
+        kind => {
+            let source: Arc<dyn LiveSource> = if kind == "natnet" {
+                use crate::source::natnet::{client::NatNetOptions, live::NatNetSource, Transport};
+                let mut opts = NatNetOptions::from_config(&c.natnet);
+                let (ip, port) = match d.natnet_server.parse::<std::net::SocketAddrV4>() {
+                    Ok(a) => (*a.ip(), a.port()),
+                    Err(_) => (
+                        d.natnet_server.parse().map_err(|_| {
+                            Error::config(
+                                "daemon.natnet_server",
+                                format!(
+                                    "'{}' is not an IPv4 address or ADDRESS:PORT",
+                                    d.natnet_server
+                                ),
+                            )
+                        })?,
+                        opts.command_port,
+                    ),
+                };
+                opts.server = Some(ip);
+                opts.command_port = port;
+                opts.transport = match d.natnet_transport.as_str() {
+                    "unicast" => Some(Transport::Unicast),
+                    "multicast" => Some(Transport::Multicast),
+                    _ => None,
+                };
+                Arc::new(NatNetSource(opts))
+            } else {
+                let opts = crate::source::osc::OscOptions::from_config(&c.osc)?;
+                Arc::new(crate::source::osc::OscSource(opts))
+            };
+            set_source(source.describe());
+            let s = shared.clone();
+            rt.spawn(async move {
+                if let Err(e) = source.start(sink, stop).await {
+                    tracing::error!("{e}");
+                    if let Ok(mut g) = s.status.source_error.lock() {
+                        *g = Some(e.to_string());
+                    }
+                }
+            });
+            Ok(None)
+        }
+    }
+}
+
+fn start_serial(shared: &Arc<Shared>) -> std::thread::JoinHandle<()> {
+    let w = &shared.config.wind;
+    let opts = serial::SerialOptions {
+        port: w.sensor_port.clone(),
+        baud: w.sensor_baud,
+        heading_deg: w.sensor_heading_deg,
+        backoff_min: Duration::from_millis(200),
+        backoff_max: Duration::from_secs(5),
+    };
+    let status = Arc::new(serial::SerialStatus::default());
+    let stop = Arc::new(AtomicBool::new(false));
+    let s = shared.clone();
+    let s2 = shared.clone();
+    let clock: Arc<dyn Fn() -> f64 + Send + Sync> = Arc::new(move || s.status.frame_time());
+    let stop2 = stop.clone();
+    let watcher_shared = shared.clone();
+    let handle = serial::spawn(
+        opts,
+        clock,
+        Box::new(move |e| new_wind(&s2, e)),
+        status,
+        stop,
+    );
+    spawn("treemocap-serial-stop", move || {
+        while !watcher_shared.shutdown.load(Ordering::Relaxed) {
+            std::thread::sleep(Duration::from_millis(50));
+        }
+        stop2.store(true, Ordering::Relaxed);
+        let _ = handle.join();
+    })
+}
+
+/// A new wind estimate from any source: selector, log, status, outputs.
+fn new_wind(shared: &Shared, e: WindEstimate) {
+    if let Ok(mut sel) = shared.wind.lock() {
+        sel.update(e);
+    }
+    if let Ok(mut log) = shared.wind_log.lock() {
+        if let Some(l) = log.as_mut() {
+            if let Err(err) = l.write(&e) {
+                tracing::warn!("{err}");
+            }
+        }
+    }
+    let current = shared.wind.lock().ok().and_then(|s| s.current(e.time_s));
+    if let Ok(mut w) = shared.status.wind.lock() {
+        *w = current;
+    }
+    let _ = shared.live.send(
+        serde_json::json!({
+            "type": "wind", "source": e.source.name(), "azimuth_deg": e.azimuth_deg(),
+            "direction": [e.direction.x, e.direction.y, e.direction.z], "speed_m_s": e.speed_m_s,
+        })
+        .to_string()
+        .into(),
+    );
+}
+
+/// Per frame: record, window, live tips, PCA; hands the window to analysis.
+fn pipeline_loop(
+    shared: &Arc<Shared>,
+    rx: FrameReceiver,
+    sink: &FrameSink,
+    analysis_tx: Sender<(WindowRecording, f64)>,
+    tips_rx: Receiver<Vec<(usize, DVec3)>>,
+) -> Result<()> {
+    let c = &shared.config;
+    let d = &c.daemon;
+    let status = &shared.status;
+    let mut window = FrameWindow::new(d.window_s);
+    let mut follower = TipFollower::new(d.follow_gate_mm / 1000.0);
+    let mut pca = SwayPca::new(c.wind.pca_window_s, c.wind.pca_min_sway_mm / 1000.0);
+    let mut next_pca = f64::NEG_INFINITY;
+    let mut next_analysis = f64::NEG_INFINITY;
+    let mut frame_rate = 100.0;
+    let mut last_time: Option<f64> = None;
+    let mut osc = if d.osc_targets.is_empty() {
+        None
+    } else {
+        Some(OscSender::new(
+            d.osc_targets
+                .iter()
+                .filter_map(|t| t.parse().ok())
+                .collect(),
+        )?)
+    };
+    let mut recorder = if d.record {
+        let path = shared.out.join("session.log.csv");
+        let header = LogHeader {
+            source: status.source.lock().map(|s| s.clone()).unwrap_or_default(),
+            frame_rate,
+        };
+        Some(LogWriter::create(
+            &path,
+            &header,
+            Duration::from_secs_f64(c.record.flush_interval_s),
+        )?)
+    } else {
+        None
+    };
+    let mut record_error_logged = false;
+    while !shared.shutdown.load(Ordering::Relaxed) {
+        if let Some(w) = recorder.as_mut() {
+            if let Err(e) = w.tick() {
+                record_failed(status, &e, &mut record_error_logged);
+            }
+        }
+        while let Ok(tips) = tips_rx.try_recv() {
+            follower.set_tips(&tips);
+            status.tips.store(tips.len() as u64, Ordering::Relaxed);
+        }
+        let frame = match rx.recv_timeout(Duration::from_millis(50)) {
+            Ok(f) => f,
+            Err(crossbeam_channel::RecvTimeoutError::Timeout) => {
+                // A quiet source (a finished replay, a paused rig) must not
+                // leave a requested rebuild waiting for the next frame.
+                if shared.rebuild.load(Ordering::Relaxed) && !window.is_empty() {
+                    let snapshot = window.to_recording(frame_rate.round().max(1.0), "live");
+                    let _ = analysis_tx.try_send((snapshot, window.now_s()));
+                }
+                continue;
+            }
+            Err(crossbeam_channel::RecvTimeoutError::Disconnected) => break,
+        };
+        let arrived = Instant::now();
+        status.frames.fetch_add(1, Ordering::Relaxed);
+        status
+            .samples
+            .fetch_add(frame.markers.len() as u64, Ordering::Relaxed);
+        status
+            .markers
+            .store(frame.markers.len() as u64, Ordering::Relaxed);
+        status
+            .last_frame
+            .store(frame.frame as u64, Ordering::Relaxed);
+        status
+            .last_frame_time_bits
+            .store(frame.time_s.to_bits(), Ordering::Relaxed);
+        status.dropped.store(sink.dropped(), Ordering::Relaxed);
+        if let Some(prev) = last_time {
+            let dt = frame.time_s - prev;
+            if dt > 0.0 {
+                // A smoothed estimate of the source's rate for the analysis.
+                frame_rate = 0.99 * frame_rate + 0.01 / dt;
+            }
+        }
+        last_time = Some(frame.time_s);
+        if let Some(w) = recorder.as_mut() {
+            if let Err(e) = w.write_frame(&frame) {
+                record_failed(status, &e, &mut record_error_logged);
+            }
+        }
+
+        let now = frame.time_s;
+        let positions: Vec<DVec3> = frame.positions().collect();
+        if !follower.is_empty() {
+            let seen = follower.update(&positions);
+            status.tips_live.store(seen.len() as u64, Ordering::Relaxed);
+            pca.push(now, follower.displacements(&seen));
+            if shared.live.receiver_count() > 0 {
+                let _ = shared
+                    .live
+                    .send(http::tips_message(frame.frame, now, &seen));
+            }
+            if let Some(o) = osc.as_mut() {
+                o.send(&tips_datagram(frame.frame, now, &seen));
+            }
+            if now >= next_pca {
+                next_pca = now + c.wind.pca_window_s;
+                if let Some(e) = pca.estimate() {
+                    new_wind(shared, e);
+                    if let Some(o) = osc.as_mut() {
+                        o.send(&wind_datagram(&e));
+                    }
+                }
+            }
+        }
+        window.push(frame);
+        if now >= next_analysis || now < next_analysis - 2.0 * d.analysis_interval_s {
+            let snapshot = window.to_recording(frame_rate.round().max(1.0), "live");
+            match analysis_tx.try_send((snapshot, now)) {
+                Ok(()) => next_analysis = now + d.analysis_interval_s,
+                Err(TrySendError::Full(_)) => {} // analysis still busy: next frame
+                Err(TrySendError::Disconnected(_)) => break,
+            }
+        }
+        let us = arrived.elapsed().as_micros() as u64;
+        status.latency_us_last.store(us, Ordering::Relaxed);
+        status.latency_us_max.fetch_max(us, Ordering::Relaxed);
+    }
+    if let Some(w) = recorder.take() {
+        if let Err(e) = w.finish() {
+            record_failed(status, &e, &mut record_error_logged);
+        }
+    }
+    Ok(())
+}
+
+fn record_failed(status: &Status, e: &Error, logged: &mut bool) {
+    if !*logged {
+        tracing::error!("recording: {e}");
+        *logged = true;
+    }
+    if let Ok(mut g) = status.output_error.lock() {
+        *g = Some(format!("recording: {e}"));
+    }
+}
+
+/// Tracks the window, finds tips and decides whether a new tree is due.
+fn analysis_loop(shared: &Arc<Shared>, rx: Receiver<(WindowRecording, f64)>) {
+    let c = &shared.config;
+    let d = &c.daemon;
+    let mut triggers = Triggers::new(TriggerConfig {
+        rest_min_s: d.rest_min_s,
+        tip_change_s: d.tip_change_s,
+        moved_m: d.moved_mm / 1000.0,
+        wind_turn_deg: d.wind_turn_deg,
+        period_s: d.period_s,
+    });
+    // What the last tree was built from, reused when a rebuild finds nothing
+    // changed so that the tree does not jump.
+    let mut last_build: Option<(Vec<CapturedTip>, String, DVec3)> = None;
+    let mut fan_set = false;
+    while !shared.shutdown.load(Ordering::Relaxed) {
+        let Ok((mut rec, now)) = rx.recv_timeout(Duration::from_millis(100)) else {
+            continue;
+        };
+        let (tips, _summary) = match crate::track::process(&mut rec, &c.tracking) {
+            Ok(t) => t,
+            Err(e) => {
+                tracing::warn!("analysis: {e}");
+                continue;
+            }
+        };
+        shared.status.analyses.fetch_add(1, Ordering::Relaxed);
+        let rest: Vec<DVec3> = tips.tips.iter().map(|t| t.rest).collect();
+        if !fan_set && !rest.is_empty() {
+            if let Some(pos) = c.wind.fan() {
+                let (lo, hi) = rest.iter().fold(
+                    (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
+                    |(lo, hi), p| (lo.min(*p), hi.max(*p)),
+                );
+                let speed = (c.wind.fan_speed_m_s > 0.0).then_some(c.wind.fan_speed_m_s);
+                if let Some(e) = fan::fan_wind(pos, (lo + hi) / 2.0, speed, now) {
+                    new_wind(shared, e);
+                }
+            }
+            fan_set = true;
+        }
+        let wind = shared.wind.lock().ok().and_then(|s| s.current(now));
+        let wind_vec = wind.map_or(DVec3::ZERO, |w| w.direction * w.speed_m_s.unwrap_or(1.0));
+        if shared.rebuild.swap(false, Ordering::Relaxed) {
+            triggers.request();
+        }
+        let rest_len = tips.rest_window_s[1] - tips.rest_window_s[0];
+        let Some(reason) = triggers.check(now, &rest, rest_len, wind.map(|w| w.direction)) else {
+            continue;
+        };
+        let unchanged = last_build.as_ref().is_some_and(|(b, _, w)| {
+            let old: Vec<DVec3> = b.iter().map(|t| t.position).collect();
+            compare_tips(&old, &rest, d.moved_mm / 1000.0) == (0, 0, 0) && *w == wind_vec
+        }) && matches!(reason, Reason::Requested | Reason::Period);
+        let (captured, tips_json, wv) = match (&last_build, unchanged) {
+            (Some(b), true) => b.clone(),
+            _ => {
+                let mut t = tips;
+                t.wind = wind.map(|w| crate::track::rest::WindEstimate {
+                    direction: w.direction,
+                    speed: w.speed_m_s.unwrap_or(1.0),
+                });
+                let captured = t
+                    .tips
+                    .iter()
+                    .map(|x| CapturedTip {
+                        marker: x.marker,
+                        position: x.rest,
+                    })
+                    .collect();
+                (captured, t.to_json() + "\n", wind_vec)
+            }
+        };
+        let positions: Vec<DVec3> = captured.iter().map(|t: &CapturedTip| t.position).collect();
+        triggers.built(now, &positions, wind.map(|w| w.direction));
+        last_build = Some((captured.clone(), tips_json.clone(), wv));
+        tracing::info!("new tree: {reason}");
+        if let Ok(mut p) = shared.slot.pending.lock() {
+            *p = Some(Build {
+                reason,
+                time_s: now,
+                tips: captured,
+                tips_json,
+                wind: wv,
+            });
+        }
+        shared.slot.ready.notify_one();
+    }
+}
+
+/// Builds trees on request and hands them to every output.
+fn recon_loop(shared: &Arc<Shared>, tips_tx: Sender<Vec<(usize, DVec3)>>) {
+    let c = &shared.config;
+    let version = AtomicU64::new(0);
+    let mut osc = if c.daemon.osc_targets.is_empty() {
+        None
+    } else {
+        OscSender::new(
+            c.daemon
+                .osc_targets
+                .iter()
+                .filter_map(|t| t.parse().ok())
+                .collect(),
+        )
+        .ok()
+    };
+    loop {
+        let build = {
+            let Ok(mut pending) = shared.slot.pending.lock() else {
+                return;
+            };
+            while pending.is_none() && !shared.shutdown.load(Ordering::Relaxed) {
+                pending = match shared
+                    .slot
+                    .ready
+                    .wait_timeout(pending, Duration::from_millis(100))
+                {
+                    Ok((g, _)) => g,
+                    Err(_) => return,
+                };
+            }
+            match pending.take() {
+                Some(b) => b,
+                None => return, // shutdown
+            }
+        };
+        let started = Instant::now();
+        let outputs = match reconstruct::build_outputs(&build.tips, build.wind, c) {
+            Ok(o) => o,
+            Err(e) => {
+                tracing::error!("reconstruction: {e}");
+                continue;
+            }
+        };
+        let v = version.fetch_add(1, Ordering::Relaxed) + 1;
+        let snapshot = Arc::new(TreeSnapshot {
+            version: v,
+            time_s: build.time_s,
+            reason: build.reason.to_string(),
+            nodes: outputs.tree.snapshot_nodes(),
+            glb: outputs.glb,
+            tree_json: outputs.tree_json,
+            tips_json: build.tips_json,
+        });
+        write_files(shared, &snapshot, &outputs.png, v);
+        let _ = shared.tree_tx.send(Some(snapshot.clone()));
+        let _ = tips_tx.try_send(build.tips.iter().map(|t| (t.marker, t.position)).collect());
+        let _ = shared.live.send(http::tree_notice(&snapshot));
+        if let Some(o) = osc.as_mut() {
+            o.send_paced(&tree_datagrams(&snapshot));
+        }
+        let st = &shared.status;
+        st.trees.fetch_add(1, Ordering::Relaxed);
+        st.tree_version.store(v, Ordering::Relaxed);
+        if let Ok(mut t) = st.last_tree.lock() {
+            *t = Some(serde_json::json!({
+                "version": v,
+                "reason": build.reason,
+                "time_s": build.time_s,
+                "nodes": snapshot.nodes.len(),
+                "tips": build.tips.len(),
+                "forced_joins": outputs.report.forced_joins,
+                "build_ms": started.elapsed().as_secs_f64() * 1000.0,
+            }));
+        }
+    }
+}
+
+/// Rewrites tree.glb, tree.json, tips.json, tree.png (and the numbered
+/// history). A failing disk is reported on /status; the daemon goes on.
+fn write_files(shared: &Shared, t: &TreeSnapshot, png: &[u8], version: u64) {
+    let mut files: Vec<(String, &[u8])> = vec![
+        ("tree.glb".into(), &t.glb),
+        ("tree.json".into(), t.tree_json.as_bytes()),
+        ("tips.json".into(), t.tips_json.as_bytes()),
+        ("tree.png".into(), png),
+    ];
+    if shared.config.daemon.history {
+        files.push((format!("tree-{version:04}.glb"), &t.glb));
+        files.push((format!("tree-{version:04}.json"), t.tree_json.as_bytes()));
+    }
+    let mut error = None;
+    for (name, bytes) in files {
+        if let Err(e) = write_atomic(&shared.out.join(&name), bytes) {
+            tracing::error!("{e}");
+            error = Some(e.to_string());
+        }
+    }
+    if let Ok(mut g) = shared.status.output_error.lock() {
+        *g = error;
+    }
+}

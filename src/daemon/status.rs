@@ -1,0 +1,157 @@
+//! The daemon's counters, read by `/status` (JSON) and `/metrics`
+//! (Prometheus text). Atomics and short locks only: the pipeline never waits
+//! for a reader.
+
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::Mutex;
+
+use serde_json::json;
+
+use crate::wind::WindEstimate;
+
+/// Shared counters of a running daemon.
+#[derive(Debug, Default)]
+pub struct Status {
+    pub source: Mutex<String>,
+    pub frames: AtomicU64,
+    pub samples: AtomicU64,
+    /// Markers in the latest frame.
+    pub markers: AtomicU64,
+    /// Tips seen in the latest frame.
+    pub tips_live: AtomicU64,
+    /// Tips of the current tree.
+    pub tips: AtomicU64,
+    /// Frames the bounded channel dropped (pipeline too slow).
+    pub dropped: AtomicU64,
+    pub analyses: AtomicU64,
+    pub trees: AtomicU64,
+    /// Frame time in f64 bits, so it fits an atomic.
+    pub last_frame_time_bits: AtomicU64,
+    pub last_frame: AtomicU64,
+    pub tree_version: AtomicU64,
+    pub last_tree: Mutex<Option<serde_json::Value>>,
+    pub wind: Mutex<Option<WindEstimate>>,
+    /// The last error of an output (a disk refusing writes), cleared by the
+    /// next success.
+    pub output_error: Mutex<Option<String>>,
+    pub source_error: Mutex<Option<String>>,
+    /// Per-frame latency from arrival to tips published, in microseconds.
+    pub latency_us_last: AtomicU64,
+    pub latency_us_max: AtomicU64,
+}
+
+fn get(a: &AtomicU64) -> u64 {
+    a.load(Ordering::Relaxed)
+}
+
+impl Status {
+    pub fn frame_time(&self) -> f64 {
+        f64::from_bits(get(&self.last_frame_time_bits))
+    }
+
+    /// The `/status` document.
+    pub fn to_json(&self) -> serde_json::Value {
+        let wind = self.wind.lock().ok().and_then(|w| *w).map(|w| {
+            json!({
+                "source": w.source.name(),
+                "azimuth_deg": w.azimuth_deg(),
+                "direction": [w.direction.x, w.direction.y, w.direction.z],
+                "speed_m_s": w.speed_m_s,
+                "time_s": w.time_s,
+            })
+        });
+        json!({
+            "source": self.source.lock().map(|s| s.clone()).unwrap_or_default(),
+            "source_error": self.source_error.lock().ok().and_then(|e| e.clone()),
+            "frames": get(&self.frames),
+            "samples": get(&self.samples),
+            "last_frame": get(&self.last_frame),
+            "time_s": self.frame_time(),
+            "markers": get(&self.markers),
+            "tips": get(&self.tips),
+            "tips_live": get(&self.tips_live),
+            "dropped": get(&self.dropped),
+            "analyses": get(&self.analyses),
+            "trees": get(&self.trees),
+            "tree_version": get(&self.tree_version),
+            "last_tree": self.last_tree.lock().ok().and_then(|t| t.clone()),
+            "wind": wind,
+            "output_error": self.output_error.lock().ok().and_then(|e| e.clone()),
+            "latency_us": {"last": get(&self.latency_us_last), "max": get(&self.latency_us_max)},
+        })
+    }
+
+    /// The `/metrics` text (Prometheus exposition format 0.0.4).
+    pub fn to_prometheus(&self) -> String {
+        let mut out = String::new();
+        let mut metric = |name: &str, kind: &str, help: &str, value: f64| {
+            out.push_str(&format!(
+                "# HELP treemocap_{name} {help}\n# TYPE treemocap_{name} {kind}\ntreemocap_{name} {value}\n"
+            ));
+        };
+        metric(
+            "frames_total",
+            "counter",
+            "Frames received from the source.",
+            get(&self.frames) as f64,
+        );
+        metric(
+            "marker_samples_total",
+            "counter",
+            "Marker samples received.",
+            get(&self.samples) as f64,
+        );
+        metric(
+            "frames_dropped_total",
+            "counter",
+            "Frames dropped because the pipeline fell behind.",
+            get(&self.dropped) as f64,
+        );
+        metric(
+            "markers",
+            "gauge",
+            "Markers in the latest frame.",
+            get(&self.markers) as f64,
+        );
+        metric(
+            "tips",
+            "gauge",
+            "Tips of the current tree.",
+            get(&self.tips) as f64,
+        );
+        metric(
+            "tips_live",
+            "gauge",
+            "Tips seen in the latest frame.",
+            get(&self.tips_live) as f64,
+        );
+        metric(
+            "analyses_total",
+            "counter",
+            "Analyses of the recent frames.",
+            get(&self.analyses) as f64,
+        );
+        metric(
+            "trees_total",
+            "counter",
+            "Trees built.",
+            get(&self.trees) as f64,
+        );
+        metric(
+            "frame_latency_seconds_max",
+            "gauge",
+            "Longest time from frame arrival to tips published.",
+            get(&self.latency_us_max) as f64 * 1e-6,
+        );
+        metric(
+            "output_errors",
+            "gauge",
+            "1 while an output cannot be written.",
+            self.output_error
+                .lock()
+                .map(|e| e.is_some() as u8 as f64)
+                .unwrap_or(0.0),
+        );
+        out
+    }
+}

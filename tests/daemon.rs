@@ -1,0 +1,312 @@
+//! The daemon end to end through real sockets: `treemocap serve` streams a
+//! synthetic session over NatNet, `treemocap run` ingests it, reconstructs
+//! and streams the tree out; python-osc receives the whole tree and the
+//! tips, a WebSocket client the live tips, urllib the status, and the Khronos
+//! validator checks the glb it wrote. SIGTERM stops it within 2 s.
+
+use std::io::{BufRead, BufReader};
+use std::net::{TcpListener, UdpSocket};
+use std::path::PathBuf;
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+use futures_util::StreamExt;
+
+fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+fn free_tcp() -> u16 {
+    TcpListener::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port()
+}
+
+fn free_udp() -> u16 {
+    UdpSocket::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port()
+}
+
+fn python() -> String {
+    std::env::var("TREEMOCAP_PYTHON").unwrap_or_else(|_| "python3".into())
+}
+
+struct Killed(Child);
+impl Drop for Killed {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+fn http_get(url: &str) -> (u16, Vec<u8>) {
+    let script = format!(
+        "import sys, urllib.request, urllib.error\n\
+         try:\n    r = urllib.request.urlopen('{url}', timeout=5); c, b = r.status, r.read()\n\
+         except urllib.error.HTTPError as e:\n    c, b = e.code, e.read()\n\
+         except Exception as e:\n    c, b = 0, str(e).encode()\n\
+         sys.stdout.write(str(c) + '\\n'); sys.stdout.flush(); sys.stdout.buffer.write(b)\n"
+    );
+    let out = Command::new(python())
+        .arg("-c")
+        .arg(script)
+        .output()
+        .unwrap();
+    let nl = out.stdout.iter().position(|&b| b == b'\n').unwrap_or(0);
+    let code = std::str::from_utf8(&out.stdout[..nl])
+        .unwrap_or("0")
+        .parse()
+        .unwrap_or(0);
+    (code, out.stdout.get(nl + 1..).unwrap_or_default().to_vec())
+}
+
+#[test]
+fn natnet_in_tree_out_over_osc_http_and_websocket() {
+    let out_dir = tempfile::tempdir().unwrap();
+    let (cmd_port, data_port) = (free_udp(), free_udp());
+    let (http_port, osc_port) = (free_tcp(), free_udp());
+
+    // A python-osc receiver, ready before the daemon starts sending.
+    let mut receiver = Command::new(python())
+        .arg(root().join("tests/peers/osc_receive.py"))
+        .args([osc_port.to_string(), "50".into(), "60".into()])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("python3 with python-osc (pip install -r tests/peers/requirements.txt)");
+    let mut rx_out = BufReader::new(receiver.stdout.take().unwrap());
+    let mut line = String::new();
+    rx_out.read_line(&mut line).unwrap();
+    assert_eq!(line.trim(), "ready", "python-osc receiver did not start");
+
+    let _server = Killed(
+        Command::new(env!("CARGO_BIN_EXE_treemocap"))
+            .args([
+                "serve",
+                "replays/maple-24.csv",
+                "--speed",
+                "4",
+                "--bind",
+                "127.0.0.1",
+            ])
+            .args([
+                "--command-port",
+                &cmd_port.to_string(),
+                "--data-port",
+                &data_port.to_string(),
+            ])
+            .current_dir(root())
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .spawn()
+            .unwrap(),
+    );
+    let mut daemon = Killed(
+        Command::new(env!("CARGO_BIN_EXE_treemocap"))
+            .arg("run")
+            .args(["--set", "daemon.source=natnet"])
+            .args([
+                "--set",
+                &format!("daemon.natnet_server=127.0.0.1:{cmd_port}"),
+            ])
+            .args(["--set", "daemon.natnet_transport=unicast"])
+            .args(["--set", &format!("daemon.http=127.0.0.1:{http_port}")])
+            .args([
+                "--set",
+                &format!("daemon.osc_targets=[\"127.0.0.1:{osc_port}\"]"),
+            ])
+            .arg("--out")
+            .arg(out_dir.path())
+            .current_dir(root())
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .spawn()
+            .unwrap(),
+    );
+
+    // The first tree: 5 s of still phase at 4× speed, plus analysis.
+    let start = Instant::now();
+    let status = loop {
+        assert!(
+            start.elapsed() < Duration::from_secs(60),
+            "no tree within 60 s"
+        );
+        let (code, body) = http_get(&format!("http://127.0.0.1:{http_port}/status"));
+        if code == 200 {
+            let v: serde_json::Value = serde_json::from_slice(&body).unwrap();
+            if v["trees"].as_u64() == Some(1) && v["tips_live"].as_u64().unwrap_or(0) > 0 {
+                break v;
+            }
+        }
+        std::thread::sleep(Duration::from_millis(200));
+    };
+    assert_eq!(status["tips"], 24);
+    assert_eq!(status["last_tree"]["forced_joins"], 0);
+    assert_eq!(status["dropped"], 0);
+    assert!(status["frames"].as_u64().unwrap() > 500);
+    assert!(status["source"].as_str().unwrap().contains("127.0.0.1"));
+
+    // A WebSocket client gets the tree notice and then live tips.
+    let rt = tokio::runtime::Runtime::new().unwrap();
+    rt.block_on(async {
+        let (mut ws, _) =
+            tokio_tungstenite::connect_async(format!("ws://127.0.0.1:{http_port}/live"))
+                .await
+                .unwrap();
+        let mut tips_frames = 0;
+        let mut saw_tree = false;
+        while tips_frames < 20 {
+            let msg = tokio::time::timeout(Duration::from_secs(10), ws.next())
+                .await
+                .expect("a live message")
+                .unwrap()
+                .unwrap();
+            let v: serde_json::Value = serde_json::from_str(&msg.into_text().unwrap()).unwrap();
+            match v["type"].as_str() {
+                Some("tree") => saw_tree = true,
+                Some("tips") => {
+                    tips_frames += 1;
+                    assert!(v["tips"].as_array().unwrap().len() <= 24);
+                }
+                _ => {}
+            }
+        }
+        assert!(saw_tree, "the current tree is announced on connect");
+    });
+
+    // python-osc got the whole tree and tip frames.
+    let mut summary = String::new();
+    rx_out.read_line(&mut summary).unwrap();
+    let _ = receiver.wait();
+    let s: serde_json::Value = serde_json::from_str(&summary).unwrap();
+    let count = s["end"][1].as_u64().expect("tree end received");
+    assert_eq!(s["nodes_received"].as_u64(), Some(count), "{s}");
+    assert_eq!(s["parents_ok"], true);
+    assert!(s["tip_frames"].as_u64().unwrap() >= 50);
+    let tree_json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out_dir.path().join("tree.json")).unwrap())
+            .unwrap();
+    assert_eq!(tree_json["nodes"].as_array().unwrap().len() as u64, count);
+
+    // /metrics agrees with /status, and the glb it serves is the file, validator-clean.
+    let (_, metrics) = http_get(&format!("http://127.0.0.1:{http_port}/metrics"));
+    let metrics = String::from_utf8(metrics).unwrap();
+    assert!(metrics.contains("treemocap_trees_total 1"), "{metrics}");
+    let (code, glb) = http_get(&format!("http://127.0.0.1:{http_port}/tree.glb"));
+    assert_eq!(code, 200);
+    assert_eq!(glb, std::fs::read(out_dir.path().join("tree.glb")).unwrap());
+    let report = Command::new("node")
+        .arg(root().join("tests/peers/validate_gltf.js"))
+        .arg(out_dir.path().join("tree.glb"))
+        .output()
+        .expect("node");
+    assert!(
+        report.status.success(),
+        "glTF validator missing? run npm install --prefix tests/peers: {}",
+        String::from_utf8_lossy(&report.stderr)
+    );
+    let issues: serde_json::Value = serde_json::from_slice(&report.stdout).unwrap();
+    assert_eq!(
+        (issues["numErrors"].as_u64(), issues["numWarnings"].as_u64()),
+        (Some(0), Some(0))
+    );
+
+    // SIGTERM: flushed and gone within 2 s.
+    let pid = daemon.0.id().to_string();
+    Command::new("kill").args(["-TERM", &pid]).status().unwrap();
+    let t0 = Instant::now();
+    loop {
+        if let Some(code) = daemon.0.try_wait().unwrap() {
+            assert!(code.success(), "exit {code:?}");
+            break;
+        }
+        assert!(
+            t0.elapsed() < Duration::from_secs(2),
+            "did not stop within 2 s"
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    }
+}
+
+#[test]
+fn an_unchanged_session_gives_one_tree_and_rebuild_gives_the_same_tree() {
+    let out_dir = tempfile::tempdir().unwrap();
+    let http_port = free_tcp();
+    let _daemon = Killed(
+        Command::new(env!("CARGO_BIN_EXE_treemocap"))
+            .arg("run")
+            .args(["--set", "daemon.replay_speed=0"])
+            .args(["--set", &format!("daemon.http=127.0.0.1:{http_port}")])
+            .arg("--out")
+            .arg(out_dir.path())
+            .current_dir(root())
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .spawn()
+            .unwrap(),
+    );
+    let status = |key: &str| -> Option<u64> {
+        let (code, body) = http_get(&format!("http://127.0.0.1:{http_port}/status"));
+        if code != 200 {
+            return None;
+        }
+        let v: serde_json::Value = serde_json::from_slice(&body).ok()?;
+        v[key].as_u64()
+    };
+    let start = Instant::now();
+    // The whole 40 s replay goes through as fast as it can.
+    while status("frames") != Some(4000) {
+        assert!(
+            start.elapsed() < Duration::from_secs(60),
+            "replay did not finish"
+        );
+        std::thread::sleep(Duration::from_millis(200));
+    }
+    std::thread::sleep(Duration::from_millis(1500));
+    assert_eq!(
+        status("trees"),
+        Some(1),
+        "one still phase, no change: one tree"
+    );
+
+    // An explicit rebuild: the wind from the sway is known by now, so the
+    // input changed and a second tree comes. A third request on unchanged
+    // data must give the very same tree.
+    let rebuild = || {
+        let post = Command::new(python())
+            .arg("-c")
+            .arg(format!(
+                "import urllib.request as u; print(u.urlopen(u.Request('http://127.0.0.1:{http_port}/rebuild', data=b'', method='POST')).status)"
+            ))
+            .output()
+            .unwrap();
+        assert_eq!(String::from_utf8_lossy(&post.stdout).trim(), "202");
+    };
+    let wait_trees = |n: u64| {
+        let t0 = Instant::now();
+        while status("trees") != Some(n) {
+            assert!(
+                t0.elapsed() < Duration::from_secs(20),
+                "tree {n} did not come"
+            );
+            std::thread::sleep(Duration::from_millis(100));
+        }
+    };
+    rebuild();
+    wait_trees(2);
+    let second = std::fs::read(out_dir.path().join("tree.glb")).unwrap();
+    let second_tips = std::fs::read(out_dir.path().join("tips.json")).unwrap();
+    rebuild();
+    wait_trees(3);
+    let third = std::fs::read(out_dir.path().join("tree.glb")).unwrap();
+    assert!(
+        second == third,
+        "same tips, same seed: the tree must not jump"
+    );
+    assert!(second_tips == std::fs::read(out_dir.path().join("tips.json")).unwrap());
+}
