@@ -106,3 +106,18 @@ fn help_explains_the_commands() {
     let s = text(&out.stdout);
     assert!(s.contains("replay") && s.contains("inspect"), "{s}");
 }
+
+#[test]
+fn shipped_rig_configs_are_valid() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("config");
+    let mut n = 0;
+    for entry in std::fs::read_dir(&dir).unwrap() {
+        let path = entry.unwrap().path();
+        if path.extension().is_some_and(|e| e == "toml") {
+            treemocap::config::Config::load(Some(&path), &[])
+                .unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+            n += 1;
+        }
+    }
+    assert!(n >= 4, "default.toml and the rig examples");
+}
