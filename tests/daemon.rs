@@ -310,3 +310,164 @@ fn an_unchanged_session_gives_one_tree_and_rebuild_gives_the_same_tree() {
     );
     assert!(second_tips == std::fs::read(out_dir.path().join("tips.json")).unwrap());
 }
+
+fn start_daemon(out: &std::path::Path, http_port: u16, sets: &[String]) -> Killed {
+    let mut cmd = Command::new(env!("CARGO_BIN_EXE_treemocap"));
+    cmd.arg("run")
+        .args(["--set", &format!("daemon.http=127.0.0.1:{http_port}")])
+        .arg("--out")
+        .arg(out)
+        .current_dir(root())
+        .stdout(Stdio::null())
+        .stderr(Stdio::null());
+    for s in sets {
+        cmd.args(["--set", s]);
+    }
+    Killed(cmd.spawn().unwrap())
+}
+
+fn status_of(http_port: u16) -> Option<serde_json::Value> {
+    let (code, body) = http_get(&format!("http://127.0.0.1:{http_port}/status"));
+    (code == 200)
+        .then(|| serde_json::from_slice(&body).ok())
+        .flatten()
+}
+
+fn wait_status(
+    http_port: u16,
+    what: &str,
+    secs: u64,
+    ok: impl Fn(&serde_json::Value) -> bool,
+) -> serde_json::Value {
+    let t0 = Instant::now();
+    loop {
+        if let Some(v) = status_of(http_port) {
+            if ok(&v) {
+                return v;
+            }
+        }
+        assert!(
+            t0.elapsed() < Duration::from_secs(secs),
+            "timed out waiting for {what}"
+        );
+        std::thread::sleep(Duration::from_millis(100));
+    }
+}
+
+#[test]
+fn a_marker_that_falls_off_in_a_still_phase_triggers_a_new_tree() {
+    use treemocap::source::replay::log::{LogHeader, LogWriter};
+    // A still session; the marker of tip 5 falls off after 12 s.
+    let opts = treemocap::sim::SynthOptions {
+        seed: 77,
+        tips: 24,
+        still_s: 30.0,
+        wind_s: 0.0,
+        ..Default::default()
+    };
+    let syn = treemocap::sim::generate(&opts).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let log = dir.path().join("fall.log.csv");
+    let header = LogHeader {
+        source: "marker falls off".into(),
+        frame_rate: 100.0,
+    };
+    let mut w = LogWriter::create(&log, &header, Duration::from_secs(1)).unwrap();
+    for f in &syn.frames {
+        let mut f = f.clone();
+        if f.time_s > 12.0 {
+            f.markers
+                .retain(|m| syn.columns[m.id.unwrap() as usize].tip != Some(5));
+        }
+        w.write_frame(&f).unwrap();
+    }
+    w.finish().unwrap();
+
+    let http_port = free_tcp();
+    let out = dir.path().join("out");
+    let _d = start_daemon(
+        &out,
+        http_port,
+        &[
+            format!("daemon.replay_file={}", log.display()),
+            "daemon.replay_speed=10".into(),
+            "daemon.window_s=8".into(),
+        ],
+    );
+    let first = wait_status(http_port, "the first tree", 30, |v| v["trees"] == 1);
+    assert_eq!(first["tips"], 24);
+    let second = wait_status(http_port, "a second tree", 30, |v| v["trees"] == 2);
+    assert_eq!(
+        second["last_tree"]["reason"]["trigger"], "tips_changed",
+        "{second}"
+    );
+    assert_eq!(second["last_tree"]["reason"]["removed"], 1);
+    assert_eq!(second["tips"], 23);
+    // Nothing else changes: no third tree before the replay ends.
+    wait_status(http_port, "the end of the replay", 30, |v| {
+        v["frames"] == 3000
+    });
+    std::thread::sleep(Duration::from_millis(500));
+    assert_eq!(status_of(http_port).unwrap()["trees"], 2);
+}
+
+#[test]
+fn an_output_folder_that_refuses_writes_is_reported_and_ingest_goes_on() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out");
+    let http_port = free_tcp();
+    let _d = start_daemon(&out, http_port, &["daemon.replay_speed=4".into()]);
+    wait_status(http_port, "the first tree", 30, |v| v["trees"] == 1);
+    assert!(status_of(http_port).unwrap()["output_error"].is_null());
+    // The folder goes away and a file takes its place: every write fails.
+    std::fs::remove_dir_all(&out).unwrap();
+    std::fs::write(&out, b"not a folder").unwrap();
+    let frames_before = status_of(http_port).unwrap()["frames"].as_u64().unwrap();
+    let (code, _) = {
+        let script = format!(
+            "import urllib.request as u; print(u.urlopen(u.Request('http://127.0.0.1:{http_port}/rebuild', data=b'', method='POST')).status)"
+        );
+        let o = Command::new(python())
+            .arg("-c")
+            .arg(script)
+            .output()
+            .unwrap();
+        (String::from_utf8_lossy(&o.stdout).trim().to_string(), ())
+    };
+    assert_eq!(code, "202");
+    let v = wait_status(http_port, "the write error", 20, |v| {
+        !v["output_error"].is_null()
+    });
+    assert!(v["output_error"].as_str().unwrap().contains("out"), "{v}");
+    // The tree is still served from memory, and frames keep coming.
+    assert_eq!(
+        http_get(&format!("http://127.0.0.1:{http_port}/tree.glb")).0,
+        200
+    );
+    wait_status(http_port, "more frames", 10, |v| {
+        v["frames"].as_u64().unwrap() > frames_before + 50
+    });
+}
+
+#[test]
+fn a_killed_daemon_loses_at_most_the_last_second_of_its_recording() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out");
+    let http_port = free_tcp();
+    let mut d = start_daemon(&out, http_port, &["daemon.record=true".into()]);
+    let v = wait_status(http_port, "three seconds of frames", 30, |v| {
+        v["frames"].as_u64().unwrap() >= 300
+    });
+    let seen = v["frames"].as_u64().unwrap();
+    Command::new("kill")
+        .args(["-KILL", &d.0.id().to_string()])
+        .status()
+        .unwrap();
+    let _ = d.0.wait();
+    let mut rec =
+        treemocap::source::replay::log::LogReader::open(&out.join("session.log.csv")).unwrap();
+    let kept = rec.by_ref().filter(|f| f.is_ok()).count() as u64;
+    // 100 Hz: one second is 100 frames; allow a little for the status round trip.
+    assert!(kept + 125 >= seen, "kept {kept} of at least {seen} frames");
+    assert!(kept > 0);
+}

@@ -522,7 +522,7 @@ fn analysis_loop(shared: &Arc<Shared>, rx: Receiver<(WindowRecording, f64)>) {
         let Ok((mut rec, now)) = rx.recv_timeout(Duration::from_millis(100)) else {
             continue;
         };
-        let (tips, _summary) = match crate::track::process(&mut rec, &c.tracking) {
+        let (tips, summary) = match crate::track::process(&mut rec, &c.tracking) {
             Ok(t) => t,
             Err(e) => {
                 tracing::warn!("analysis: {e}");
@@ -530,8 +530,25 @@ fn analysis_loop(shared: &Arc<Shared>, rx: Receiver<(WindowRecording, f64)>) {
             }
         };
         shared.status.analyses.fetch_add(1, Ordering::Relaxed);
-        let rest: Vec<DVec3> = tips.tips.iter().map(|t| t.rest).collect();
-        if !fan_set && !rest.is_empty() {
+        // Rest positions come only from a still phase. In a window of
+        // continuous wind the tracker falls back to the mean of the sway,
+        // which is bent downwind: that is not a tip moving, so the last
+        // tree's tips stand and only wind, request and period can fire.
+        let still = summary.rest_source != crate::track::RestSource::WholeRecording;
+        let rest: Vec<DVec3> = if still {
+            tips.tips.iter().map(|t| t.rest).collect()
+        } else {
+            triggers
+                .built_tips()
+                .map(<[DVec3]>::to_vec)
+                .unwrap_or_default()
+        };
+        let rest_len = if still {
+            tips.rest_window_s[1] - tips.rest_window_s[0]
+        } else {
+            0.0
+        };
+        if !fan_set && still && !rest.is_empty() {
             if let Some(pos) = c.wind.fan() {
                 let (lo, hi) = rest.iter().fold(
                     (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
@@ -549,16 +566,24 @@ fn analysis_loop(shared: &Arc<Shared>, rx: Receiver<(WindowRecording, f64)>) {
         if shared.rebuild.swap(false, Ordering::Relaxed) {
             triggers.request();
         }
-        let rest_len = tips.rest_window_s[1] - tips.rest_window_s[0];
         let Some(reason) = triggers.check(now, &rest, rest_len, wind.map(|w| w.direction)) else {
             continue;
         };
-        let unchanged = last_build.as_ref().is_some_and(|(b, _, w)| {
+        let same_tips = last_build.as_ref().is_some_and(|(b, _, _)| {
             let old: Vec<DVec3> = b.iter().map(|t| t.position).collect();
-            compare_tips(&old, &rest, d.moved_mm / 1000.0) == (0, 0, 0) && *w == wind_vec
-        }) && matches!(reason, Reason::Requested | Reason::Period);
-        let (captured, tips_json, wv) = match (&last_build, unchanged) {
-            (Some(b), true) => b.clone(),
+            compare_tips(&old, &rest, d.moved_mm / 1000.0) == (0, 0, 0)
+        });
+        let (captured, tips_json, wv) = match &last_build {
+            // Unchanged tips (or no still phase to take new ones from): the
+            // last tree's tips exactly, with the wind of now.
+            Some((b, j, old_wind)) if same_tips || !still => {
+                let json = if *old_wind == wind_vec {
+                    j.clone()
+                } else {
+                    with_wind(j, wind)
+                };
+                (b.clone(), json, wind_vec)
+            }
             _ => {
                 let mut t = tips;
                 t.wind = wind.map(|w| crate::track::rest::WindEstimate {
@@ -591,6 +616,21 @@ fn analysis_loop(shared: &Arc<Shared>, rx: Receiver<(WindowRecording, f64)>) {
         }
         shared.slot.ready.notify_one();
     }
+}
+
+/// tips.json of the last tree with the wind of now.
+fn with_wind(tips_json: &str, wind: Option<WindEstimate>) -> String {
+    let Ok(mut v) = serde_json::from_str::<serde_json::Value>(tips_json) else {
+        return tips_json.to_string();
+    };
+    v["wind"] = match wind {
+        Some(w) => serde_json::json!({
+            "direction": [w.direction.x, w.direction.y, w.direction.z],
+            "speed": w.speed_m_s.unwrap_or(1.0),
+        }),
+        None => serde_json::Value::Null,
+    };
+    serde_json::to_string_pretty(&v).unwrap_or_default() + "\n"
 }
 
 /// Builds trees on request and hands them to every output.
