@@ -43,6 +43,8 @@ use crate::wind::{fan, serial, WindEstimate, WindSelector};
 
 /// A request to build a tree (only the latest pending one is kept).
 struct Build {
+    /// When the trigger fired, for the trigger-to-tree time.
+    fired: Instant,
     reason: Reason,
     time_s: f64,
     tips: Vec<CapturedTip>,
@@ -484,6 +486,7 @@ fn pipeline_loop(
         let us = arrived.elapsed().as_micros() as u64;
         status.latency_us_last.store(us, Ordering::Relaxed);
         status.latency_us_max.fetch_max(us, Ordering::Relaxed);
+        status.latency_hist.record(us);
     }
     if let Some(w) = recorder.take() {
         if let Err(e) = w.finish() {
@@ -607,6 +610,7 @@ fn analysis_loop(shared: &Arc<Shared>, rx: Receiver<(WindowRecording, f64)>) {
         tracing::info!("new tree: {reason}");
         if let Ok(mut p) = shared.slot.pending.lock() {
             *p = Some(Build {
+                fired: Instant::now(),
                 reason,
                 time_s: now,
                 tips: captured,
@@ -670,7 +674,7 @@ fn recon_loop(shared: &Arc<Shared>, tips_tx: Sender<Vec<(usize, DVec3)>>) {
             }
         };
         let started = Instant::now();
-        let outputs = match reconstruct::build_outputs(&build.tips, build.wind, c) {
+        let outputs = match reconstruct::build_model(&build.tips, build.wind, c) {
             Ok(o) => o,
             Err(e) => {
                 tracing::error!("reconstruction: {e}");
@@ -687,13 +691,16 @@ fn recon_loop(shared: &Arc<Shared>, tips_tx: Sender<Vec<(usize, DVec3)>>) {
             tree_json: outputs.tree_json,
             tips_json: build.tips_json,
         });
-        write_files(shared, &snapshot, &outputs.png, v);
+        // Viewers first (memory, sockets), then the picture and the disk.
         let _ = shared.tree_tx.send(Some(snapshot.clone()));
         let _ = tips_tx.try_send(build.tips.iter().map(|t| (t.marker, t.position)).collect());
         let _ = shared.live.send(http::tree_notice(&snapshot));
+        let published_ms = build.fired.elapsed().as_secs_f64() * 1000.0;
         if let Some(o) = osc.as_mut() {
             o.send_paced(&tree_datagrams(&snapshot));
         }
+        let png = crate::output::picture::tree_png(&outputs.tree).unwrap_or_default();
+        write_files(shared, &snapshot, &png, v);
         let st = &shared.status;
         st.trees.fetch_add(1, Ordering::Relaxed);
         st.tree_version.store(v, Ordering::Relaxed);
@@ -705,6 +712,7 @@ fn recon_loop(shared: &Arc<Shared>, tips_tx: Sender<Vec<(usize, DVec3)>>) {
                 "nodes": snapshot.nodes.len(),
                 "tips": build.tips.len(),
                 "forced_joins": outputs.report.forced_joins,
+                "trigger_to_outputs_ms": published_ms,
                 "build_ms": started.elapsed().as_secs_f64() * 1000.0,
             }));
         }

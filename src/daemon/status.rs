@@ -38,6 +38,49 @@ pub struct Status {
     /// Per-frame latency from arrival to tips published, in microseconds.
     pub latency_us_last: AtomicU64,
     pub latency_us_max: AtomicU64,
+    /// Latency histogram: bucket k counts frames of k×10 to (k+1)×10 µs; the
+    /// last bucket everything slower. Fixed size, so percentiles cost no
+    /// memory however long the daemon runs.
+    pub latency_hist: LatencyHistogram,
+}
+
+/// Buckets of 10 µs up to 20 ms.
+const BUCKETS: usize = 2000;
+const BUCKET_US: u64 = 10;
+
+/// A fixed histogram of per-frame latencies.
+#[derive(Debug)]
+pub struct LatencyHistogram(Vec<AtomicU64>);
+
+impl Default for LatencyHistogram {
+    fn default() -> Self {
+        LatencyHistogram((0..BUCKETS).map(|_| AtomicU64::new(0)).collect())
+    }
+}
+
+impl LatencyHistogram {
+    pub fn record(&self, us: u64) {
+        let k = ((us / BUCKET_US) as usize).min(BUCKETS - 1);
+        self.0[k].fetch_add(1, Ordering::Relaxed);
+    }
+
+    /// The latency (µs, upper bucket edge) below which a fraction `q` of frames fell.
+    pub fn quantile_us(&self, q: f64) -> Option<u64> {
+        let counts: Vec<u64> = self.0.iter().map(get).collect();
+        let total: u64 = counts.iter().sum();
+        if total == 0 {
+            return None;
+        }
+        let want = (q * total as f64).ceil() as u64;
+        let mut seen = 0;
+        for (k, c) in counts.iter().enumerate() {
+            seen += c;
+            if seen >= want {
+                return Some((k as u64 + 1) * BUCKET_US);
+            }
+        }
+        Some(BUCKETS as u64 * BUCKET_US)
+    }
 }
 
 fn get(a: &AtomicU64) -> u64 {
@@ -77,7 +120,12 @@ impl Status {
             "last_tree": self.last_tree.lock().ok().and_then(|t| t.clone()),
             "wind": wind,
             "output_error": self.output_error.lock().ok().and_then(|e| e.clone()),
-            "latency_us": {"last": get(&self.latency_us_last), "max": get(&self.latency_us_max)},
+            "latency_us": {
+                "last": get(&self.latency_us_last),
+                "p50": self.latency_hist.quantile_us(0.5),
+                "p99": self.latency_hist.quantile_us(0.99),
+                "max": get(&self.latency_us_max),
+            },
         })
     }
 
@@ -153,5 +201,23 @@ impl Status {
                 .unwrap_or(0.0),
         );
         out
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn percentiles_from_the_histogram() {
+        let h = LatencyHistogram::default();
+        assert_eq!(h.quantile_us(0.99), None);
+        for us in 0..1000 {
+            h.record(us);
+        }
+        h.record(1_000_000);
+        assert_eq!(h.quantile_us(0.5), Some(510));
+        assert_eq!(h.quantile_us(0.99), Some(1000));
+        assert_eq!(h.quantile_us(1.0), Some(20_000));
     }
 }

@@ -147,6 +147,14 @@ pub struct Outputs {
 /// Reconstructs with `config.reconstruct` (and its seed) and encodes the
 /// three outputs, without touching the disk.
 pub fn build_outputs(tips: &[CapturedTip], wind: DVec3, config: &Config) -> Result<Outputs> {
+    let mut outputs = build_model(tips, wind, config)?;
+    outputs.png = crate::output::picture::tree_png(&outputs.tree)?;
+    Ok(outputs)
+}
+
+/// Like [`build_outputs`] without the picture (`png` left empty): the daemon
+/// publishes the tree to its viewers first and draws the picture after.
+pub fn build_model(tips: &[CapturedTip], wind: DVec3, config: &Config) -> Result<Outputs> {
     let cfg = &config.reconstruct;
     let tree = reconstruct(tips, wind, cfg, cfg.seed)?;
     let branch_mesh = mesh::branches(&tree, cfg.sides)?;
@@ -157,7 +165,7 @@ pub fn build_outputs(tips: &[CapturedTip], wind: DVec3, config: &Config) -> Resu
     };
     let glb = crate::output::gltf::to_glb(&tree, &branch_mesh, leaf_mesh.as_ref())?;
     let tree_json = crate::output::json::to_json(&tree, cfg)?;
-    let png = crate::output::picture::tree_png(&tree)?;
+    let png = Vec::new();
     let report = Report {
         captured_tips: tips.len(),
         random_tips: tree.nodes.iter().filter(|n| n.kind == Kind::Tip).count(),
