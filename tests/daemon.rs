@@ -471,3 +471,77 @@ fn a_killed_daemon_loses_at_most_the_last_second_of_its_recording() {
     assert!(kept + 125 >= seen, "kept {kept} of at least {seen} frames");
     assert!(kept > 0);
 }
+
+#[test]
+fn a_serial_wind_sensor_feeds_the_daemon_and_a_wind_turn_rebuilds() {
+    use serialport::{SerialPort, TTYPort};
+    use std::io::Write;
+    use std::sync::atomic::{AtomicU32, Ordering};
+    use std::sync::Arc;
+
+    let dir = tempfile::tempdir().unwrap();
+    let link = dir.path().join("ttyWIND");
+    let (mut master, slave) = TTYPort::pair().expect("a pseudo-terminal pair");
+    std::os::unix::fs::symlink(slave.name().unwrap(), &link).unwrap();
+    // The sensor reports the wind's origin angle ten times a second.
+    let angle = Arc::new(AtomicU32::new(0));
+    let stop = Arc::new(std::sync::atomic::AtomicBool::new(false));
+    let sender = {
+        let (angle, stop) = (angle.clone(), stop.clone());
+        std::thread::spawn(move || {
+            while !stop.load(Ordering::Relaxed) {
+                let body = format!("WIMWV,{:05.1},R,4.0,M,A", angle.load(Ordering::Relaxed));
+                let cs = body.bytes().fold(0u8, |a, b| a ^ b);
+                let _ = master.write_all(format!("${body}*{cs:02X}\r\n").as_bytes());
+                std::thread::sleep(Duration::from_millis(100));
+            }
+            drop(slave);
+        })
+    };
+
+    let out = dir.path().join("out");
+    let http_port = free_tcp();
+    let mut d = start_daemon(
+        &out,
+        http_port,
+        &[
+            "daemon.replay_speed=4".into(),
+            format!("wind.sensor_port={}", link.display()),
+            "wind.sensor_baud=4800".into(),
+        ],
+    );
+    let first = wait_status(http_port, "the first tree", 30, |v| v["trees"] == 1);
+    assert_eq!(first["wind"]["source"], "sensor", "{first}");
+    // From 0° (the sensor's mark points to azimuth 0): blows towards 180°.
+    assert!((first["wind"]["azimuth_deg"].as_f64().unwrap() - 180.0).abs() < 1e-6);
+
+    angle.store(90, Ordering::Relaxed);
+    let second = wait_status(http_port, "a tree for the wind turn", 30, |v| {
+        v["trees"] == 2
+    });
+    assert_eq!(
+        second["last_tree"]["reason"]["trigger"], "wind_turned",
+        "{second}"
+    );
+    assert!((second["wind"]["azimuth_deg"].as_f64().unwrap() - 270.0).abs() < 1e-6);
+    // The tips did not change, so the new tree differs by the wind only.
+    assert_eq!(second["tips"], 24);
+
+    Command::new("kill")
+        .args(["-TERM", &d.0.id().to_string()])
+        .status()
+        .unwrap();
+    let _ = d.0.wait();
+    stop.store(true, Ordering::Relaxed);
+    sender.join().unwrap();
+    let log = std::fs::read_to_string(out.join("wind.csv")).unwrap();
+    let sensor: Vec<f64> = log
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').collect::<Vec<_>>())
+        .filter(|f| f[1] == "sensor")
+        .map(|f| f[2].parse().unwrap())
+        .collect();
+    assert!(sensor.contains(&180.0) && sensor.contains(&270.0), "{log}");
+    assert!(sensor.iter().all(|a| *a == 180.0 || *a == 270.0));
+}
