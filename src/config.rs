@@ -216,6 +216,8 @@ pub struct DaemonConfig {
     pub http: String,
     pub osc_targets: Vec<String>,
     pub history: bool,
+    /// UDP address for `/treemocap/rebuild`; "" disables.
+    pub osc_control: String,
 }
 
 /// Reading C3D files.
@@ -378,9 +380,10 @@ impl Config {
     }
 
     fn from_table(table: toml::Table) -> Result<Config> {
-        let config: Config = toml::Value::Table(table)
-            .try_into()
-            .map_err(|e: toml::de::Error| Error::config("<config>", e.message().to_string()))?;
+        let config: Config = match toml::Value::Table(table.clone()).try_into() {
+            Ok(c) => c,
+            Err(e) => return Err(type_error(&table, e)),
+        };
         config.validate()?;
         Ok(config)
     }
@@ -497,6 +500,12 @@ impl Config {
                 format!("'{}' is not ADDRESS:PORT", d.http),
             ));
         }
+        if !d.osc_control.is_empty() && d.osc_control.parse::<std::net::SocketAddr>().is_err() {
+            return Err(Error::config(
+                "daemon.osc_control",
+                format!("'{}' is not ADDRESS:PORT", d.osc_control),
+            ));
+        }
         for t in &d.osc_targets {
             if t.parse::<std::net::SocketAddr>().is_err() {
                 return Err(Error::config(
@@ -512,6 +521,37 @@ impl Config {
         self.reconstruct.validate()?;
         Ok(())
     }
+}
+
+/// A value of the wrong type (`-5` for a count, `"x"` for a list) names its
+/// key: deserialising a table loses the path, so the merged table is written
+/// out as text and parsed again, and the key is read off the error's line.
+fn type_error(table: &toml::Table, first: toml::de::Error) -> Error {
+    let Ok(text) = toml::to_string(table) else {
+        return Error::config("<config>", first.message().to_string());
+    };
+    let Err(e) = toml::from_str::<Config>(&text) else {
+        return Error::config("<config>", first.message().to_string());
+    };
+    let key = e
+        .span()
+        .and_then(|span| {
+            let before = text.get(..span.start)?;
+            let line = before.rsplit('\n').next()?;
+            let key = line.split('=').next()?.trim();
+            let section = before
+                .lines()
+                .rev()
+                .find(|l| l.starts_with('['))
+                .map(|l| l.trim_matches(['[', ']']).to_string());
+            Some(match section {
+                Some(s) if !key.is_empty() => format!("{s}.{key}"),
+                _ => key.to_string(),
+            })
+        })
+        .filter(|k| !k.is_empty())
+        .unwrap_or_else(|| "<config>".into());
+    Error::config(key, e.message().to_string())
 }
 
 /// Fails unless `lo <= value <= hi` (and the value is a number).
@@ -645,6 +685,12 @@ mod tests {
             msg.contains("record.flush_interval_s") && msg.contains("0.01 to 1"),
             "{msg}"
         );
+    }
+
+    #[test]
+    fn negative_count_names_its_key() {
+        let e = Config::from_toml_str("[reconstruct]\ntotal_tips = -5\n").unwrap_err();
+        assert!(e.to_string().contains("reconstruct.total_tips"), "{e}");
     }
 
     #[test]

@@ -296,11 +296,12 @@ fn to_json(value: &impl serde::Serialize) -> Result<String> {
 
 fn run(command: Command) -> Result<()> {
     match command {
-        Command::Run { config, out } => {
-            let config = config.load()?;
+        Command::Run { config: args, out } => {
+            let config = args.load()?;
             let out = out.unwrap_or_else(|| PathBuf::from(&config.output.dir));
             let shutdown = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
-            treemocap::daemon::run(config, &out, shutdown, true)
+            let reload: treemocap::daemon::run::Reload = Box::new(move || args.load());
+            treemocap::daemon::run::run_with_reload(config, &out, shutdown, true, Some(reload))
         }
         Command::Replay { file, config, out } => {
             let config = config.load()?;

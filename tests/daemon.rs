@@ -545,3 +545,70 @@ fn a_serial_wind_sensor_feeds_the_daemon_and_a_wind_turn_rebuilds() {
     assert!(sensor.contains(&180.0) && sensor.contains(&270.0), "{log}");
     assert!(sensor.iter().all(|a| *a == 180.0 || *a == 270.0));
 }
+
+#[test]
+fn sighup_reloads_the_config_and_osc_asks_for_a_rebuild() {
+    let dir = tempfile::tempdir().unwrap();
+    let cfg = dir.path().join("rig.toml");
+    std::fs::write(&cfg, "[reconstruct]\ntotal_tips = 300\n").unwrap();
+    let (http_port, control_port) = (free_tcp(), free_udp());
+    let out = dir.path().join("out");
+    let mut d = Killed(
+        Command::new(env!("CARGO_BIN_EXE_treemocap"))
+            .arg("run")
+            .arg("--config")
+            .arg(&cfg)
+            .args(["--set", &format!("daemon.http=127.0.0.1:{http_port}")])
+            .args([
+                "--set",
+                &format!("daemon.osc_control=127.0.0.1:{control_port}"),
+            ])
+            .args(["--set", "daemon.replay_speed=4"])
+            .arg("--out")
+            .arg(&out)
+            .current_dir(root())
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .spawn()
+            .unwrap(),
+    );
+    let first = wait_status(http_port, "the first tree", 30, |v| v["trees"] == 1);
+    let pid = d.0.id().to_string();
+
+    // A good edit: more random tips, so more nodes.
+    std::fs::write(&cfg, "[reconstruct]\ntotal_tips = 450\n").unwrap();
+    Command::new("kill").args(["-HUP", &pid]).status().unwrap();
+    let second = wait_status(http_port, "the reloaded tree", 20, |v| v["trees"] == 2);
+    assert!(second["config_error"].is_null());
+    assert!(
+        second["last_tree"]["nodes"].as_u64() > first["last_tree"]["nodes"].as_u64(),
+        "{first} / {second}"
+    );
+
+    // A broken edit is reported and the running config kept.
+    std::fs::write(&cfg, "[reconstruct]\ntotal_tips = -5\n").unwrap();
+    Command::new("kill").args(["-HUP", &pid]).status().unwrap();
+    let v = wait_status(http_port, "the config error", 10, |v| {
+        !v["config_error"].is_null()
+    });
+    assert!(
+        v["config_error"]
+            .as_str()
+            .unwrap()
+            .contains("reconstruct.total_tips"),
+        "{v}"
+    );
+    assert_eq!(v["trees"], 2);
+
+    // /treemocap/rebuild from python-osc (loopback is allowed by default).
+    let sent = Command::new(python())
+        .arg("-c")
+        .arg(format!(
+            "from pythonosc.udp_client import SimpleUDPClient\n\
+             SimpleUDPClient('127.0.0.1', {control_port}).send_message('/treemocap/rebuild', [])"
+        ))
+        .status()
+        .expect("python3 with python-osc");
+    assert!(sent.success());
+    wait_status(http_port, "the requested tree", 20, |v| v["trees"] == 3);
+}

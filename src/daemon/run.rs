@@ -62,6 +62,8 @@ struct Slot {
 /// Everything the threads share.
 struct Shared {
     config: Config,
+    /// The settings reconstruction uses; SIGHUP replaces them.
+    recon_config: Mutex<Config>,
     out: PathBuf,
     status: Arc<Status>,
     shutdown: Arc<AtomicBool>,
@@ -73,6 +75,9 @@ struct Shared {
     slot: Slot,
 }
 
+/// Reads the configuration again (for SIGHUP).
+pub type Reload = Box<dyn Fn() -> Result<Config> + Send + Sync>;
+
 /// Runs the daemon until `shutdown` is set (Ctrl-C and SIGTERM set it when
 /// `handle_signals`). Returns once every thread has flushed and stopped.
 pub fn run(
@@ -80,6 +85,19 @@ pub fn run(
     out: &Path,
     shutdown: Arc<AtomicBool>,
     handle_signals: bool,
+) -> Result<()> {
+    run_with_reload(config, out, shutdown, handle_signals, None)
+}
+
+/// Like [`run`]; with `handle_signals`, SIGHUP calls `reload` and, if the
+/// config is good, rebuilds the tree with its `[reconstruct]` and `[wind]`
+/// settings (sources and ports need a restart).
+pub fn run_with_reload(
+    config: Config,
+    out: &Path,
+    shutdown: Arc<AtomicBool>,
+    handle_signals: bool,
+    reload: Option<Reload>,
 ) -> Result<()> {
     std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
     let d = config.daemon.clone();
@@ -135,8 +153,22 @@ pub fn run(
         live: live_tx.clone(),
         tree_tx,
         slot: Slot::default(),
+        recon_config: Mutex::new(config.clone()),
         config,
     });
+    if handle_signals {
+        let s = shared.clone();
+        rt.spawn(async move { reload_on_hangup(s, reload).await });
+    }
+    if !d.osc_control.is_empty() {
+        let socket = rt
+            .block_on(tokio::net::UdpSocket::bind(&d.osc_control))
+            .map_err(|e| Error::Runtime(format!("OSC control on {}: {e}", d.osc_control)))?;
+        let allow = crate::source::allow::AllowList::parse("osc.allow", &shared.config.osc.allow)?;
+        let s = shared.clone();
+        let stop = stop_rx.clone();
+        rt.spawn(async move { osc_control(socket, allow, s, stop).await });
+    }
 
     // HTTP first: a busy port is an error the user must see at once.
     if !d.http.is_empty() {
@@ -207,6 +239,76 @@ async fn wait_for_signal() {
         }
     }
     let _ = tokio::signal::ctrl_c().await;
+}
+
+#[cfg(unix)]
+async fn reload_on_hangup(shared: Arc<Shared>, reload: Option<Reload>) {
+    use tokio::signal::unix::{signal, SignalKind};
+    let Ok(mut hup) = signal(SignalKind::hangup()) else {
+        return;
+    };
+    while hup.recv().await.is_some() {
+        let Some(reload) = &reload else {
+            shared.rebuild.store(true, Ordering::Relaxed);
+            continue;
+        };
+        match reload() {
+            Ok(new) => {
+                tracing::info!("SIGHUP: config reloaded; rebuilding");
+                if let Ok(mut c) = shared.recon_config.lock() {
+                    *c = new;
+                }
+                if let Ok(mut e) = shared.status.config_error.lock() {
+                    *e = None;
+                }
+                shared.rebuild.store(true, Ordering::Relaxed);
+            }
+            Err(e) => {
+                tracing::error!("SIGHUP: {e}; keeping the running config");
+                if let Ok(mut g) = shared.status.config_error.lock() {
+                    *g = Some(e.to_string());
+                }
+            }
+        }
+    }
+}
+
+#[cfg(not(unix))]
+async fn reload_on_hangup(_shared: Arc<Shared>, _reload: Option<Reload>) {}
+
+/// `/treemocap/rebuild` over OSC, from allowed senders only.
+async fn osc_control(
+    socket: tokio::net::UdpSocket,
+    allow: crate::source::allow::AllowList,
+    shared: Arc<Shared>,
+    stop: watch::Receiver<bool>,
+) {
+    fn asks_rebuild(p: &rosc::OscPacket) -> bool {
+        match p {
+            rosc::OscPacket::Message(m) => m.addr == "/treemocap/rebuild",
+            rosc::OscPacket::Bundle(b) => b.content.iter().any(asks_rebuild),
+        }
+    }
+    let mut buf = vec![0u8; 65536];
+    let stopped = http::until_true(stop);
+    tokio::pin!(stopped);
+    loop {
+        tokio::select! {
+            r = socket.recv_from(&mut buf) => {
+                let Ok((n, from)) = r else { continue };
+                if !allow.allows(from.ip()) {
+                    tracing::warn!("OSC control: {from} is not in osc.allow; ignored");
+                    continue;
+                }
+                match rosc::decoder::decode_udp(&buf[..n]) {
+                    Ok((_, p)) if asks_rebuild(&p) => shared.rebuild.store(true, Ordering::Relaxed),
+                    Ok(_) => {}
+                    Err(e) => tracing::warn!("OSC control from {from}: {e:?}"),
+                }
+            }
+            _ = &mut stopped => return,
+        }
+    }
 }
 
 fn spawn(name: &str, f: impl FnOnce() + Send + 'static) -> std::thread::JoinHandle<()> {
@@ -674,7 +776,11 @@ fn recon_loop(shared: &Arc<Shared>, tips_tx: Sender<Vec<(usize, DVec3)>>) {
             }
         };
         let started = Instant::now();
-        let outputs = match reconstruct::build_model(&build.tips, build.wind, c) {
+        let config = match shared.recon_config.lock() {
+            Ok(g) => g.clone(),
+            Err(_) => return,
+        };
+        let outputs = match reconstruct::build_model(&build.tips, build.wind, &config) {
             Ok(o) => o,
             Err(e) => {
                 tracing::error!("reconstruction: {e}");

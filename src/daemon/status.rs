@@ -35,6 +35,8 @@ pub struct Status {
     /// next success.
     pub output_error: Mutex<Option<String>>,
     pub source_error: Mutex<Option<String>>,
+    /// The last failed config reload (SIGHUP), cleared by a good one.
+    pub config_error: Mutex<Option<String>>,
     /// Per-frame latency from arrival to tips published, in microseconds.
     pub latency_us_last: AtomicU64,
     pub latency_us_max: AtomicU64,
@@ -106,6 +108,7 @@ impl Status {
         json!({
             "source": self.source.lock().map(|s| s.clone()).unwrap_or_default(),
             "source_error": self.source_error.lock().ok().and_then(|e| e.clone()),
+            "config_error": self.config_error.lock().ok().and_then(|e| e.clone()),
             "frames": get(&self.frames),
             "samples": get(&self.samples),
             "last_frame": get(&self.last_frame),
