@@ -553,7 +553,7 @@ fn sighup_reloads_the_config_and_osc_asks_for_a_rebuild() {
     std::fs::write(&cfg, "[reconstruct]\ntotal_tips = 300\n").unwrap();
     let (http_port, control_port) = (free_tcp(), free_udp());
     let out = dir.path().join("out");
-    let mut d = Killed(
+    let d = Killed(
         Command::new(env!("CARGO_BIN_EXE_treemocap"))
             .arg("run")
             .arg("--config")
