@@ -612,3 +612,161 @@ fn sighup_reloads_the_config_and_osc_asks_for_a_rebuild() {
     assert!(sent.success());
     wait_status(http_port, "the requested tree", 20, |v| v["trees"] == 3);
 }
+
+/// A UDP proxy between a NatNet client and server that drops every tenth
+/// datagram from the server (frames and replies alike), as a lossy network
+/// would. Returns the port the client should connect to.
+fn lossy_proxy(
+    server: std::net::SocketAddr,
+    stop: std::sync::Arc<std::sync::atomic::AtomicBool>,
+) -> (u16, std::thread::JoinHandle<(u64, u64)>) {
+    use std::sync::atomic::Ordering;
+    let front = UdpSocket::bind("127.0.0.1:0").unwrap();
+    let back = UdpSocket::bind("127.0.0.1:0").unwrap();
+    front
+        .set_read_timeout(Some(Duration::from_millis(5)))
+        .unwrap();
+    back.set_read_timeout(Some(Duration::from_millis(5)))
+        .unwrap();
+    let port = front.local_addr().unwrap().port();
+    let handle = std::thread::spawn(move || {
+        let mut client = None;
+        let mut buf = vec![0u8; 65536];
+        let (mut passed, mut dropped) = (0u64, 0u64);
+        while !stop.load(Ordering::Relaxed) {
+            if let Ok((n, from)) = front.recv_from(&mut buf) {
+                client = Some(from);
+                let _ = back.send_to(&buf[..n], server);
+            }
+            while let Ok((n, _)) = back.recv_from(&mut buf) {
+                // Keep the first replies (the handshake), then lose 10 %.
+                if passed + dropped > 5 && (passed + dropped) % 10 == 0 {
+                    dropped += 1;
+                    continue;
+                }
+                passed += 1;
+                if let Some(c) = client {
+                    let _ = front.send_to(&buf[..n], c);
+                }
+            }
+        }
+        (passed, dropped)
+    });
+    (port, handle)
+}
+
+fn serve(cmd_port: u16, data_port: u16) -> Killed {
+    Killed(
+        Command::new(env!("CARGO_BIN_EXE_treemocap"))
+            .args([
+                "serve",
+                "replays/maple-24.csv",
+                "--speed",
+                "4",
+                "--bind",
+                "127.0.0.1",
+                "--loop",
+            ])
+            .args([
+                "--command-port",
+                &cmd_port.to_string(),
+                "--data-port",
+                &data_port.to_string(),
+            ])
+            .current_dir(root())
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .spawn()
+            .unwrap(),
+    )
+}
+
+#[test]
+fn ten_percent_udp_loss_and_a_server_restart_do_not_stop_the_daemon() {
+    use std::sync::atomic::{AtomicBool, Ordering};
+    use std::sync::Arc;
+    let (cmd_port, data_port) = (free_udp(), free_udp());
+    let mut server = serve(cmd_port, data_port);
+    let stop = Arc::new(AtomicBool::new(false));
+    let (proxy_port, proxy) = lossy_proxy(
+        format!("127.0.0.1:{cmd_port}").parse().unwrap(),
+        stop.clone(),
+    );
+    let dir = tempfile::tempdir().unwrap();
+    let http_port = free_tcp();
+    let _d = start_daemon(
+        &dir.path().join("out"),
+        http_port,
+        &[
+            "daemon.source=natnet".into(),
+            format!("daemon.natnet_server=127.0.0.1:{proxy_port}"),
+            "daemon.natnet_transport=unicast".into(),
+            "natnet.silence_timeout_s=1".into(),
+        ],
+    );
+    // A tree despite losing every tenth datagram: the tracker bridges the gaps.
+    let v = wait_status(http_port, "a tree through the lossy link", 60, |v| {
+        v["trees"] == 1
+    });
+    assert_eq!(v["tips"], 24, "{v}");
+    assert_eq!(v["last_tree"]["forced_joins"], 0);
+
+    // The server goes away and comes back: frames flow again.
+    drop(server);
+    std::thread::sleep(Duration::from_millis(1500));
+    let before = status_of(http_port).unwrap()["frames"].as_u64().unwrap();
+    server = serve(cmd_port, data_port);
+    wait_status(http_port, "frames after the restart", 30, |v| {
+        v["frames"].as_u64().unwrap() > before + 200
+    });
+    drop(server);
+    stop.store(true, Ordering::Relaxed);
+    let (passed, dropped) = proxy.join().unwrap();
+    // About one datagram in ten was really lost on the way.
+    assert!(
+        dropped > 0 && dropped * 12 >= passed,
+        "the proxy dropped {dropped} of {}",
+        passed + dropped
+    );
+}
+
+#[test]
+fn a_burst_faster_than_the_pipeline_drops_oldest_frames_and_counts_them() {
+    // A 360 Hz, 70-marker session pushed as fast as possible into a
+    // 16-frame channel: the player outruns the pipeline.
+    let dir = tempfile::tempdir().unwrap();
+    let csv = dir.path().join("burst.csv");
+    let opts = treemocap::sim::SynthOptions {
+        seed: 9,
+        tips: 70,
+        frame_rate: 360.0,
+        still_s: 8.0,
+        wind_s: 2.0,
+        ..Default::default()
+    };
+    treemocap::sim::write_session(&opts, &csv).unwrap();
+    let total = 3600u64;
+    let http_port = free_tcp();
+    let _d = start_daemon(
+        &dir.path().join("out"),
+        http_port,
+        &[
+            format!("daemon.replay_file={}", csv.display()),
+            "daemon.replay_speed=0".into(),
+            "daemon.channel_frames=16".into(),
+        ],
+    );
+    // Every frame is either processed or counted as dropped, none lost silently.
+    let v = wait_status(http_port, "the burst to pass", 60, |v| {
+        v["frames"].as_u64().unwrap() + v["dropped"].as_u64().unwrap() >= total
+    });
+    let (frames, dropped) = (
+        v["frames"].as_u64().unwrap(),
+        v["dropped"].as_u64().unwrap(),
+    );
+    assert_eq!(frames + dropped, total, "{v}");
+    assert!(
+        dropped > 0,
+        "the pipeline kept up with an unthrottled replay? {v}"
+    );
+}
