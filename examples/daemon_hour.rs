@@ -91,6 +91,11 @@ fn main() {
         .unwrap_or(samples[0]);
     let last = *samples.last().unwrap();
     let peak = samples.iter().map(|s| s.2).fold(0.0, f64::max);
+    for q in [10, 25, 50, 75, 90, 100] {
+        if let Some(s) = samples.iter().find(|s| s.1 * 100 >= total * q) {
+            println!("  {q:>3} % of the session: RSS {:.1} MB", s.2);
+        }
+    }
     println!(
         "RSS {:.1} MB at 10 % of the session, {:.1} MB at the end (growth {:+.1} MB), peak {:.1} MB; {:.0} s",
         tenth.2, last.2, last.2 - tenth.2, peak, last.0
