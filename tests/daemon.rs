@@ -84,28 +84,7 @@ fn natnet_in_tree_out_over_osc_http_and_websocket() {
     rx_out.read_line(&mut line).unwrap();
     assert_eq!(line.trim(), "ready", "python-osc receiver did not start");
 
-    let _server = Killed(
-        Command::new(env!("CARGO_BIN_EXE_treemocap"))
-            .args([
-                "serve",
-                "replays/maple-24.csv",
-                "--speed",
-                "4",
-                "--bind",
-                "127.0.0.1",
-            ])
-            .args([
-                "--command-port",
-                &cmd_port.to_string(),
-                "--data-port",
-                &data_port.to_string(),
-            ])
-            .current_dir(root())
-            .stdout(Stdio::null())
-            .stderr(Stdio::null())
-            .spawn()
-            .unwrap(),
-    );
+    let _server = serve(cmd_port, data_port);
     let mut daemon = Killed(
         Command::new(env!("CARGO_BIN_EXE_treemocap"))
             .arg("run")

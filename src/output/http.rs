@@ -88,33 +88,28 @@ fn no_tree() -> Response {
         .into_response()
 }
 
-async fn tree_glb(State(s): State<HttpState>) -> Response {
-    match latest(&s) {
-        Some(t) => ([(header::CONTENT_TYPE, "model/gltf-binary")], t.glb.clone()).into_response(),
+/// One file of the latest tree, or 404 before the first.
+fn tree_file(
+    s: &HttpState,
+    content_type: &'static str,
+    body: fn(&TreeSnapshot) -> Vec<u8>,
+) -> Response {
+    match latest(s) {
+        Some(t) => ([(header::CONTENT_TYPE, content_type)], body(&t)).into_response(),
         None => no_tree(),
     }
+}
+
+async fn tree_glb(State(s): State<HttpState>) -> Response {
+    tree_file(&s, "model/gltf-binary", |t| t.glb.clone())
 }
 
 async fn tree_json(State(s): State<HttpState>) -> Response {
-    match latest(&s) {
-        Some(t) => (
-            [(header::CONTENT_TYPE, "application/json")],
-            t.tree_json.clone(),
-        )
-            .into_response(),
-        None => no_tree(),
-    }
+    tree_file(&s, "application/json", |t| t.tree_json.clone().into_bytes())
 }
 
 async fn tips_json(State(s): State<HttpState>) -> Response {
-    match latest(&s) {
-        Some(t) => (
-            [(header::CONTENT_TYPE, "application/json")],
-            t.tips_json.clone(),
-        )
-            .into_response(),
-        None => no_tree(),
-    }
+    tree_file(&s, "application/json", |t| t.tips_json.clone().into_bytes())
 }
 
 async fn status(State(s): State<HttpState>) -> Response {
