@@ -128,6 +128,10 @@ fn natnet_in_tree_out_over_osc_http_and_websocket() {
     assert_eq!(status["last_tree"]["forced_joins"], 0);
     assert_eq!(status["dropped"], 0);
     assert!(status["frames"].as_u64().unwrap() > 500);
+    // maple-24 is 100 Hz, served at 4× speed: 400 frames per second of wall time,
+    // but frame times advance at the recorded 100 Hz.
+    let rate = status["frame_rate_hz"].as_f64().unwrap();
+    assert!((rate - 100.0).abs() < 5.0, "{status}");
     assert!(status["source"].as_str().unwrap().contains("127.0.0.1"));
 
     // A WebSocket client gets the tree notice and then live tips.

@@ -473,7 +473,10 @@ fn pipeline_loop(
     let mut pca = SwayPca::new(c.wind.pca_window_s, c.wind.pca_min_sway_mm / 1000.0);
     let mut next_pca = f64::NEG_INFINITY;
     let mut next_analysis = f64::NEG_INFINITY;
+    // Until two frames have been seen the rate is unknown; 100 Hz is only
+    // the placeholder for the recording's header.
     let mut frame_rate = 100.0;
+    let mut rate_known = false;
     let mut last_time: Option<f64> = None;
     let mut osc = if d.osc_targets.is_empty() {
         None
@@ -542,7 +545,15 @@ fn pipeline_loop(
             let dt = frame.time_s - prev;
             if dt > 0.0 {
                 // A smoothed estimate of the source's rate for the analysis.
-                frame_rate = 0.99 * frame_rate + 0.01 / dt;
+                frame_rate = if rate_known {
+                    0.99 * frame_rate + 0.01 / dt
+                } else {
+                    1.0 / dt
+                };
+                rate_known = true;
+                status
+                    .frame_rate_bits
+                    .store(frame_rate.to_bits(), Ordering::Relaxed);
             }
         }
         last_time = Some(frame.time_s);

@@ -28,6 +28,8 @@ pub struct Status {
     /// Frame time in f64 bits, so it fits an atomic.
     pub last_frame_time_bits: AtomicU64,
     pub last_frame: AtomicU64,
+    /// Frames per second of the source as measured (f64 bits).
+    pub frame_rate_bits: AtomicU64,
     pub tree_version: AtomicU64,
     pub last_tree: Mutex<Option<serde_json::Value>>,
     pub wind: Mutex<Option<WindEstimate>>,
@@ -113,6 +115,7 @@ impl Status {
             "samples": get(&self.samples),
             "last_frame": get(&self.last_frame),
             "time_s": self.frame_time(),
+            "frame_rate_hz": f64::from_bits(get(&self.frame_rate_bits)),
             "markers": get(&self.markers),
             "tips": get(&self.tips),
             "tips_live": get(&self.tips_live),
