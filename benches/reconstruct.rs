@@ -45,21 +45,26 @@ fn targets(c: &mut Criterion) {
     group.finish();
 }
 
-fn growth(c: &mut Criterion) {
-    let mut group = c.benchmark_group("growth");
+/// Time of flow + radii + mesh for 70 captured tips as the total grows;
+/// `merge_distance` None keeps the default merging.
+fn growth_group(c: &mut Criterion, name: &str, totals: &[usize], merge_distance: Option<f64>) {
+    let mut group = c.benchmark_group(name);
     group
         .sample_size(10)
         .measurement_time(Duration::from_secs(8));
     let tips = crowns::crown_tips(crowns::Shape::Maple, 70, 2);
-    for total in [500usize, 2000, 5000, 20_000, 50_000] {
-        let cfg = ReconstructConfig {
+    for &total in totals {
+        let mut cfg = ReconstructConfig {
             total_tips: total,
             ..Default::default()
         };
+        if let Some(m) = merge_distance {
+            cfg.merge_distance = m;
+        }
         let tree =
             reconstruct(&tips, DVec3::new(2.0, 0.0, 0.0), &cfg, cfg.seed).expect("reconstruct");
         eprintln!(
-            "70+{total}: {} nodes, {} steps, {} forced joins",
+            "{name} 70+{total}: {} nodes, {} steps, {} forced joins",
             tree.nodes.len(),
             tree.steps,
             tree.forced_joins
@@ -71,33 +76,16 @@ fn growth(c: &mut Criterion) {
     group.finish();
 }
 
+/// How the time grows from 500 to 50 000 total tips (should stay near
+/// n log n per step, not n²).
+fn growth(c: &mut Criterion) {
+    growth_group(c, "growth", &[500, 2000, 5000, 20_000, 50_000], None);
+}
+
 /// The same growth with merging nearly off (1 mm): particles stay many for
 /// every step, so this shows the cost per step of the neighbour searches.
 fn growth_few_merges(c: &mut Criterion) {
-    let mut group = c.benchmark_group("growth_few_merges");
-    group
-        .sample_size(10)
-        .measurement_time(Duration::from_secs(8));
-    let tips = crowns::crown_tips(crowns::Shape::Maple, 70, 2);
-    for total in [500usize, 5000, 50_000] {
-        let cfg = ReconstructConfig {
-            total_tips: total,
-            merge_distance: 0.001,
-            ..Default::default()
-        };
-        let tree =
-            reconstruct(&tips, DVec3::new(2.0, 0.0, 0.0), &cfg, cfg.seed).expect("reconstruct");
-        eprintln!(
-            "70+{total}, merge 1 mm: {} nodes, {} steps, {} forced joins",
-            tree.nodes.len(),
-            tree.steps,
-            tree.forced_joins
-        );
-        group.bench_with_input(BenchmarkId::new("maple_70", total), &tips, |b, tips| {
-            b.iter(|| black_box(flow_radii_mesh(tips, &cfg)))
-        });
-    }
-    group.finish();
+    growth_group(c, "growth_few_merges", &[500, 5000, 50_000], Some(0.001));
 }
 
 criterion_group!(benches, targets, growth, growth_few_merges);
