@@ -367,20 +367,7 @@ fn run(command: Command) -> Result<()> {
                 (None, Some(server)) => {
                     use treemocap::source::natnet::{client::NatNetOptions, live::NatNetSource};
                     let mut opts = NatNetOptions::from_config(&config.natnet);
-                    let (ip, port) = match server.parse::<std::net::SocketAddrV4>() {
-                        Ok(a) => (*a.ip(), a.port()),
-                        Err(_) => (
-                            server.parse().map_err(|_| {
-                                Error::config(
-                                    "--natnet",
-                                    format!("'{server}' is not an IPv4 address or ADDRESS:PORT"),
-                                )
-                            })?,
-                            opts.command_port,
-                        ),
-                    };
-                    opts.server = Some(ip);
-                    opts.command_port = port;
+                    opts.set_server(&server, "--natnet")?;
                     opts.transport = match (unicast, multicast) {
                         (true, _) => Some(treemocap::source::natnet::Transport::Unicast),
                         (_, true) => Some(treemocap::source::natnet::Transport::Multicast),

@@ -76,12 +76,9 @@ pub fn estimate_wind(tips: &Tips, config: &Config) -> Option<WindEstimate> {
     let w = &config.wind;
     let end_s = tips.timeline.time(tips.timeline.len() as i64 - 1);
     let mut selector = WindSelector::new(w.priority(), f64::INFINITY);
-    if let Some(fan) = w.fan() {
-        let centre = crown_centre(tips);
-        let speed = (w.fan_speed_m_s > 0.0).then_some(w.fan_speed_m_s);
-        if let Some(e) = wind::fan::fan_wind(fan, centre, speed, end_s) {
-            selector.update(e);
-        }
+    let rest: Vec<DVec3> = tips.tips.iter().map(|t| t.rest).collect();
+    if let Some(e) = wind::fan::configured_fan_wind(w, &rest, end_s) {
+        selector.update(e);
     }
     if w.priority().contains(&WindSource::Pca) {
         let mut pca = SwayPca::new(f64::INFINITY, w.pca_min_sway_mm / 1000.0);
@@ -95,21 +92,6 @@ pub fn estimate_wind(tips: &Tips, config: &Config) -> Option<WindEstimate> {
         }
     }
     selector.current(end_s)
-}
-
-/// Centre of the tips' bounding box (the crown's centre for the fan).
-fn crown_centre(tips: &Tips) -> DVec3 {
-    let mut lo = DVec3::splat(f64::INFINITY);
-    let mut hi = DVec3::splat(f64::NEG_INFINITY);
-    for t in &tips.tips {
-        lo = lo.min(t.rest);
-        hi = hi.max(t.rest);
-    }
-    if tips.tips.is_empty() {
-        DVec3::ZERO
-    } else {
-        (lo + hi) / 2.0
-    }
 }
 
 impl fmt::Display for ReplayReport {

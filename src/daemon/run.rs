@@ -357,23 +357,7 @@ fn start_source(
             let source: Arc<dyn LiveSource> = if kind == "natnet" {
                 use crate::source::natnet::{client::NatNetOptions, live::NatNetSource, Transport};
                 let mut opts = NatNetOptions::from_config(&c.natnet);
-                let (ip, port) = match d.natnet_server.parse::<std::net::SocketAddrV4>() {
-                    Ok(a) => (*a.ip(), a.port()),
-                    Err(_) => (
-                        d.natnet_server.parse().map_err(|_| {
-                            Error::config(
-                                "daemon.natnet_server",
-                                format!(
-                                    "'{}' is not an IPv4 address or ADDRESS:PORT",
-                                    d.natnet_server
-                                ),
-                            )
-                        })?,
-                        opts.command_port,
-                    ),
-                };
-                opts.server = Some(ip);
-                opts.command_port = port;
+                opts.set_server(&d.natnet_server, "daemon.natnet_server")?;
                 opts.transport = match d.natnet_transport.as_str() {
                     "unicast" => Some(Transport::Unicast),
                     "multicast" => Some(Transport::Multicast),
@@ -457,6 +441,15 @@ fn new_wind(shared: &Shared, e: WindEstimate) {
     );
 }
 
+/// A sender to `daemon.osc_targets` (validated by the config), or `None`
+/// when there are none.
+fn osc_sender(targets: &[String]) -> Result<Option<OscSender>> {
+    if targets.is_empty() {
+        return Ok(None);
+    }
+    OscSender::new(targets.iter().filter_map(|t| t.parse().ok()).collect()).map(Some)
+}
+
 /// Per frame: record, window, live tips, PCA; hands the window to analysis.
 fn pipeline_loop(
     shared: &Arc<Shared>,
@@ -478,16 +471,7 @@ fn pipeline_loop(
     let mut frame_rate = 100.0;
     let mut rate_known = false;
     let mut last_time: Option<f64> = None;
-    let mut osc = if d.osc_targets.is_empty() {
-        None
-    } else {
-        Some(OscSender::new(
-            d.osc_targets
-                .iter()
-                .filter_map(|t| t.parse().ok())
-                .collect(),
-        )?)
-    };
+    let mut osc = osc_sender(&d.osc_targets)?;
     let mut recorder = if d.record {
         let path = shared.out.join("session.log.csv");
         let header = LogHeader {
@@ -665,15 +649,8 @@ fn analysis_loop(shared: &Arc<Shared>, rx: Receiver<(WindowRecording, f64)>) {
             0.0
         };
         if !fan_set && still && !rest.is_empty() {
-            if let Some(pos) = c.wind.fan() {
-                let (lo, hi) = rest.iter().fold(
-                    (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
-                    |(lo, hi), p| (lo.min(*p), hi.max(*p)),
-                );
-                let speed = (c.wind.fan_speed_m_s > 0.0).then_some(c.wind.fan_speed_m_s);
-                if let Some(e) = fan::fan_wind(pos, (lo + hi) / 2.0, speed, now) {
-                    new_wind(shared, e);
-                }
+            if let Some(e) = fan::configured_fan_wind(&c.wind, &rest, now) {
+                new_wind(shared, e);
             }
             fan_set = true;
         }
@@ -754,18 +731,7 @@ fn with_wind(tips_json: &str, wind: Option<WindEstimate>) -> String {
 fn recon_loop(shared: &Arc<Shared>, tips_tx: Sender<Vec<(usize, DVec3)>>) {
     let c = &shared.config;
     let version = AtomicU64::new(0);
-    let mut osc = if c.daemon.osc_targets.is_empty() {
-        None
-    } else {
-        OscSender::new(
-            c.daemon
-                .osc_targets
-                .iter()
-                .filter_map(|t| t.parse().ok())
-                .collect(),
-        )
-        .ok()
-    };
+    let mut osc = osc_sender(&c.daemon.osc_targets).ok().flatten();
     loop {
         let build = {
             let Ok(mut pending) = shared.slot.pending.lock() else {

@@ -27,6 +27,28 @@ pub fn fan_wind(
     })
 }
 
+/// Centre of the bounding box of the tips (the crown's centre), or `None`
+/// for no tips.
+pub fn crown_centre(tips: &[DVec3]) -> Option<DVec3> {
+    let first = *tips.first()?;
+    let (lo, hi) = tips
+        .iter()
+        .fold((first, first), |(lo, hi), p| (lo.min(*p), hi.max(*p)));
+    Some((lo + hi) / 2.0)
+}
+
+/// The wind of the fan in the config (`wind.fan_position`, `fan_speed_m_s`)
+/// through the centre of these tips; `None` without a fan or tips.
+pub fn configured_fan_wind(
+    config: &crate::config::WindConfig,
+    tips: &[DVec3],
+    time_s: f64,
+) -> Option<WindEstimate> {
+    let fan = config.fan()?;
+    let speed = (config.fan_speed_m_s > 0.0).then_some(config.fan_speed_m_s);
+    fan_wind(fan, crown_centre(tips)?, speed, time_s)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -43,5 +65,16 @@ mod tests {
         assert!((w.direction - DVec3::X).length() < 1e-12);
         assert!((w.azimuth_deg() - 90.0).abs() < 1e-9);
         assert!(fan_wind(DVec3::new(0.0, 5.0, 0.0), DVec3::ZERO, None, 0.0).is_none());
+    }
+
+    #[test]
+    fn crown_centre_is_the_bounding_box_centre() {
+        let tips = [
+            DVec3::new(-1.0, 1.0, 0.0),
+            DVec3::new(3.0, 2.0, 4.0),
+            DVec3::ONE,
+        ];
+        assert_eq!(crown_centre(&tips), Some(DVec3::new(1.0, 1.5, 2.0)));
+        assert_eq!(crown_centre(&[]), None);
     }
 }

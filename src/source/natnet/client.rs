@@ -79,6 +79,27 @@ impl Default for NatNetOptions {
 }
 
 impl NatNetOptions {
+    /// Points the client at `ADDRESS` or `ADDRESS:COMMAND_PORT` (IPv4;
+    /// without a port the configured command port stays). `key` names the
+    /// option in the error (`--natnet`, `daemon.natnet_server`).
+    pub fn set_server(&mut self, text: &str, key: &str) -> Result<()> {
+        let (ip, port) = match text.parse::<SocketAddrV4>() {
+            Ok(a) => (*a.ip(), a.port()),
+            Err(_) => (
+                text.parse::<Ipv4Addr>().map_err(|_| {
+                    Error::config(
+                        key,
+                        format!("'{text}' is not an IPv4 address or ADDRESS:PORT"),
+                    )
+                })?,
+                self.command_port,
+            ),
+        };
+        self.server = Some(ip);
+        self.command_port = port;
+        Ok(())
+    }
+
     /// Defaults with the `[natnet]` settings applied.
     pub fn from_config(c: &NatNetConfig) -> Self {
         NatNetOptions {
