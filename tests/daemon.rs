@@ -85,27 +85,15 @@ fn natnet_in_tree_out_over_osc_http_and_websocket() {
     assert_eq!(line.trim(), "ready", "python-osc receiver did not start");
 
     let _server = serve(cmd_port, data_port);
-    let mut daemon = Killed(
-        Command::new(env!("CARGO_BIN_EXE_treemocap"))
-            .arg("run")
-            .args(["--set", "daemon.source=natnet"])
-            .args([
-                "--set",
-                &format!("daemon.natnet_server=127.0.0.1:{cmd_port}"),
-            ])
-            .args(["--set", "daemon.natnet_transport=unicast"])
-            .args(["--set", &format!("daemon.http=127.0.0.1:{http_port}")])
-            .args([
-                "--set",
-                &format!("daemon.osc_targets=[\"127.0.0.1:{osc_port}\"]"),
-            ])
-            .arg("--out")
-            .arg(out_dir.path())
-            .current_dir(root())
-            .stdout(Stdio::null())
-            .stderr(Stdio::null())
-            .spawn()
-            .unwrap(),
+    let mut daemon = start_daemon(
+        out_dir.path(),
+        http_port,
+        &[
+            "daemon.source=natnet".into(),
+            format!("daemon.natnet_server=127.0.0.1:{cmd_port}"),
+            "daemon.natnet_transport=unicast".into(),
+            format!("daemon.osc_targets=[\"127.0.0.1:{osc_port}\"]"),
+        ],
     );
 
     // The first tree: 5 s of still phase at 4× speed, plus analysis.
@@ -220,65 +208,24 @@ fn natnet_in_tree_out_over_osc_http_and_websocket() {
 fn an_unchanged_session_gives_one_tree_and_rebuild_gives_the_same_tree() {
     let out_dir = tempfile::tempdir().unwrap();
     let http_port = free_tcp();
-    let _daemon = Killed(
-        Command::new(env!("CARGO_BIN_EXE_treemocap"))
-            .arg("run")
-            .args(["--set", "daemon.replay_speed=0"])
-            .args(["--set", &format!("daemon.http=127.0.0.1:{http_port}")])
-            .arg("--out")
-            .arg(out_dir.path())
-            .current_dir(root())
-            .stdout(Stdio::null())
-            .stderr(Stdio::null())
-            .spawn()
-            .unwrap(),
-    );
-    let status = |key: &str| -> Option<u64> {
-        let (code, body) = http_get(&format!("http://127.0.0.1:{http_port}/status"));
-        if code != 200 {
-            return None;
-        }
-        let v: serde_json::Value = serde_json::from_slice(&body).ok()?;
-        v[key].as_u64()
-    };
-    let start = Instant::now();
+    let _daemon = start_daemon(out_dir.path(), http_port, &["daemon.replay_speed=0".into()]);
     // The whole 40 s replay goes through as fast as it can.
-    while status("frames") != Some(4000) {
-        assert!(
-            start.elapsed() < Duration::from_secs(60),
-            "replay did not finish"
-        );
-        std::thread::sleep(Duration::from_millis(200));
-    }
+    wait_status(http_port, "the end of the replay", 60, |v| {
+        v["frames"] == 4000
+    });
     std::thread::sleep(Duration::from_millis(1500));
     assert_eq!(
-        status("trees"),
-        Some(1),
+        status_of(http_port).unwrap()["trees"],
+        1,
         "one still phase, no change: one tree"
     );
 
     // An explicit rebuild: the wind from the sway is known by now, so the
     // input changed and a second tree comes. A third request on unchanged
     // data must give the very same tree.
-    let rebuild = || {
-        let post = Command::new(python())
-            .arg("-c")
-            .arg(format!(
-                "import urllib.request as u; print(u.urlopen(u.Request('http://127.0.0.1:{http_port}/rebuild', data=b'', method='POST')).status)"
-            ))
-            .output()
-            .unwrap();
-        assert_eq!(String::from_utf8_lossy(&post.stdout).trim(), "202");
-    };
+    let rebuild = || post_rebuild(http_port);
     let wait_trees = |n: u64| {
-        let t0 = Instant::now();
-        while status("trees") != Some(n) {
-            assert!(
-                t0.elapsed() < Duration::from_secs(20),
-                "tree {n} did not come"
-            );
-            std::thread::sleep(Duration::from_millis(100));
-        }
+        wait_status(http_port, &format!("tree {n}"), 20, |v| v["trees"] == n);
     };
     rebuild();
     wait_trees(2);
@@ -295,9 +242,23 @@ fn an_unchanged_session_gives_one_tree_and_rebuild_gives_the_same_tree() {
 }
 
 fn start_daemon(out: &std::path::Path, http_port: u16, sets: &[String]) -> Killed {
+    start_daemon_with_config(out, http_port, None, sets)
+}
+
+/// `treemocap run` with HTTP on `http_port`, results in `out`, an optional
+/// config file and `--set` overrides.
+fn start_daemon_with_config(
+    out: &std::path::Path,
+    http_port: u16,
+    config: Option<&std::path::Path>,
+    sets: &[String],
+) -> Killed {
     let mut cmd = Command::new(env!("CARGO_BIN_EXE_treemocap"));
-    cmd.arg("run")
-        .args(["--set", &format!("daemon.http=127.0.0.1:{http_port}")])
+    cmd.arg("run");
+    if let Some(c) = config {
+        cmd.arg("--config").arg(c);
+    }
+    cmd.args(["--set", &format!("daemon.http=127.0.0.1:{http_port}")])
         .arg("--out")
         .arg(out)
         .current_dir(root())
@@ -307,6 +268,18 @@ fn start_daemon(out: &std::path::Path, http_port: u16, sets: &[String]) -> Kille
         cmd.args(["--set", s]);
     }
     Killed(cmd.spawn().unwrap())
+}
+
+/// `POST /rebuild` with urllib; the daemon must accept it (202).
+fn post_rebuild(http_port: u16) {
+    let o = Command::new(python())
+        .arg("-c")
+        .arg(format!(
+            "import urllib.request as u; print(u.urlopen(u.Request('http://127.0.0.1:{http_port}/rebuild', data=b'', method='POST')).status)"
+        ))
+        .output()
+        .unwrap();
+    assert_eq!(String::from_utf8_lossy(&o.stdout).trim(), "202");
 }
 
 fn status_of(http_port: u16) -> Option<serde_json::Value> {
@@ -406,18 +379,7 @@ fn an_output_folder_that_refuses_writes_is_reported_and_ingest_goes_on() {
     std::fs::remove_dir_all(&out).unwrap();
     std::fs::write(&out, b"not a folder").unwrap();
     let frames_before = status_of(http_port).unwrap()["frames"].as_u64().unwrap();
-    let (code, _) = {
-        let script = format!(
-            "import urllib.request as u; print(u.urlopen(u.Request('http://127.0.0.1:{http_port}/rebuild', data=b'', method='POST')).status)"
-        );
-        let o = Command::new(python())
-            .arg("-c")
-            .arg(script)
-            .output()
-            .unwrap();
-        (String::from_utf8_lossy(&o.stdout).trim().to_string(), ())
-    };
-    assert_eq!(code, "202");
+    post_rebuild(http_port);
     let v = wait_status(http_port, "the write error", 20, |v| {
         !v["output_error"].is_null()
     });
@@ -536,24 +498,14 @@ fn sighup_reloads_the_config_and_osc_asks_for_a_rebuild() {
     std::fs::write(&cfg, "[reconstruct]\ntotal_tips = 300\n").unwrap();
     let (http_port, control_port) = (free_tcp(), free_udp());
     let out = dir.path().join("out");
-    let d = Killed(
-        Command::new(env!("CARGO_BIN_EXE_treemocap"))
-            .arg("run")
-            .arg("--config")
-            .arg(&cfg)
-            .args(["--set", &format!("daemon.http=127.0.0.1:{http_port}")])
-            .args([
-                "--set",
-                &format!("daemon.osc_control=127.0.0.1:{control_port}"),
-            ])
-            .args(["--set", "daemon.replay_speed=4"])
-            .arg("--out")
-            .arg(&out)
-            .current_dir(root())
-            .stdout(Stdio::null())
-            .stderr(Stdio::null())
-            .spawn()
-            .unwrap(),
+    let d = start_daemon_with_config(
+        &out,
+        http_port,
+        Some(&cfg),
+        &[
+            format!("daemon.osc_control=127.0.0.1:{control_port}"),
+            "daemon.replay_speed=4".into(),
+        ],
     );
     let first = wait_status(http_port, "the first tree", 30, |v| v["trees"] == 1);
     let pid = d.0.id().to_string();
