@@ -60,6 +60,17 @@ fn start_server(
     (h, stop)
 }
 
+/// A server on 127.0.0.1 with ports the OS picks, reporting into `stats`.
+fn loopback_server(stats: &Arc<ServerStats>) -> ServeOptions {
+    ServeOptions {
+        bind: "127.0.0.1".parse().unwrap(),
+        command_port: 0,
+        data_port: 0,
+        stats: stats.clone(),
+        ..Default::default()
+    }
+}
+
 async fn command_port(stats: &ServerStats) -> u16 {
     for _ in 0..500 {
         if let Some(a) = stats.command_addr.get() {
@@ -130,11 +141,7 @@ fn every_version_arrives_intact_over_unicast() {
                 ServeOptions {
                     version,
                     speed: 4.0,
-                    bind: "127.0.0.1".parse().unwrap(),
-                    command_port: 0,
-                    data_port: 0,
-                    stats: stats.clone(),
-                    ..Default::default()
+                    ..loopback_server(&stats)
                 },
             );
             let port = command_port(&stats).await;
@@ -191,11 +198,7 @@ fn bitstream_negotiation_switches_the_decoder_and_refusals_are_errors() {
                 ServeOptions {
                     version: server_v,
                     speed: 2.0,
-                    bind: "127.0.0.1".parse().unwrap(),
-                    command_port: 0,
-                    data_port: 0,
-                    stats: stats.clone(),
-                    ..Default::default()
+                    ..loopback_server(&stats)
                 },
             );
             let opts = NatNetOptions {
@@ -439,16 +442,7 @@ fn discovery_finds_the_server() {
     let rt = runtime();
     rt.block_on(async {
         let stats = Arc::new(ServerStats::default());
-        let (server, _stop) = start_server(
-            path,
-            ServeOptions {
-                bind: "127.0.0.1".parse().unwrap(),
-                command_port: 0,
-                data_port: 0,
-                stats: stats.clone(),
-                ..Default::default()
-            },
-        );
+        let (server, _stop) = start_server(path, loopback_server(&stats));
         let opts = NatNetOptions {
             server: None,
             discovery: true,
