@@ -45,9 +45,7 @@ pub fn run(file: &Path, config: &Config, out_dir: &Path) -> Result<ReplayReport>
 
     std::fs::create_dir_all(out_dir).map_err(|e| crate::Error::io(out_dir, e))?;
     let tips_path = out_dir.join("tips.json");
-    let mut text = tips.to_json();
-    text.push('\n');
-    crate::output::write_atomic(&tips_path, text.as_bytes())?;
+    tips.write_json(&tips_path)?;
 
     let captured: Vec<CapturedTip> = tips
         .tips

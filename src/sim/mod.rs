@@ -27,6 +27,8 @@ use std::path::{Path, PathBuf};
 use glam::DVec3;
 use serde::{Deserialize, Serialize};
 
+// The same range rule and message as every config key.
+use crate::config::check_range as check;
 use crate::error::{Error, Result};
 use crate::frame::MarkerFrame;
 use crate::rng::Rng;
@@ -117,17 +119,6 @@ impl Default for SynthOptions {
             min_spacing_mm: 60.0,
             take_name: String::new(),
         }
-    }
-}
-
-fn check(key: &str, value: f64, lo: f64, hi: f64) -> Result<()> {
-    if value.is_finite() && (lo..=hi).contains(&value) {
-        Ok(())
-    } else {
-        Err(Error::config(
-            key,
-            format!("{value} is outside the allowed range {lo} to {hi}"),
-        ))
     }
 }
 

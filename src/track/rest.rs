@@ -260,11 +260,12 @@ impl Tips {
         serde_json::to_string_pretty(self).unwrap_or_else(|_| "{}".into())
     }
 
-    /// Writes `tips.json` to `path`.
+    /// Writes `tips.json` to `path` atomically (a viewer or a later
+    /// `reconstruct` never reads half a file).
     pub fn write_json(&self, path: &std::path::Path) -> crate::Result<()> {
         let mut text = self.to_json();
         text.push('\n');
-        std::fs::write(path, text).map_err(|e| crate::Error::io(path, e))
+        crate::output::write_atomic(path, text.as_bytes())
     }
 }
 
