@@ -9,9 +9,10 @@ use std::time::Duration;
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
 use glam::DVec3;
 use treemocap::config::ReconstructConfig;
-use treemocap::reconstruct::{mesh, reconstruct, CapturedTip};
+use treemocap::model::tips::CapturedTip;
+use treemocap::reconstruct::{mesh, reconstruct};
 
-#[path = "../tests/common/crowns.rs"]
+#[path = "../tests/it/common/crowns.rs"]
 mod crowns;
 
 fn flow_radii_mesh(tips: &[CapturedTip], cfg: &ReconstructConfig) -> usize {

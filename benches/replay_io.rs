@@ -6,8 +6,8 @@ use std::time::Duration;
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use glam::DVec3;
-use treemocap::source::replay::log::{LogHeader, LogWriter};
-use treemocap::source::replay::motive_csv::MotiveCsvReader;
+use treemocap::format::log::{LogHeader, LogWriter};
+use treemocap::format::motive_csv::MotiveCsvReader;
 use treemocap::{Marker, MarkerFrame};
 
 const MARKERS: usize = 35;

@@ -91,9 +91,9 @@ fn whole_stage(c: &mut Criterion) {
     let config = Config::default();
     c.bench_function("tips stage on replays/pine-35.csv", |b| {
         b.iter(|| {
-            let mut rec = treemocap::source::replay::open_with(
+            let mut rec = treemocap::app::open::open_with(
                 &path,
-                &treemocap::source::replay::ReplayOptions::from_config(&config),
+                &treemocap::app::open::ReplayOptions::from_config(&config),
             )
             .unwrap();
             let (tips, _) = treemocap::track::process(rec.as_mut(), &config.tracking).unwrap();

@@ -15,7 +15,7 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use treemocap::config::Config;
-use treemocap::source::replay::log::{LogHeader, LogWriter};
+use treemocap::format::log::{LogHeader, LogWriter};
 
 fn rss_mb() -> f64 {
     let status = std::fs::read_to_string("/proc/self/status").unwrap_or_default();

@@ -10,13 +10,13 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use glam::DVec3;
-use treemocap::frame::{Marker, MarkerFrame};
+use treemocap::format::{Format, Recording, RecordingInfo};
+use treemocap::model::frame::{Marker, MarkerFrame};
 use treemocap::rng::Rng;
 use treemocap::source::channel::frame_channel;
 use treemocap::source::natnet::client::{self, NatNetOptions};
 use treemocap::source::natnet::packet::Version;
 use treemocap::source::natnet::server::{self, ServeOptions, ServerStats};
-use treemocap::source::replay::{Format, Recording, RecordingInfo};
 
 /// Frames generated on the fly (60 000 × 1000 markers would not fit a file).
 struct Synthetic {

@@ -170,10 +170,10 @@ pub struct WindConfig {
 
 impl WindConfig {
     /// The priority list as sources (validated by `Config::validate`).
-    pub fn priority(&self) -> Vec<crate::wind::WindSource> {
+    pub fn priority(&self) -> Vec<crate::model::wind::WindSource> {
         self.priority
             .iter()
-            .filter_map(|n| crate::wind::WindSource::from_name(n))
+            .filter_map(|n| crate::model::wind::WindSource::from_name(n))
             .collect()
     }
 
@@ -226,7 +226,7 @@ pub struct DaemonConfig {
 pub struct C3dConfig {
     /// Which axis of a C3D file points up: "auto" (from POINT:Y_SCREEN,
     /// Z when absent), "y" or "z". Frames are always turned to Y up.
-    pub up_axis: crate::source::replay::c3d::UpAxisSetting,
+    pub up_axis: crate::format::c3d::UpAxisSetting,
 }
 
 /// Which crown volume the random tips are placed in (paper §5, Figure 10).
@@ -431,7 +431,7 @@ impl Config {
         let w = &self.wind;
         let mut seen = Vec::new();
         for name in &w.priority {
-            if crate::wind::WindSource::from_name(name).is_none() || seen.contains(&name) {
+            if crate::model::wind::WindSource::from_name(name).is_none() || seen.contains(&name) {
                 return Err(Error::config(
                     "wind.priority",
                     format!(
@@ -728,7 +728,7 @@ mod tests {
             Config::from_toml_str("[wind]\nfan_position = [-3, 1.2, 0]\npriority = [\"fan\"]\n")
                 .unwrap();
         assert_eq!(c.wind.fan(), Some(glam::DVec3::new(-3.0, 1.2, 0.0)));
-        assert_eq!(c.wind.priority(), vec![crate::wind::WindSource::Fan]);
+        assert_eq!(c.wind.priority(), vec![crate::model::wind::WindSource::Fan]);
         let e = Config::from_toml_str("[wind]\nfan_position = [1, 2]\n").unwrap_err();
         assert!(e.to_string().contains("wind.fan_position"), "{e}");
         let e = Config::from_toml_str("[wind]\npriority = [\"fan\", \"moon\"]\n").unwrap_err();

@@ -306,7 +306,7 @@ fn run(command: Command) -> Result<()> {
         Command::Replay { file, config, out } => {
             let config = config.load()?;
             let out = out.unwrap_or_else(|| PathBuf::from(&config.output.dir));
-            let report = treemocap::replay::run(&file, &config, &out)?;
+            let report = treemocap::app::replay::run(&file, &config, &out)?;
             print!("{report}");
             Ok(())
         }
@@ -317,13 +317,17 @@ fn run(command: Command) -> Result<()> {
             plot,
         } => {
             let config = config.load()?;
-            let (_, _, text) =
-                treemocap::track::tips_command(&file, &config, json.as_deref(), plot.as_deref())?;
+            let (_, _, text) = treemocap::app::tips::tips_command(
+                &file,
+                &config,
+                json.as_deref(),
+                plot.as_deref(),
+            )?;
             print!("{text}");
             Ok(())
         }
         Command::Inspect { file, json } => {
-            let report = treemocap::inspect::inspect(&file)?;
+            let report = treemocap::app::inspect::inspect(&file)?;
             if json {
                 println!("{}", to_json(&report)?);
             } else {
@@ -342,8 +346,8 @@ fn run(command: Command) -> Result<()> {
             config,
         } => {
             use std::sync::Arc;
+            use treemocap::app::record::{self, RecordEvent, RecordOptions};
             use treemocap::source::live::LiveSource;
-            use treemocap::source::record::{self, RecordEvent, RecordOptions};
             let config = config.load()?;
             if let Some(s) = seconds {
                 if !(s.is_finite() && s > 0.0) {
@@ -441,10 +445,8 @@ fn run(command: Command) -> Result<()> {
         }
         Command::Reconstruct { tips, config, out } => {
             let config = config.load()?;
-            let input = treemocap::reconstruct::read_tips(&tips)?;
             let out = out.unwrap_or_else(|| PathBuf::from(&config.output.dir));
-            let report =
-                treemocap::reconstruct::run_and_write(&input.tips, input.wind, &config, &out)?;
+            let report = treemocap::app::reconstruct::command(&tips, &config, &out)?;
             // A closed pipe (`| head`) is not an error worth a panic.
             use std::io::Write;
             let mut stdout = std::io::stdout().lock();

@@ -27,19 +27,24 @@ use super::follow::TipFollower;
 use super::status::Status;
 use super::triggers::{compare_tips, Reason, TriggerConfig, Triggers};
 use super::window::{FrameWindow, WindowRecording};
+use crate::app::files::write_atomic;
+use crate::app::open::{self as replay, ReplayOptions};
 use crate::config::Config;
+use crate::daemon::wind_log::WindLog;
 use crate::error::{Error, Result};
-use crate::output::osc::{tips_datagram, tree_datagrams, wind_datagram, OscSender};
-use crate::output::snapshot::TreeSnapshot;
-use crate::output::{http, write_atomic};
-use crate::reconstruct::{self, CapturedTip};
+use crate::format::log::{LogHeader, LogWriter};
+use crate::model::tips::{CapturedTip, Tips};
+use crate::model::wind::WindEstimate;
+use crate::render::outputs::build_model;
+use crate::serve::http;
+use crate::serve::osc::{tips_datagram, tree_datagrams, wind_datagram, OscSender};
+use crate::serve::snapshot::SnapshotNode;
+use crate::serve::snapshot::TreeSnapshot;
 use crate::source::channel::{frame_channel, FrameReceiver, FrameSink};
 use crate::source::live::LiveSource;
-use crate::source::replay::log::{LogHeader, LogWriter};
-use crate::source::replay::{self, ReplayOptions};
-use crate::wind::log::WindLog;
+use crate::source::wind_sensor as serial;
 use crate::wind::pca::SwayPca;
-use crate::wind::{fan, serial, WindEstimate, WindSelector};
+use crate::wind::{fan, WindSelector};
 
 /// A request to build a tree (only the latest pending one is kept).
 struct Build {
@@ -342,7 +347,8 @@ fn start_source(
             let s = shared.clone();
             Ok(Some(spawn("treemocap-replay", move || {
                 let reopen = || replay::open_with(&path, &opts);
-                match super::player::play(first, &reopen, &sink, speed, repeat, &s.shutdown) {
+                match crate::source::player::play(first, &reopen, &sink, speed, repeat, &s.shutdown)
+                {
                     Ok(r) => tracing::info!("replay finished: {} frames", r.frames),
                     Err(e) => {
                         tracing::error!("{e}");
@@ -616,7 +622,7 @@ fn analysis_loop(shared: &Arc<Shared>, rx: Receiver<(WindowRecording, f64)>) {
     });
     // What the last tree was built from, reused when a rebuild finds nothing
     // changed so that the tree does not jump.
-    let mut last_build: Option<(Vec<CapturedTip>, String, DVec3)> = None;
+    let mut last_build: Option<Tips> = None;
     let mut fan_set = false;
     while !shared.shutdown.load(Ordering::Relaxed) {
         let Ok((mut rec, now)) = rx.recv_timeout(Duration::from_millis(100)) else {
@@ -655,48 +661,29 @@ fn analysis_loop(shared: &Arc<Shared>, rx: Receiver<(WindowRecording, f64)>) {
             fan_set = true;
         }
         let wind = shared.wind.lock().ok().and_then(|s| s.current(now));
-        let wind_vec = wind.map_or(DVec3::ZERO, |w| w.direction * w.speed_m_s.unwrap_or(1.0));
         if shared.rebuild.swap(false, Ordering::Relaxed) {
             triggers.request();
         }
         let Some(reason) = triggers.check(now, &rest, rest_len, wind.map(|w| w.direction)) else {
             continue;
         };
-        let same_tips = last_build.as_ref().is_some_and(|(b, _, _)| {
-            let old: Vec<DVec3> = b.iter().map(|t| t.position).collect();
+        let same_tips = last_build.as_ref().is_some_and(|b| {
+            let old: Vec<DVec3> = b.tips.iter().map(|t| t.rest).collect();
             compare_tips(&old, &rest, d.moved_mm / 1000.0) == (0, 0, 0)
         });
-        let (captured, tips_json, wv) = match &last_build {
-            // Unchanged tips (or no still phase to take new ones from): the
-            // last tree's tips exactly, with the wind of now.
-            Some((b, j, old_wind)) if same_tips || !still => {
-                let json = if *old_wind == wind_vec {
-                    j.clone()
-                } else {
-                    with_wind(j, wind)
-                };
-                (b.clone(), json, wind_vec)
-            }
-            _ => {
-                let mut t = tips;
-                t.wind = wind.map(|w| crate::track::rest::WindEstimate {
-                    direction: w.direction,
-                    speed: w.speed_m_s.unwrap_or(1.0),
-                });
-                let captured = t
-                    .tips
-                    .iter()
-                    .map(|x| CapturedTip {
-                        marker: x.marker,
-                        position: x.rest,
-                    })
-                    .collect();
-                (captured, t.to_json() + "\n", wind_vec)
-            }
+        // Unchanged tips (or no still phase to take new ones from): the last
+        // tree's tips exactly, with the wind of now.
+        let mut built = match last_build.take() {
+            Some(b) if same_tips || !still => b,
+            _ => tips,
         };
+        built.wind = wind;
+        let captured = built.captured();
         let positions: Vec<DVec3> = captured.iter().map(|t: &CapturedTip| t.position).collect();
         triggers.built(now, &positions, wind.map(|w| w.direction));
-        last_build = Some((captured.clone(), tips_json.clone(), wv));
+        let tips_json = built.to_json();
+        last_build = Some(built);
+        let wv = wind.map_or(DVec3::ZERO, |w| w.flow_vector());
         tracing::info!("new tree: {reason}");
         if let Ok(mut p) = shared.slot.pending.lock() {
             *p = Some(Build {
@@ -710,21 +697,6 @@ fn analysis_loop(shared: &Arc<Shared>, rx: Receiver<(WindowRecording, f64)>) {
         }
         shared.slot.ready.notify_one();
     }
-}
-
-/// tips.json of the last tree with the wind of now.
-fn with_wind(tips_json: &str, wind: Option<WindEstimate>) -> String {
-    let Ok(mut v) = serde_json::from_str::<serde_json::Value>(tips_json) else {
-        return tips_json.to_string();
-    };
-    v["wind"] = match wind {
-        Some(w) => serde_json::json!({
-            "direction": [w.direction.x, w.direction.y, w.direction.z],
-            "speed": w.speed_m_s.unwrap_or(1.0),
-        }),
-        None => serde_json::Value::Null,
-    };
-    serde_json::to_string_pretty(&v).unwrap_or_default() + "\n"
 }
 
 /// Builds trees on request and hands them to every output.
@@ -757,7 +729,7 @@ fn recon_loop(shared: &Arc<Shared>, tips_tx: Sender<Vec<(usize, DVec3)>>) {
             Ok(g) => g.clone(),
             Err(_) => return,
         };
-        let outputs = match reconstruct::build_model(&build.tips, build.wind, &config) {
+        let outputs = match build_model(&build.tips, build.wind, &config) {
             Ok(o) => o,
             Err(e) => {
                 tracing::error!("reconstruction: {e}");
@@ -769,7 +741,7 @@ fn recon_loop(shared: &Arc<Shared>, tips_tx: Sender<Vec<(usize, DVec3)>>) {
             version: v,
             time_s: build.time_s,
             reason: build.reason.to_string(),
-            nodes: outputs.tree.snapshot_nodes(),
+            nodes: SnapshotNode::of_tree(&outputs.tree),
             glb: outputs.glb,
             tree_json: outputs.tree_json,
             tips_json: build.tips_json,
@@ -782,8 +754,12 @@ fn recon_loop(shared: &Arc<Shared>, tips_tx: Sender<Vec<(usize, DVec3)>>) {
         if let Some(o) = osc.as_mut() {
             o.send_paced(&tree_datagrams(&snapshot));
         }
-        let png = crate::output::picture::tree_png(&outputs.tree).unwrap_or_default();
-        write_files(shared, &snapshot, &png, v);
+        // A picture that cannot be drawn is reported, and no empty
+        // tree.png is written in its place.
+        let png = crate::render::picture::tree_png(&outputs.tree)
+            .map_err(|e| tracing::error!("tree.png: {e}"))
+            .ok();
+        write_files(shared, &snapshot, png.as_deref(), v);
         let st = &shared.status;
         st.trees.fetch_add(1, Ordering::Relaxed);
         st.tree_version.store(v, Ordering::Relaxed);
@@ -804,18 +780,21 @@ fn recon_loop(shared: &Arc<Shared>, tips_tx: Sender<Vec<(usize, DVec3)>>) {
 
 /// Rewrites tree.glb, tree.json, tips.json, tree.png (and the numbered
 /// history). A failing disk is reported on /status; the daemon goes on.
-fn write_files(shared: &Shared, t: &TreeSnapshot, png: &[u8], version: u64) {
+fn write_files(shared: &Shared, t: &TreeSnapshot, png: Option<&[u8]>, version: u64) {
     let mut files: Vec<(String, &[u8])> = vec![
         ("tree.glb".into(), &t.glb),
         ("tree.json".into(), t.tree_json.as_bytes()),
         ("tips.json".into(), t.tips_json.as_bytes()),
-        ("tree.png".into(), png),
     ];
+    let mut error = None;
+    match png {
+        Some(png) => files.push(("tree.png".into(), png)),
+        None => error = Some("tree.png: the picture could not be drawn".to_string()),
+    }
     if shared.config.daemon.history {
         files.push((format!("tree-{version:04}.glb"), &t.glb));
         files.push((format!("tree-{version:04}.json"), t.tree_json.as_bytes()));
     }
-    let mut error = None;
     for (name, bytes) in files {
         if let Err(e) = write_atomic(&shared.out.join(&name), bytes) {
             tracing::error!("{e}");

@@ -26,7 +26,7 @@ use kiddo::{ImmutableKdTree, SquaredEuclidean};
 
 use crate::config::ReconstructConfig;
 use crate::error::{Error, Result};
-use crate::reconstruct::tree::{Kind, Node, Tree};
+use crate::model::tree::{Kind, Node, Tree};
 use crate::reconstruct::trunk::{Bounds, Trunk};
 
 /// A particle still flowing: where it is and the tree node it last left.

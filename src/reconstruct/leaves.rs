@@ -6,8 +6,8 @@ use glam::DVec3;
 
 use crate::config::ReconstructConfig;
 use crate::error::Result;
+use crate::model::tree::{Kind, Tree};
 use crate::reconstruct::mesh::Mesh;
-use crate::reconstruct::tree::{Kind, Tree};
 use crate::rng::Rng;
 
 /// Label of the leaves' random stream (see `Rng::fork`).

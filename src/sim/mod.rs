@@ -30,7 +30,7 @@ use serde::{Deserialize, Serialize};
 // The same range rule and message as every config key.
 use crate::config::check_range as check;
 use crate::error::{Error, Result};
-use crate::frame::MarkerFrame;
+use crate::model::frame::MarkerFrame;
 use crate::rng::Rng;
 
 pub use motive_writer::write_motive_csv;

@@ -17,9 +17,7 @@
 pub mod assign;
 pub mod gaps;
 pub mod noise;
-pub mod report;
 pub mod rest;
-pub mod trace;
 pub mod tracker;
 
 use std::fmt;
@@ -29,14 +27,13 @@ use serde::Serialize;
 
 pub use gaps::GapStats;
 pub use noise::DroppedTrace;
-pub use report::tips_command;
-pub use rest::{RestSource, RestWindow, Tip, Tips, WindEstimate};
-pub use trace::{Sample, SampleKind, Trace};
-pub use tracker::{Timeline, TrackStats, Tracked, Tracker};
+pub use rest::{RestSource, RestWindow};
+pub use tracker::{TrackStats, Tracked, Tracker};
 
 use crate::config::TrackingConfig;
 use crate::error::Result;
-use crate::source::replay::Recording;
+use crate::model::recording::Recording;
+use crate::model::tips::{Tip, Tips};
 
 /// What the marker stage did, for the user (printed by `tips` and `replay`).
 #[derive(Debug, Clone, PartialEq, Serialize)]

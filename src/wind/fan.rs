@@ -4,7 +4,7 @@
 
 use glam::DVec3;
 
-use super::{WindEstimate, WindSource};
+use crate::model::wind::{WindEstimate, WindSource};
 
 /// The fan's wind at `crown_centre`, or `None` when the fan stands (in plan
 /// view) on the crown's centre and no direction follows.

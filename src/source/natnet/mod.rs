@@ -2,7 +2,7 @@
 //! ([`packet`]), which markers of a frame become a [`MarkerFrame`]
 //! ([`select`]), a live client ([`client`]) and a replay server ([`server`]).
 //!
-//! [`MarkerFrame`]: crate::frame::MarkerFrame
+//! [`MarkerFrame`]: crate::model::frame::MarkerFrame
 
 pub mod client;
 pub mod live;

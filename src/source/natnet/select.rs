@@ -12,7 +12,7 @@ use glam::DVec3;
 use serde::{Deserialize, Serialize};
 
 use super::packet::{FrameOfData, Version};
-use crate::frame::{Marker, MarkerFrame};
+use crate::model::frame::{Marker, MarkerFrame};
 
 /// The `natnet.markers` setting.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]

@@ -36,8 +36,8 @@ use super::packet::{
 };
 pub use super::Transport;
 use crate::error::{Error, Result};
-use crate::frame::MarkerFrame;
-use crate::source::replay::{self, Recording};
+use crate::model::frame::MarkerFrame;
+use crate::model::recording::Recording;
 
 /// Ticks per second of the server's hi-res clock (nanoseconds since start).
 pub const CLOCK_FREQUENCY: u64 = 1_000_000_000;
@@ -173,7 +173,7 @@ pub fn server_info(
 /// A recorded frame as Motive would stream it in `version` (see the module
 /// docs for where the markers go). Ticks are the server clock at send time.
 pub fn to_natnet_frame(frame: &MarkerFrame, version: Version, ticks: u64) -> FrameOfData {
-    let pos = |m: &crate::frame::Marker| {
+    let pos = |m: &crate::model::frame::Marker| {
         [
             m.position.x as f32,
             m.position.y as f32,
@@ -236,7 +236,7 @@ pub async fn serve(
     shutdown: watch::Receiver<bool>,
 ) -> Result<ServeReport> {
     let p = path.to_path_buf();
-    serve_with(move || replay::open(&p), opts, shutdown).await
+    serve_with(move || crate::app::open::open(&p), opts, shutdown).await
 }
 
 /// [`serve`] over any source of recordings; `open` is called again for each loop.

@@ -1,0 +1,3 @@
+//! Pure codecs: bytes in, values out (and back), no sockets, no clock.
+
+pub mod osc;
