@@ -18,6 +18,7 @@ pub mod reconstruct;
 pub mod render;
 pub mod rng;
 pub mod serve;
+pub mod shutdown;
 pub mod sim;
 pub mod source;
 pub mod track;

@@ -6,6 +6,9 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
+use treemocap::app::record::RecordOptions;
+use treemocap::config::TransportSetting;
+use treemocap::shutdown::Shutdown;
 use treemocap::{Error, Result};
 
 /// Turns motion capture of tree branch tips into 3D tree models
@@ -275,6 +278,20 @@ fn main() -> ExitCode {
     }
 }
 
+/// The process's one async runtime and one shutdown signal, with the one
+/// Ctrl-C/SIGTERM handler, for the commands that run until stopped.
+fn runtime() -> Result<(tokio::runtime::Runtime, Shutdown)> {
+    let rt = tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .thread_name("treemocap-io")
+        .enable_all()
+        .build()
+        .map_err(|e| Error::Runtime(format!("cannot start the async runtime: {e}")))?;
+    let shutdown = Shutdown::new();
+    shutdown.trigger_on_signals(rt.handle());
+    Ok((rt, shutdown))
+}
+
 fn init_logging(verbose: u8) {
     let default = match verbose {
         0 => "warn",
@@ -299,9 +316,11 @@ fn run(command: Command) -> Result<()> {
         Command::Run { config: args, out } => {
             let config = args.load()?;
             let out = out.unwrap_or_else(|| PathBuf::from(&config.output.dir));
-            let shutdown = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
-            let reload: treemocap::daemon::run::Reload = Box::new(move || args.load());
-            treemocap::daemon::run::run_with_reload(config, &out, shutdown, true, Some(reload))
+            let (rt, shutdown) = runtime()?;
+            let reload: treemocap::daemon::Reload = Box::new(move || args.load());
+            let result = treemocap::daemon::run(config, &out, rt.handle(), &shutdown, Some(reload));
+            rt.shutdown_timeout(std::time::Duration::from_millis(500));
+            result
         }
         Command::Replay { file, config, out } => {
             let config = config.load()?;
@@ -345,9 +364,6 @@ fn run(command: Command) -> Result<()> {
             seconds,
             config,
         } => {
-            use std::sync::Arc;
-            use treemocap::app::record::{self, RecordEvent, RecordOptions};
-            use treemocap::source::live::LiveSource;
             let config = config.load()?;
             if let Some(s) = seconds {
                 if !(s.is_finite() && s > 0.0) {
@@ -357,45 +373,34 @@ fn run(command: Command) -> Result<()> {
                     ));
                 }
             }
-            let source: Arc<dyn LiveSource> = match (osc, natnet) {
+            let source = match (osc, natnet) {
                 (Some(addr), _) => {
-                    let mut opts = treemocap::source::osc::OscOptions::from_settings(&config.osc)?;
-                    opts.bind = addr.parse().map_err(|_| {
+                    let bind = addr.parse().map_err(|_| {
                         Error::config(
                             "--osc",
                             format!("'{addr}' is not ADDR:PORT (e.g. 127.0.0.1:9000)"),
                         )
                     })?;
-                    Arc::new(treemocap::source::osc::OscSource(opts))
+                    treemocap::app::live::osc_source(&config, Some(bind))?
                 }
                 (None, Some(server)) => {
-                    use treemocap::source::natnet::{client::NatNetOptions, live::NatNetSource};
-                    let mut opts = NatNetOptions::from_config(&config.natnet);
-                    opts.set_server(&server, "--natnet")?;
-                    opts.transport = match (unicast, multicast) {
-                        (true, _) => Some(treemocap::source::natnet::Transport::Unicast),
-                        (_, true) => Some(treemocap::source::natnet::Transport::Multicast),
-                        _ => None,
+                    let transport = match (unicast, multicast) {
+                        (true, _) => TransportSetting::Unicast,
+                        (_, true) => TransportSetting::Multicast,
+                        _ => TransportSetting::Auto,
                     };
-                    if let Some(v) = natnet_version {
-                        opts.bitstream = Some(
-                            v.parse()
-                                .map_err(|e| Error::config("--natnet-version", e))?,
-                        );
-                    }
-                    Arc::new(NatNetSource(opts))
+                    let bitstream = natnet_version
+                        .map(|v| v.parse().map_err(|e| Error::config("--natnet-version", e)))
+                        .transpose()?;
+                    treemocap::app::live::natnet_source(
+                        &config, &server, "--natnet", transport, bitstream,
+                    )?
                 }
                 (None, None) => return Err(Error::config("record", "give --osc or --natnet")),
             };
             let opts = RecordOptions::from_config(out, seconds, &config);
-            println!("recording to {}", opts.out.display());
-            let summary = record::record_until_ctrl_c(source, &opts, |event| match event {
-                RecordEvent::Status(s) => println!("{s}"),
-                RecordEvent::Progress(p) => println!("{}", record::progress_line(&p)),
-            })?;
-            println!("{}", record::progress_line(&summary.progress));
-            println!("{}", summary.source);
-            println!("wrote {}", summary.out.display());
+            let (rt, shutdown) = runtime()?;
+            treemocap::app::record::command(rt.handle(), &shutdown, source, &opts)?;
             Ok(())
         }
         Command::Serve {
@@ -430,8 +435,8 @@ fn run(command: Command) -> Result<()> {
                 wait_for_client: !now,
                 ..Default::default()
             };
-            let report =
-                with_ctrl_c(|shutdown| async move { server::serve(&file, &opts, shutdown).await })?;
+            let (rt, shutdown) = runtime()?;
+            let report = rt.block_on(server::serve(&file, &opts, shutdown.receiver()))?;
             eprintln!(
                 "served {} frames ({} loops) to {} clients in {:.1} s",
                 report.frames, report.loops, report.clients, report.elapsed_s
@@ -467,24 +472,4 @@ fn run(command: Command) -> Result<()> {
             Ok(())
         }
     }
-}
-
-/// Runs an async library call on a tokio runtime until it returns or Ctrl-C
-/// (which it sees as its shutdown signal turning true).
-fn with_ctrl_c<T, F, Fut>(f: F) -> Result<T>
-where
-    F: FnOnce(tokio::sync::watch::Receiver<bool>) -> Fut,
-    Fut: std::future::Future<Output = Result<T>>,
-{
-    let rt = tokio::runtime::Runtime::new()
-        .map_err(|e| Error::Runtime(format!("cannot start the async runtime: {e}")))?;
-    rt.block_on(async move {
-        let (tx, rx) = tokio::sync::watch::channel(false);
-        tokio::spawn(async move {
-            if tokio::signal::ctrl_c().await.is_ok() {
-                let _ = tx.send(true);
-            }
-        });
-        f(rx).await
-    })
 }

@@ -3,6 +3,7 @@
 
 pub mod files;
 pub mod inspect;
+pub mod live;
 pub mod open;
 pub mod reconstruct;
 pub mod record;
