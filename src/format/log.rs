@@ -194,6 +194,7 @@ struct Row {
 }
 
 impl LogReader {
+    /// Opens a log and reads its header; errors name the file and line.
     pub fn open(path: &Path) -> Result<Self> {
         let file = File::open(path).map_err(|e| Error::io(path, e))?;
         let mut reader = BufReader::new(file);
