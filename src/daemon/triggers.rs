@@ -16,9 +16,13 @@ use crate::model::wind::angle_between_deg;
 /// Thresholds, from the `[daemon]` config.
 #[derive(Debug, Clone, Copy)]
 pub struct TriggerConfig {
+    /// Still phase (s) needed before the first tree.
     pub rest_min_s: f64,
+    /// How long (s) tips must differ from the last tree's before a rebuild.
     pub tip_change_s: f64,
+    /// Distance (m) beyond which a tip counts as moved.
     pub moved_m: f64,
+    /// Wind turn (degrees) that triggers a rebuild.
     pub wind_turn_deg: f64,
     /// 0 disables the periodic rebuild.
     pub period_s: f64,
@@ -94,6 +98,7 @@ pub struct Triggers {
 }
 
 impl Triggers {
+    /// Triggers with no tree built yet: the first still phase builds one.
     pub fn new(cfg: TriggerConfig) -> Self {
         Triggers {
             cfg,
