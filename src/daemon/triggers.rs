@@ -32,16 +32,26 @@ pub struct TriggerConfig {
 #[derive(Debug, Clone, PartialEq, Serialize)]
 #[serde(tag = "trigger", rename_all = "snake_case")]
 pub enum Reason {
+    /// The first still phase of `rest_min_s` was seen.
     FirstTree,
+    /// The tips differed from the last tree's for `tip_change_s`.
     TipsChanged {
+        /// Tips with no old tip near them (a marker put on).
         added: usize,
+        /// Old tips with no tip near them (a marker fallen off or hidden).
         removed: usize,
+        /// Tips that moved beyond `moved_mm` (counted once, not as added
+        /// and removed).
         moved: usize,
     },
+    /// The wind turned by more than `wind_turn_deg`.
     WindTurned {
+        /// Angle between the last tree's wind and now (degrees).
         degrees: f64,
     },
+    /// `POST /rebuild`, `/treemocap/rebuild` over OSC, or SIGHUP.
     Requested,
+    /// `period_s` passed since the last tree.
     Period,
 }
 
