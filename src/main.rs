@@ -357,7 +357,7 @@ fn run(command: Command) -> Result<()> {
         Command::Record(args) => record(args),
         Command::Serve(args) => serve(args),
         Command::Synth(args) => {
-            let summary = treemocap::sim::write_session(&args.options(), &args.out)?;
+            let summary = treemocap::app::synth::write_session(&args.options(), &args.out)?;
             print!("{summary}");
             Ok(())
         }

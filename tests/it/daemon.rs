@@ -678,7 +678,7 @@ fn a_burst_faster_than_the_pipeline_drops_oldest_frames_and_counts_them() {
         wind_s: 2.0,
         ..Default::default()
     };
-    treemocap::sim::write_session(&opts, &csv).unwrap();
+    treemocap::app::synth::write_session(&opts, &csv).unwrap();
     let total = 3600u64;
     let http_port = free_tcp();
     let _d = start_daemon(
