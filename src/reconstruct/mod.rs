@@ -30,7 +30,7 @@ use crate::model::tree::{Kind, Tree};
 const TRUNK_STREAM: u64 = 1;
 const VOLUME_STREAM: u64 = 2;
 
-/// Reconstructs a tree from captured tips (contract 3): trunk, random tips
+/// Reconstructs a tree from captured tips: trunk, random tips
 /// in the crown volume, particle flow, pipe-model radii. `wind` is direction
 /// × speed (zero when unknown). The same inputs and seed give the same tree.
 pub fn reconstruct(
