@@ -8,11 +8,11 @@
 use std::time::{Duration, Instant};
 
 use treemocap::config::Config;
-use treemocap::sim::{self, CrownShape, SynthOptions};
+use treemocap::sim::{CrownShape, SynthOptions};
 
 fn session(dir: &std::path::Path, name: &str, opts: SynthOptions) -> std::path::PathBuf {
     let path = dir.join(format!("{name}.csv"));
-    sim::write_session(&opts, &path).expect("synthetic session");
+    treemocap::app::synth::write_session(&opts, &path).expect("synthetic session");
     path
 }
 

@@ -92,75 +92,10 @@ enum Command {
     },
     /// Record a live source (OSC or NatNet) to a treemocap log until Ctrl-C
     /// or --seconds, printing frames, markers and losses once a second.
-    #[command(group(clap::ArgGroup::new("live").required(true).args(["osc", "natnet"])))]
-    Record {
-        /// Listen for OSC on ADDR:PORT (UDP; overrides osc.bind), e.g.
-        /// 127.0.0.1:9000. Senders must be in osc.allow (default: loopback).
-        #[arg(long, value_name = "ADDR:PORT")]
-        osc: Option<String>,
-        /// Receive from a NatNet server (Motive) at ADDRESS or
-        /// ADDRESS:COMMAND_PORT (default port 1510).
-        #[arg(long, value_name = "SERVER")]
-        natnet: Option<String>,
-        /// NatNet: frames sent to this client only (default: what the
-        /// server says it does).
-        #[arg(long, requires = "natnet", conflicts_with = "multicast")]
-        unicast: bool,
-        /// NatNet: frames multicast to the group.
-        #[arg(long, requires = "natnet")]
-        multicast: bool,
-        /// NatNet: ask the server for this bitstream version (e.g. 3.1).
-        #[arg(long, value_name = "X.Y", requires = "natnet")]
-        natnet_version: Option<String>,
-        /// The log file to write (truncated if it exists).
-        out: PathBuf,
-        /// Stop after N seconds (default: run until Ctrl-C).
-        #[arg(long, value_name = "N")]
-        seconds: Option<f64>,
-        #[command(flatten)]
-        config: ConfigArgs,
-    },
+    Record(RecordArgs),
     /// Stream a recording as a NatNet server (a stand-in for Motive), so any
     /// NatNet client can be tested without a rig.
-    Serve {
-        /// A Motive CSV export or a treemocap log (detected by content).
-        file: PathBuf,
-        /// NatNet bitstream version to stream (2.5 … 4.x); unicast clients
-        /// may switch theirs with a `Bitstream,X.Y` request.
-        #[arg(long, value_name = "X.Y", default_value = "3.1")]
-        natnet_version: treemocap::source::natnet::packet::Version,
-        /// Playback speed (2 = twice as fast as recorded).
-        #[arg(long, default_value_t = 1.0)]
-        speed: f64,
-        /// Start again at the end (frame numbers jump back, as in Motive).
-        #[arg(long = "loop")]
-        looping: bool,
-        /// Send frames to the multicast group (default: unicast to each
-        /// client that connects).
-        #[arg(long, conflicts_with = "unicast")]
-        multicast: bool,
-        /// Send frames to each client that connects (the default).
-        #[arg(long)]
-        unicast: bool,
-        /// Local address to listen on.
-        #[arg(long, default_value = "0.0.0.0")]
-        bind: std::net::Ipv4Addr,
-        /// Command port (clients send CONNECT here).
-        #[arg(long, default_value_t = 1510)]
-        command_port: u16,
-        /// Data port (frames are sent from / to it).
-        #[arg(long, default_value_t = 1511)]
-        data_port: u16,
-        /// Multicast group.
-        #[arg(long, default_value = "239.255.42.99")]
-        group: std::net::Ipv4Addr,
-        /// Address of the interface multicast frames leave by.
-        #[arg(long, default_value = "127.0.0.1")]
-        interface: std::net::Ipv4Addr,
-        /// Start streaming at once instead of when the first client connects.
-        #[arg(long)]
-        now: bool,
-    },
+    Serve(ServeArgs),
     /// Re-run the particle flow on saved tips (tips.json) and write
     /// tree.glb, tree.json and tree.png.
     Reconstruct {
@@ -179,6 +114,79 @@ enum Command {
     /// Example (how replays/maple-24.csv was made):
     /// treemocap synth --seed 24 --tips 24 --shape maple --out replays/maple-24.csv
     Synth(SynthArgs),
+}
+
+/// Options of `treemocap record`.
+#[derive(clap::Args, Debug)]
+#[command(group(clap::ArgGroup::new("live").required(true).args(["osc", "natnet"])))]
+struct RecordArgs {
+    /// Listen for OSC on ADDR:PORT (UDP; overrides osc.bind), e.g.
+    /// 127.0.0.1:9000. Senders must be in osc.allow (default: loopback).
+    #[arg(long, value_name = "ADDR:PORT")]
+    osc: Option<String>,
+    /// Receive from a NatNet server (Motive) at ADDRESS or
+    /// ADDRESS:COMMAND_PORT (default port 1510).
+    #[arg(long, value_name = "SERVER")]
+    natnet: Option<String>,
+    /// NatNet: frames sent to this client only (default: what the
+    /// server says it does).
+    #[arg(long, requires = "natnet", conflicts_with = "multicast")]
+    unicast: bool,
+    /// NatNet: frames multicast to the group.
+    #[arg(long, requires = "natnet")]
+    multicast: bool,
+    /// NatNet: ask the server for this bitstream version (e.g. 3.1).
+    #[arg(long, value_name = "X.Y", requires = "natnet")]
+    natnet_version: Option<String>,
+    /// The log file to write (truncated if it exists).
+    out: PathBuf,
+    /// Stop after N seconds (default: run until Ctrl-C).
+    #[arg(long, value_name = "N")]
+    seconds: Option<f64>,
+    #[command(flatten)]
+    config: ConfigArgs,
+}
+
+/// Options of `treemocap serve`.
+#[derive(clap::Args, Debug)]
+struct ServeArgs {
+    /// A Motive CSV export or a treemocap log (detected by content).
+    file: PathBuf,
+    /// NatNet bitstream version to stream (2.5 … 4.x); unicast clients
+    /// may switch theirs with a `Bitstream,X.Y` request.
+    #[arg(long, value_name = "X.Y", default_value = "3.1")]
+    natnet_version: treemocap::source::natnet::packet::Version,
+    /// Playback speed (2 = twice as fast as recorded).
+    #[arg(long, default_value_t = 1.0)]
+    speed: f64,
+    /// Start again at the end (frame numbers jump back, as in Motive).
+    #[arg(long = "loop")]
+    looping: bool,
+    /// Send frames to the multicast group (default: unicast to each
+    /// client that connects).
+    #[arg(long, conflicts_with = "unicast")]
+    multicast: bool,
+    /// Send frames to each client that connects (the default).
+    #[arg(long)]
+    unicast: bool,
+    /// Local address to listen on.
+    #[arg(long, default_value = "0.0.0.0")]
+    bind: std::net::Ipv4Addr,
+    /// Command port (clients send CONNECT here).
+    #[arg(long, default_value_t = 1510)]
+    command_port: u16,
+    /// Data port (frames are sent from / to it).
+    #[arg(long, default_value_t = 1511)]
+    data_port: u16,
+    /// Multicast group.
+    #[arg(long, default_value = "239.255.42.99")]
+    group: std::net::Ipv4Addr,
+    /// Address of the interface multicast frames leave by.
+    #[arg(long, default_value = "127.0.0.1")]
+    interface: std::net::Ipv4Addr,
+    /// Start streaming at once instead of when the first client connects.
+    #[arg(long)]
+    now: bool,
 }
 
 /// Options of `treemocap synth`; every one left out takes the default shown.
@@ -313,15 +321,7 @@ fn to_json(value: &impl serde::Serialize) -> Result<String> {
 
 fn run(command: Command) -> Result<()> {
     match command {
-        Command::Run { config: args, out } => {
-            let config = args.load()?;
-            let out = out.unwrap_or_else(|| PathBuf::from(&config.output.dir));
-            let (rt, shutdown) = runtime()?;
-            let reload: treemocap::daemon::Reload = Box::new(move || args.load());
-            let result = treemocap::daemon::run(config, &out, rt.handle(), &shutdown, Some(reload));
-            rt.shutdown_timeout(std::time::Duration::from_millis(500));
-            result
-        }
+        Command::Run { config, out } => run_daemon(config, out),
         Command::Replay { file, config, out } => {
             let config = config.load()?;
             let out = out.unwrap_or_else(|| PathBuf::from(&config.output.dir));
@@ -354,97 +354,10 @@ fn run(command: Command) -> Result<()> {
             }
             Ok(())
         }
-        Command::Record {
-            osc,
-            natnet,
-            unicast,
-            multicast,
-            natnet_version,
-            out,
-            seconds,
-            config,
-        } => {
-            let config = config.load()?;
-            if let Some(s) = seconds {
-                if !(s.is_finite() && s > 0.0) {
-                    return Err(Error::config(
-                        "--seconds",
-                        format!("{s}: must be a positive number"),
-                    ));
-                }
-            }
-            let source = match (osc, natnet) {
-                (Some(addr), _) => {
-                    let bind = addr.parse().map_err(|_| {
-                        Error::config(
-                            "--osc",
-                            format!("'{addr}' is not ADDR:PORT (e.g. 127.0.0.1:9000)"),
-                        )
-                    })?;
-                    treemocap::app::live::osc_source(&config, Some(bind))?
-                }
-                (None, Some(server)) => {
-                    let transport = match (unicast, multicast) {
-                        (true, _) => TransportSetting::Unicast,
-                        (_, true) => TransportSetting::Multicast,
-                        _ => TransportSetting::Auto,
-                    };
-                    let bitstream = natnet_version
-                        .map(|v| v.parse().map_err(|e| Error::config("--natnet-version", e)))
-                        .transpose()?;
-                    treemocap::app::live::natnet_source(
-                        &config, &server, "--natnet", transport, bitstream,
-                    )?
-                }
-                (None, None) => return Err(Error::config("record", "give --osc or --natnet")),
-            };
-            let opts = RecordOptions::from_config(out, seconds, &config);
-            let (rt, shutdown) = runtime()?;
-            treemocap::app::record::command(rt.handle(), &shutdown, source, &opts)?;
-            Ok(())
-        }
-        Command::Serve {
-            file,
-            natnet_version,
-            speed,
-            looping,
-            multicast,
-            unicast: _,
-            bind,
-            command_port,
-            data_port,
-            group,
-            interface,
-            now,
-        } => {
-            use treemocap::source::natnet::server;
-            let opts = server::ServeOptions {
-                version: natnet_version,
-                speed,
-                looping,
-                transport: if multicast {
-                    server::Transport::Multicast
-                } else {
-                    server::Transport::Unicast
-                },
-                bind,
-                command_port,
-                data_port,
-                multicast_group: group,
-                multicast_interface: interface,
-                wait_for_client: !now,
-                ..Default::default()
-            };
-            let (rt, shutdown) = runtime()?;
-            let report = rt.block_on(server::serve(&file, &opts, shutdown.receiver()))?;
-            eprintln!(
-                "served {} frames ({} loops) to {} clients in {:.1} s",
-                report.frames, report.loops, report.clients, report.elapsed_s
-            );
-            Ok(())
-        }
+        Command::Record(args) => record(args),
+        Command::Serve(args) => serve(args),
         Command::Synth(args) => {
-            let summary = treemocap::sim::write_session(&args.options(), &args.out)?;
+            let summary = treemocap::app::synth::write_session(&args.options(), &args.out)?;
             print!("{summary}");
             Ok(())
         }
@@ -454,22 +367,89 @@ fn run(command: Command) -> Result<()> {
             let report = treemocap::app::reconstruct::command(&tips, &config, &out)?;
             // A closed pipe (`| head`) is not an error worth a panic.
             use std::io::Write;
-            let mut stdout = std::io::stdout().lock();
-            let _ = writeln!(
-                stdout,
-                "{} captured + {} random tips, {} nodes, {} steps, {} forced joins, {} triangles, {} leaves",
-                report.captured_tips,
-                report.random_tips,
-                report.nodes,
-                report.steps,
-                report.forced_joins,
-                report.branch_triangles,
-                report.leaves
-            );
-            for f in &report.files {
-                let _ = writeln!(stdout, "wrote {}", f.display());
-            }
+            let _ = write!(std::io::stdout().lock(), "{report}");
             Ok(())
         }
     }
+}
+
+/// `treemocap run`: the daemon until Ctrl-C or SIGTERM; SIGHUP reloads.
+fn run_daemon(args: ConfigArgs, out: Option<PathBuf>) -> Result<()> {
+    let config = args.load()?;
+    let out = out.unwrap_or_else(|| PathBuf::from(&config.output.dir));
+    let (rt, shutdown) = runtime()?;
+    let reload: treemocap::daemon::Reload = Box::new(move || args.load());
+    let result = treemocap::daemon::run(config, &out, rt.handle(), &shutdown, Some(reload));
+    rt.shutdown_timeout(std::time::Duration::from_millis(500));
+    result
+}
+
+/// `treemocap record`: a live source into our log format.
+fn record(args: RecordArgs) -> Result<()> {
+    let config = args.config.load()?;
+    if let Some(s) = args.seconds {
+        if !(s.is_finite() && s > 0.0) {
+            return Err(Error::config(
+                "--seconds",
+                format!("{s}: must be a positive number"),
+            ));
+        }
+    }
+    let source = match (args.osc, args.natnet) {
+        (Some(addr), _) => {
+            let bind = addr.parse().map_err(|_| {
+                Error::config(
+                    "--osc",
+                    format!("'{addr}' is not ADDR:PORT (e.g. 127.0.0.1:9000)"),
+                )
+            })?;
+            treemocap::app::live::osc_source(&config, Some(bind))?
+        }
+        (None, Some(server)) => {
+            let transport = match (args.unicast, args.multicast) {
+                (true, _) => TransportSetting::Unicast,
+                (_, true) => TransportSetting::Multicast,
+                _ => TransportSetting::Auto,
+            };
+            let bitstream = args
+                .natnet_version
+                .map(|v| v.parse().map_err(|e| Error::config("--natnet-version", e)))
+                .transpose()?;
+            treemocap::app::live::natnet_source(&config, &server, "--natnet", transport, bitstream)?
+        }
+        (None, None) => return Err(Error::config("record", "give --osc or --natnet")),
+    };
+    let opts = RecordOptions::from_config(args.out, args.seconds, &config);
+    let (rt, shutdown) = runtime()?;
+    treemocap::app::record::command(rt.handle(), &shutdown, source, &opts)?;
+    Ok(())
+}
+
+/// `treemocap serve`: a recording streamed as a NatNet server.
+fn serve(args: ServeArgs) -> Result<()> {
+    use treemocap::source::natnet::server;
+    let opts = server::ServeOptions {
+        version: args.natnet_version,
+        speed: args.speed,
+        looping: args.looping,
+        transport: if args.multicast {
+            server::Transport::Multicast
+        } else {
+            server::Transport::Unicast
+        },
+        bind: args.bind,
+        command_port: args.command_port,
+        data_port: args.data_port,
+        multicast_group: args.group,
+        multicast_interface: args.interface,
+        wait_for_client: !args.now,
+        ..Default::default()
+    };
+    let (rt, shutdown) = runtime()?;
+    let report = rt.block_on(server::serve(&args.file, &opts, shutdown.receiver()))?;
+    eprintln!(
+        "served {} frames ({} loops) to {} clients in {:.1} s",
+        report.frames, report.loops, report.clients, report.elapsed_s
+    );
+    Ok(())
 }

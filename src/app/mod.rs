@@ -8,4 +8,5 @@ pub mod open;
 pub mod reconstruct;
 pub mod record;
 pub mod replay;
+pub mod synth;
 pub mod tips;

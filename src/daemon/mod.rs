@@ -131,7 +131,11 @@ fn new_shared(config: Config, out: &Path, shutdown: Shutdown) -> Arc<Shared> {
 fn start_http(shared: &Arc<Shared>, rt: &tokio::runtime::Handle, addr: SocketAddr) -> Result<()> {
     let listener = rt
         .block_on(tokio::net::TcpListener::bind(addr))
-        .map_err(|e| Error::Runtime(format!("HTTP on {addr}: {e}")))?;
+        .map_err(|source| Error::Bind {
+            what: "HTTP",
+            addr,
+            source,
+        })?;
     let (st, st2, s) = (shared.status.clone(), shared.status.clone(), shared.clone());
     let state = http::HttpState {
         tree: shared.tree_tx.subscribe(),

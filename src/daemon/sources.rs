@@ -105,7 +105,11 @@ pub(crate) fn start_osc_control(
 ) -> Result<()> {
     let socket = rt
         .block_on(tokio::net::UdpSocket::bind(addr))
-        .map_err(|e| Error::Runtime(format!("OSC control on {addr}: {e}")))?;
+        .map_err(|source| Error::Bind {
+            what: "OSC control",
+            addr,
+            source,
+        })?;
     let allow = AllowList::parse("osc.allow", &shared.config.osc.allow)?;
     let s = shared.clone();
     rt.spawn(async move { osc_control(socket, allow, s).await });

@@ -194,9 +194,9 @@ struct Row {
 }
 
 impl LogReader {
-    /// Opens a log and reads its header; errors name the file and line.
-    pub fn open(path: &Path) -> Result<Self> {
-        let file = File::open(path).map_err(|e| Error::io(path, e))?;
+    /// Reads the header of an opened log (`path` names it in errors);
+    /// frames are read by iterating.
+    pub fn from_file(file: File, path: &Path) -> Result<Self> {
         let mut reader = BufReader::new(file);
         let mut line_no = 0;
         let mut source = String::new();

@@ -24,8 +24,9 @@
 use glam::DVec3;
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
 
-use crate::error::{Error, Result};
+use crate::error::Result;
 use crate::model::tree::{Kind, Node, Tree};
+use crate::reconstruct::error::ReconstructError;
 use crate::reconstruct::trunk::{Bounds, Trunk};
 use crate::reconstruct::ReconstructSettings;
 
@@ -186,7 +187,10 @@ fn merge_groups(points: &[DVec3], distance: f64) -> Result<Vec<Vec<usize>>> {
     let index = ImmutableKdTree::<f64, 3>::builder()
         .with_serial_construction()
         .build_from_slice(&coords)
-        .map_err(|e| Error::Runtime(format!("particle index: {e}")))?;
+        .map_err(|e| ReconstructError::Index {
+            what: "particle",
+            message: e.to_string(),
+        })?;
     let limit = distance * distance;
     let mut taken = vec![false; points.len()];
     let mut groups = Vec::new();
