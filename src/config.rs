@@ -79,13 +79,27 @@ pub struct OutputConfig {
 #[serde(deny_unknown_fields)]
 pub struct NatNetConfig {
     /// Which markers of a frame are tracked (see `source::natnet::select`).
-    pub markers: crate::source::natnet::select::MarkerSelection,
+    pub markers: crate::protocol::natnet::select::MarkerSelection,
     /// Wait for the server's SERVERINFO before reporting it unreachable (s).
     pub connect_timeout_s: f64,
     /// Silence after which the client reconnects (s).
     pub silence_timeout_s: f64,
     /// Unicast keep-alive period (s).
     pub keepalive_interval_s: f64,
+}
+
+impl NatNetConfig {
+    /// The client's settings with these applied (range-checked by `validate`).
+    pub fn settings(&self) -> crate::source::natnet::settings::NatNetSettings {
+        use std::time::Duration;
+        crate::source::natnet::settings::NatNetSettings {
+            markers: self.markers,
+            connect_timeout: Duration::from_secs_f64(self.connect_timeout_s),
+            silence_timeout: Duration::from_secs_f64(self.silence_timeout_s),
+            keepalive_interval: Duration::from_secs_f64(self.keepalive_interval_s),
+            ..Default::default()
+        }
+    }
 }
 
 /// Marker processing: tracking, gap filling, noise removal, rest phase
@@ -701,7 +715,7 @@ mod tests {
 
     #[test]
     fn natnet_marker_selection_is_checked() {
-        use crate::source::natnet::select::MarkerSelection;
+        use crate::protocol::natnet::select::MarkerSelection;
         assert_eq!(Config::default().natnet.markers, MarkerSelection::Unlabeled);
         let c = Config::from_toml_str("[natnet]\nmarkers = \"all\"\n").unwrap();
         assert_eq!(c.natnet.markers, MarkerSelection::All);

@@ -124,8 +124,8 @@ enum Command {
         file: PathBuf,
         /// NatNet bitstream version to stream (2.5 … 4.x); unicast clients
         /// may switch theirs with a `Bitstream,X.Y` request.
-        #[arg(long, value_name = "X.Y", default_value = "3.1")]
-        natnet_version: treemocap::source::natnet::packet::Version,
+        #[arg(long, value_name = "X.Y", default_value_t = treemocap::protocol::natnet::DEFAULT_SERVE_VERSION)]
+        natnet_version: treemocap::protocol::natnet::Version,
         /// Playback speed (2 = twice as fast as recorded).
         #[arg(long, default_value_t = 1.0)]
         speed: f64,
@@ -143,13 +143,13 @@ enum Command {
         #[arg(long, default_value = "0.0.0.0")]
         bind: std::net::Ipv4Addr,
         /// Command port (clients send CONNECT here).
-        #[arg(long, default_value_t = 1510)]
+        #[arg(long, default_value_t = treemocap::protocol::natnet::DEFAULT_COMMAND_PORT)]
         command_port: u16,
         /// Data port (frames are sent from / to it).
-        #[arg(long, default_value_t = 1511)]
+        #[arg(long, default_value_t = treemocap::protocol::natnet::DEFAULT_DATA_PORT)]
         data_port: u16,
         /// Multicast group.
-        #[arg(long, default_value = "239.255.42.99")]
+        #[arg(long, default_value_t = treemocap::protocol::natnet::DEFAULT_MULTICAST_GROUP)]
         group: std::net::Ipv4Addr,
         /// Address of the interface multicast frames leave by.
         #[arg(long, default_value = "127.0.0.1")]
@@ -365,13 +365,16 @@ fn run(command: Command) -> Result<()> {
                     Arc::new(treemocap::source::osc::OscSource(opts))
                 }
                 (None, Some(server)) => {
-                    use treemocap::source::natnet::{client::NatNetOptions, live::NatNetSource};
-                    let mut opts = NatNetOptions::from_config(&config.natnet);
-                    opts.set_server(&server, "--natnet")?;
+                    use treemocap::source::natnet::{
+                        live::NatNetSource, settings::TransportSetting,
+                    };
+                    let mut opts = config.natnet.settings();
+                    opts.set_server(&server)
+                        .map_err(|e| Error::config("--natnet", e))?;
                     opts.transport = match (unicast, multicast) {
-                        (true, _) => Some(treemocap::source::natnet::Transport::Unicast),
-                        (_, true) => Some(treemocap::source::natnet::Transport::Multicast),
-                        _ => None,
+                        (true, _) => TransportSetting::Unicast,
+                        (_, true) => TransportSetting::Multicast,
+                        _ => TransportSetting::Auto,
                     };
                     if let Some(v) = natnet_version {
                         opts.bitstream = Some(
@@ -379,7 +382,7 @@ fn run(command: Command) -> Result<()> {
                                 .map_err(|e| Error::config("--natnet-version", e))?,
                         );
                     }
-                    Arc::new(NatNetSource(opts))
+                    Arc::new(NatNetSource::new(opts))
                 }
                 (None, None) => return Err(Error::config("record", "give --osc or --natnet")),
             };
@@ -408,7 +411,7 @@ fn run(command: Command) -> Result<()> {
             interface,
             now,
         } => {
-            use treemocap::source::natnet::server;
+            use treemocap::serve::natnet as server;
             let opts = server::ServeOptions {
                 version: natnet_version,
                 speed,

@@ -355,15 +355,16 @@ fn start_source(
         }
         kind => {
             let source: Arc<dyn LiveSource> = if kind == "natnet" {
-                use crate::source::natnet::{client::NatNetOptions, live::NatNetSource, Transport};
-                let mut opts = NatNetOptions::from_config(&c.natnet);
-                opts.set_server(&d.natnet_server, "daemon.natnet_server")?;
+                use crate::source::natnet::{live::NatNetSource, settings::TransportSetting};
+                let mut opts = c.natnet.settings();
+                opts.set_server(&d.natnet_server)
+                    .map_err(|e| crate::Error::config("daemon.natnet_server", e))?;
                 opts.transport = match d.natnet_transport.as_str() {
-                    "unicast" => Some(Transport::Unicast),
-                    "multicast" => Some(Transport::Multicast),
-                    _ => None,
+                    "unicast" => TransportSetting::Unicast,
+                    "multicast" => TransportSetting::Multicast,
+                    _ => TransportSetting::Auto,
                 };
-                Arc::new(NatNetSource(opts))
+                Arc::new(NatNetSource::new(opts))
             } else {
                 let opts = crate::source::osc::OscOptions::from_config(&c.osc)?;
                 Arc::new(crate::source::osc::OscSource(opts))

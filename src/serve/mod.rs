@@ -1,0 +1,3 @@
+//! What treemocap serves to other programs: the NatNet replay server.
+
+pub mod natnet;
