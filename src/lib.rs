@@ -7,6 +7,7 @@
 pub mod config;
 pub mod daemon;
 pub mod error;
+pub mod format;
 pub mod frame;
 pub mod inspect;
 pub mod output;

@@ -8,7 +8,7 @@ mod natnet_common;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use natnet_common::{free_port, session, wire};
+use natnet_common::{check_session, free_port, session};
 use treemocap::frame::MarkerFrame;
 use treemocap::protocol::natnet::session::RateSource;
 use treemocap::protocol::natnet::{Transport, Version, SUPPORTED_VERSIONS};
@@ -80,52 +80,6 @@ async fn command_port(stats: &ServerStats) -> u16 {
         tokio::time::sleep(Duration::from_millis(5)).await;
     }
     panic!("server did not start");
-}
-
-fn check_session(version: Version, sent: &[MarkerFrame], got: &[MarkerFrame]) {
-    assert_eq!(got.len(), sent.len(), "NatNet {version}: frame count");
-    for (s, g) in sent.iter().zip(got) {
-        assert_eq!(g.frame, s.frame, "NatNet {version}");
-        let want_time = if version == Version::new(2, 6) {
-            s.time_s as f32 as f64
-        } else {
-            s.time_s
-        };
-        assert_eq!(
-            g.time_s.to_bits(),
-            want_time.to_bits(),
-            "NatNet {version} frame {} time",
-            s.frame
-        );
-        assert_eq!(
-            g.markers.len(),
-            s.markers.len(),
-            "NatNet {version} frame {}",
-            s.frame
-        );
-        for (a, b) in s.markers.iter().zip(&g.markers) {
-            let w = wire(a.position);
-            assert_eq!(
-                [w.x.to_bits(), w.y.to_bits(), w.z.to_bits()],
-                [
-                    b.position.x.to_bits(),
-                    b.position.y.to_bits(),
-                    b.position.z.to_bits()
-                ],
-                "NatNet {version} frame {}",
-                s.frame
-            );
-            // 3.0+ carries the point-cloud id with the unlabeled marker.
-            let id = if version.major >= 3 { a.id } else { None };
-            assert_eq!(b.id, id);
-        }
-        if version.major >= 3 {
-            let l = g.latency_s.expect("3.0+ frames carry latency");
-            assert!((0.0..1.0).contains(&l), "{l}");
-        } else {
-            assert_eq!(g.latency_s, None);
-        }
-    }
 }
 
 #[test]

@@ -657,7 +657,7 @@ impl Session {
         if !first && !again && !version_changed && !self.renegotiating {
             return;
         }
-        if !first && again {
+        if !first && self.state == State::Reconnecting {
             self.counters.reconnects += 1;
         }
         self.next_connect = None;
@@ -832,7 +832,7 @@ impl Session {
     }
 
     fn on_frame(&mut self, now: Instant, frame: Box<FrameOfData>) {
-        if self.failing_since.take().is_some() && self.state == State::DecodeFailing {
+        if self.failing_since.take().is_some() && self.counters.renegotiations > 0 {
             tracing::info!("frames decode again with NatNet {}", self.version);
         }
         if matches!(self.state, State::Reconnecting | State::DecodeFailing) {
@@ -1053,4 +1053,307 @@ pub fn connect_packet() -> Packet {
         }),
         spare: Vec::new(),
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::protocol::natnet::{LabeledMarker, ServerConnection, MARKER_UNLABELED};
+
+    const V31: Version = Version::new(3, 1);
+
+    fn server() -> SocketAddr {
+        "10.0.0.5:1510".parse().unwrap()
+    }
+
+    fn info(v: Version, data_port: u16) -> Vec<u8> {
+        let info = ServerInfo {
+            sender: Sender {
+                name: "Motive".into(),
+                version: [3, 0, 1, 0],
+                natnet_version: [v.major, v.minor, 0, 0],
+            },
+            connection: (v.major >= 3).then_some(ServerConnection {
+                clock_frequency: 1_000_000,
+                data_port,
+                multicast: false,
+                multicast_group: [239, 255, 42, 99],
+            }),
+        };
+        encode(&Packet::ServerInfo(info), v).unwrap()
+    }
+
+    fn frame(n: i32, v: Version) -> Vec<u8> {
+        let f = FrameOfData {
+            frame_number: n,
+            labeled_markers: vec![LabeledMarker {
+                id: 1,
+                position: [1.0, 2.0, 3.0],
+                params: MARKER_UNLABELED,
+                ..Default::default()
+            }],
+            timestamp: f64::from(n) / 100.0,
+            ..Default::default()
+        };
+        encode(&Packet::FrameOfData(Box::new(f)), v).unwrap()
+    }
+
+    fn reply(p: Packet) -> Vec<u8> {
+        encode(&p, V31).unwrap()
+    }
+
+    fn actions(s: &mut Session) -> Vec<Action> {
+        std::iter::from_fn(|| s.poll_action()).collect()
+    }
+
+    /// The packets a list of actions sends.
+    fn sent(a: &[Action]) -> Vec<Packet> {
+        a.iter()
+            .filter_map(|a| match a {
+                Action::Send { datagram, .. } => Some(decode(datagram, V31).unwrap()),
+                _ => None,
+            })
+            .collect()
+    }
+
+    fn frames(a: &[Action]) -> Vec<MarkerFrame> {
+        a.iter()
+            .filter_map(|a| match a {
+                Action::Frame(f) => Some(f.clone()),
+                _ => None,
+            })
+            .collect()
+    }
+
+    fn settings() -> SessionSettings {
+        SessionSettings {
+            up_axis: UpAxisSetting::Y,
+            ..Default::default()
+        }
+    }
+
+    /// A session that had SERVERINFO (3.1, data port 1511) and the
+    /// server's 100 Hz FrameRate answer.
+    fn streaming(t0: Instant) -> Session {
+        let mut s = Session::new(settings(), server(), t0);
+        s.handle(t0, server(), Channel::Command, &info(V31, 1511));
+        s.handle(
+            t0,
+            server(),
+            Channel::Command,
+            &reply(Packet::Response(Response::float(100.0))),
+        );
+        actions(&mut s);
+        s
+    }
+
+    #[test]
+    fn connect_is_repeated_until_the_server_answers_then_given_up() {
+        let t0 = Instant::now();
+        let mut s = Session::new(settings(), server(), t0);
+        assert!(matches!(sent(&actions(&mut s))[..], [Packet::Connect(_)]));
+        assert_eq!(s.poll_timeout(), Some(t0 + CONNECT_RETRY));
+        s.on_timeout(t0 + CONNECT_RETRY);
+        assert!(matches!(sent(&actions(&mut s))[..], [Packet::Connect(_)]));
+        s.on_timeout(t0 + Duration::from_secs(3));
+        let a = actions(&mut s);
+        assert!(
+            matches!(a.last(), Some(Action::Fail(SessionError::NoAnswer { .. }))),
+            "{a:?}"
+        );
+        assert_eq!(s.state(), State::Closed);
+    }
+
+    #[test]
+    fn server_info_sets_the_version_and_asks_for_rate_axis_and_models() {
+        let t0 = Instant::now();
+        let mut s = Session::new(SessionSettings::default(), server(), t0);
+        actions(&mut s);
+        s.handle(
+            t0,
+            server(),
+            Channel::Command,
+            &info(Version::new(4, 1), 1511),
+        );
+        let a = actions(&mut s);
+        assert!(matches!(&a[0], Action::Connected(id) if id.version == Version::new(4, 1)));
+        let requests: Vec<Packet> = sent(&a);
+        assert_eq!(
+            requests,
+            vec![
+                Packet::Request("FrameRate".into()),
+                Packet::Request("GetProperty,,Up Axis".into()),
+                Packet::RequestModelDef,
+            ]
+        );
+        // Frames wait for both answers, then go out Z-up-corrected.
+        let t1 = t0 + Duration::from_millis(5);
+        s.handle(
+            t1,
+            server(),
+            Channel::Command,
+            &frame(7, Version::new(4, 1)),
+        );
+        assert!(frames(&actions(&mut s)).is_empty());
+        s.handle(
+            t1,
+            server(),
+            Channel::Command,
+            &reply(Packet::Response(Response::float(100.0))),
+        );
+        let a = actions(&mut s);
+        assert!(a.contains(&Action::FrameRate(FrameRate {
+            hz: 100.0,
+            source: RateSource::Server
+        })));
+        assert!(frames(&a).is_empty(), "the up axis is still unknown");
+        s.handle(
+            t1,
+            server(),
+            Channel::Command,
+            &reply(Packet::Response(Response::Text("Z".into()))),
+        );
+        let f = frames(&actions(&mut s));
+        assert_eq!(f.len(), 1);
+        assert_eq!(f[0].markers[0].position, glam::DVec3::new(1.0, 3.0, -2.0));
+        assert_eq!(s.up_axis(), Some(UpAxis::Z));
+    }
+
+    #[test]
+    fn only_the_servers_own_datagrams_count() {
+        let t0 = Instant::now();
+        let mut s = streaming(t0);
+        let stranger: SocketAddr = "10.0.0.6:1510".parse().unwrap();
+        let other_port: SocketAddr = "10.0.0.5:4000".parse().unwrap();
+        let data_port: SocketAddr = "10.0.0.5:1511".parse().unwrap();
+        for from in [stranger, other_port, data_port] {
+            s.handle(t0, from, Channel::Command, &info(Version::new(4, 1), 1511));
+        }
+        s.handle(t0, stranger, Channel::Command, &frame(1, V31));
+        s.handle(t0, other_port, Channel::Command, &frame(2, V31));
+        s.handle(t0, stranger, Channel::Data, &frame(3, V31));
+        assert_eq!(s.counters().wrong_sender, 6);
+        assert!(actions(&mut s).is_empty());
+        assert_eq!(s.server().unwrap().version, V31);
+        // Frames come from the data port (unicast) or to the group (data).
+        s.handle(t0, data_port, Channel::Command, &frame(4, V31));
+        s.handle(t0, server(), Channel::Data, &frame(5, V31));
+        let f = frames(&actions(&mut s));
+        assert_eq!(f.iter().map(|f| f.frame).collect::<Vec<_>>(), vec![4, 5]);
+        // Strangers do not keep a dead server alive.
+        let t1 = t0 + Duration::from_millis(1900);
+        s.handle(t1, stranger, Channel::Command, &frame(6, V31));
+        s.on_timeout(t0 + Duration::from_secs(2));
+        assert_eq!(s.state(), State::Reconnecting);
+    }
+
+    #[test]
+    fn silence_reconnects_and_a_restarted_server_is_adopted() {
+        let t0 = Instant::now();
+        let mut s = streaming(t0);
+        let t1 = t0 + Duration::from_secs(2);
+        assert_eq!(
+            s.poll_timeout(),
+            Some(t0 + Duration::from_secs(1)),
+            "keep-alive first"
+        );
+        s.on_timeout(t0 + Duration::from_secs(1));
+        assert_eq!(sent(&actions(&mut s)), vec![Packet::KeepAlive]);
+        s.on_timeout(t1);
+        assert_eq!(s.state(), State::Reconnecting);
+        assert!(matches!(
+            sent(&actions(&mut s)).last(),
+            Some(Packet::Connect(_))
+        ));
+        s.handle(
+            t1,
+            server(),
+            Channel::Command,
+            &info(Version::new(4, 0), 1511),
+        );
+        let a = actions(&mut s);
+        assert!(a.contains(&Action::VersionChanged {
+            from: V31,
+            to: Version::new(4, 0)
+        }));
+        assert!(sent(&a).contains(&Packet::RequestModelDef));
+        assert_eq!((s.state(), s.counters().reconnects), (State::Streaming, 1));
+    }
+
+    #[test]
+    fn undecodable_frames_for_a_second_renegotiate() {
+        let t0 = Instant::now();
+        let mut s = streaming(t0);
+        let v41 = Version::new(4, 1);
+        for ms in (0..=1000).step_by(100) {
+            let t = t0 + Duration::from_millis(ms);
+            s.handle(t, server(), Channel::Command, &frame(ms as i32, v41));
+            s.on_timeout(t);
+        }
+        assert_eq!(s.state(), State::DecodeFailing);
+        assert_eq!(s.counters().renegotiations, 1);
+        assert!(sent(&actions(&mut s))
+            .iter()
+            .any(|p| matches!(p, Packet::Connect(_))));
+        // The same version again is adopted too: the server says so.
+        let t = t0 + Duration::from_millis(1100);
+        s.handle(t, server(), Channel::Command, &info(v41, 1511));
+        s.handle(t, server(), Channel::Command, &frame(2000, v41));
+        assert_eq!(frames(&actions(&mut s)).len(), 1);
+        assert_eq!(s.state(), State::Streaming);
+    }
+
+    #[test]
+    fn a_refused_bitstream_is_an_error_naming_it() {
+        let t0 = Instant::now();
+        let mut s = Session::new(
+            SessionSettings {
+                bitstream: Some(Version::new(4, 1)),
+                ..settings()
+            },
+            server(),
+            t0,
+        );
+        s.handle(t0, server(), Channel::Command, &info(V31, 1511));
+        let a = actions(&mut s);
+        assert_eq!(sent(&a)[1], Packet::Request("Bitstream,4.1".into()));
+        s.handle(
+            t0,
+            server(),
+            Channel::Command,
+            &reply(Packet::Response(Response::int(-1))),
+        );
+        let a = actions(&mut s);
+        let Some(Action::Fail(e)) = a.last() else {
+            panic!("{a:?}")
+        };
+        assert!(
+            e.to_string().contains("refused bitstream version 4.1"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn without_a_frame_rate_answer_it_is_measured_and_held_frames_keep_arrival_times() {
+        let t0 = Instant::now();
+        let v25 = Version::new(2, 5);
+        let mut s = Session::new(settings(), server(), t0);
+        s.handle(t0, server(), Channel::Command, &info(v25, 0));
+        actions(&mut s);
+        // 2.5 frames carry no time: 10 ms apart on arrival, numbered 1 apart.
+        for k in 0..3 {
+            let t = t0 + Duration::from_millis(10 * k);
+            s.handle(t, server(), Channel::Command, &frame(k as i32, v25));
+        }
+        // Stopped before any answer: delivered at once, arrival times.
+        s.close(t0 + Duration::from_millis(500));
+        let a = actions(&mut s);
+        let f = frames(&a);
+        assert_eq!(f.len(), 3);
+        assert!((f[2].time_s - f[0].time_s - 0.02).abs() < 1e-9, "{f:?}");
+        let rate = s.frame_rate().unwrap();
+        assert_eq!(rate.source, RateSource::Measured);
+        assert!((rate.hz - 100.0).abs() < 1e-6, "{rate:?}");
+        assert!(sent(&a).contains(&Packet::Disconnect));
+    }
 }

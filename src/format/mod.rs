@@ -1,0 +1,3 @@
+//! Files as bytes and readers: the recordings treemocap reads.
+
+pub mod pcap;
