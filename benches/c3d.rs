@@ -3,9 +3,9 @@
 //! samples per second (one sample = one point in one frame).
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
-use treemocap::source::replay;
-use treemocap::source::replay::c3d::encode::{encode, Sample, WriteSpec};
-use treemocap::source::replay::c3d::Processor;
+use treemocap::app::open as replay;
+use treemocap::format::c3d::encode::{encode, Sample, WriteSpec};
+use treemocap::format::c3d::Processor;
 
 const POINTS: usize = 70;
 const FRAMES: usize = 12_000;

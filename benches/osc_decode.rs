@@ -5,8 +5,8 @@
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
 use rosc::{encoder, OscBundle, OscMessage, OscPacket, OscTime, OscType};
+use treemocap::protocol::osc::{Assembler, DecodeOptions, Output};
 use treemocap::rng::Rng;
-use treemocap::source::osc::decode::{Assembler, DecodeOptions, Output};
 
 fn msg(addr: &str, args: Vec<OscType>) -> OscPacket {
     OscPacket::Message(OscMessage {

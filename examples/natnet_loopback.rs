@@ -10,14 +10,14 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use glam::DVec3;
-use treemocap::frame::{Marker, MarkerFrame};
+use treemocap::format::{Format, Recording, RecordingInfo};
+use treemocap::model::frame::{Marker, MarkerFrame};
 use treemocap::protocol::natnet::Version;
 use treemocap::rng::Rng;
 use treemocap::serve::natnet::{self as server, ServeOptions, ServerStats};
 use treemocap::source::channel::frame_channel;
 use treemocap::source::natnet::client::{self, NatNetStatus};
 use treemocap::source::natnet::settings::NatNetSettings;
-use treemocap::source::replay::{Format, Recording, RecordingInfo};
 
 /// Frames generated on the fly (60 000 × 1000 markers would not fit a file).
 struct Synthetic {
@@ -100,7 +100,7 @@ fn main() {
                     markers,
                 }))
             };
-            server::serve_with(open, &sopts, server_shutdown).await
+            server::serve(open, &sopts, server_shutdown).await
         });
         let port = loop {
             if let Some(a) = stats.command_addr.get() {

@@ -4,7 +4,7 @@
 
 fn main() {
     let path = std::env::args().nth(1).expect("usage: read_rss FILE");
-    let rec = treemocap::source::replay::open(std::path::Path::new(&path)).unwrap_or_else(|e| {
+    let rec = treemocap::app::open::open(std::path::Path::new(&path)).unwrap_or_else(|e| {
         eprintln!("{e}");
         std::process::exit(1)
     });

@@ -13,9 +13,9 @@ fn main() {
     let path = std::path::Path::new(&path);
     let config = Config::default();
     let t0 = Instant::now();
-    let frames: Vec<_> = treemocap::source::replay::open_with(
+    let frames: Vec<_> = treemocap::app::open::open_with(
         path,
-        &treemocap::source::replay::ReplayOptions::from_config(&config),
+        &treemocap::app::open::ReplayOptions::from_config(&config),
     )
     .and_then(|rec| rec.collect::<treemocap::Result<Vec<_>>>())
     .unwrap_or_else(|e| panic!("{e}"));

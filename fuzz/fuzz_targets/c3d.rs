@@ -5,7 +5,7 @@
 use std::path::Path;
 
 use libfuzzer_sys::fuzz_target;
-use treemocap::source::replay::c3d::{C3dOptions, C3dReader};
+use treemocap::format::c3d::{C3dOptions, C3dReader};
 
 fuzz_target!(|data: &[u8]| {
     if let Ok(reader) = C3dReader::from_bytes(Path::new("fuzz.c3d"), data.to_vec(), &C3dOptions::default()) {

@@ -5,7 +5,7 @@
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
-use treemocap::source::osc::decode::{Assembler, DecodeOptions, Output};
+use treemocap::protocol::osc::{Assembler, DecodeOptions, Output};
 
 fuzz_target!(|data: &[u8]| {
     let opts = DecodeOptions {

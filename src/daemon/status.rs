@@ -7,7 +7,7 @@ use std::sync::Mutex;
 
 use serde_json::json;
 
-use crate::wind::WindEstimate;
+use crate::model::wind::WindEstimate;
 
 /// Shared counters of a running daemon.
 #[derive(Debug, Default)]

@@ -11,7 +11,7 @@
 use glam::DVec3;
 use serde::Serialize;
 
-use crate::wind::angle_between_deg;
+use crate::model::wind::angle_between_deg;
 
 /// Thresholds, from the `[daemon]` config.
 #[derive(Debug, Clone, Copy)]

@@ -5,8 +5,8 @@
 use std::collections::VecDeque;
 
 use crate::error::Result;
-use crate::frame::MarkerFrame;
-use crate::source::replay::{Format, Recording, RecordingInfo};
+use crate::model::frame::MarkerFrame;
+use crate::model::recording::{Format, Recording, RecordingInfo};
 
 /// The last `span_s` seconds of frames.
 #[derive(Debug, Clone)]
@@ -115,7 +115,7 @@ impl Recording for WindowRecording {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::frame::Marker;
+    use crate::model::frame::Marker;
     use glam::DVec3;
 
     #[test]

@@ -35,9 +35,9 @@ use pcap_parser::traits::{PcapNGPacketBlock, PcapReaderIterator};
 use pcap_parser::{Block, PcapBlockOwned, PcapError};
 
 use crate::error::{Error, Location, Result};
-use crate::frame::MarkerFrame;
+use crate::model::frame::MarkerFrame;
 use crate::protocol::natnet::select::{
-    to_marker_frame, FrameContext, MarkerSelection, UpAxis, UpAxisSetting,
+    to_marker_frame, up_axis_from_answer, FrameContext, MarkerSelection, UpAxis, UpAxisSetting,
 };
 use crate::protocol::natnet::{decode, id, peek_id, FrameOfData, Packet, Response, Version};
 
@@ -367,7 +367,7 @@ fn answered(s: &mut Stream, asked: &str, r: Option<&Response>) {
             .map(f64::from)
             .filter(|x| x.is_finite() && *x > 0.0);
     } else if asked.ends_with(",Up Axis") {
-        s.up = r.and_then(Response::as_text).and_then(UpAxis::from_answer);
+        s.up = r.and_then(Response::as_text).and_then(up_axis_from_answer);
     } else if let Some(v) = asked.strip_prefix("Bitstream,").and_then(Version::parse) {
         if r.and_then(Response::as_i32) == Some(0) {
             s.version = Some(v);

@@ -10,7 +10,7 @@ use std::f64::consts::TAU;
 use glam::{DQuat, DVec3};
 
 use crate::error::{Error, Result};
-use crate::reconstruct::tree::Tree;
+use crate::model::tree::Tree;
 
 /// A triangle mesh as glTF wants it: f32 positions and unit normals, u32
 /// indices, counter-clockwise triangles seen from outside.
@@ -223,7 +223,7 @@ mod tests {
 
     #[test]
     fn caps_face_outward_and_normals_are_unit() {
-        use crate::reconstruct::tree::{Kind, Node, Tree};
+        use crate::model::tree::{Kind, Node, Tree};
         let node = |y: f64, parent| Node {
             position: DVec3::new(0.0, y, 0.0),
             parent,

@@ -3,7 +3,7 @@
 //! its children, r_parent = (Σ r_child^γ)^(1/γ). γ = 2 keeps the summed
 //! cross-section area (the pipe model).
 
-use crate::reconstruct::tree::Tree;
+use crate::model::tree::Tree;
 
 /// Fills every node's radius from the tips down to the root.
 pub fn assign(tree: &mut Tree, tip_radius: f64, gamma: f64) {
@@ -33,7 +33,7 @@ pub fn assign(tree: &mut Tree, tip_radius: f64, gamma: f64) {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::reconstruct::tree::{Kind, Node};
+    use crate::model::tree::{Kind, Node};
     use glam::DVec3;
 
     fn node(parent: Option<usize>, kind: Kind) -> Node {

@@ -20,7 +20,6 @@
 
 use std::collections::HashMap;
 use std::net::{Ipv4Addr, SocketAddr, SocketAddrV4};
-use std::path::Path;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, OnceLock};
 use std::time::{Duration, Instant};
@@ -30,15 +29,15 @@ use tokio::net::UdpSocket;
 use tokio::sync::watch;
 
 use crate::error::{Error, Result};
-use crate::frame::MarkerFrame;
-use crate::protocol::natnet::select::UpAxis;
+use crate::model::frame::MarkerFrame;
+use crate::model::recording::Recording;
+use crate::protocol::natnet::select::{up_axis_name, UpAxis};
 pub use crate::protocol::natnet::Transport;
 use crate::protocol::natnet::{
     self as packet, decode, encode_into, Connect, Description, FrameOfData, LabeledMarker,
     ModelDef, Packet, Response, Sender, ServerConnection, ServerInfo, Version,
     FRAME_BITSTREAM_CHANGED, MARKER_UNLABELED,
 };
-use crate::source::replay::{self, Recording};
 
 /// Ticks per second of the server's hi-res clock (nanoseconds since start).
 pub const CLOCK_FREQUENCY: u64 = 1_000_000_000;
@@ -52,12 +51,15 @@ pub struct ServeOptions {
     pub speed: f64,
     /// Start again at the end (frame numbers jump back, as in Motive).
     pub looping: bool,
+    /// Unicast to each client, or multicast to the group.
     pub transport: Transport,
     /// Local address for the command and data sockets.
     pub bind: Ipv4Addr,
     /// 0 picks a free port (tests); see [`ServerStats::command_addr`].
     pub command_port: u16,
+    /// The port frames are sent from (and, in multicast, to).
     pub data_port: u16,
+    /// The multicast group, as four octets.
     pub multicast_group: Ipv4Addr,
     /// Interface (its IPv4 address) multicast frames leave by.
     pub multicast_interface: Ipv4Addr,
@@ -118,9 +120,13 @@ pub struct ServerStats {
 /// What a finished server did.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ServeReport {
+    /// Frames played.
     pub frames: u64,
+    /// Times the recording started again.
     pub loops: u64,
+    /// Unicast clients that connected.
     pub clients: u64,
+    /// Seconds the server ran.
     pub elapsed_s: f64,
 }
 
@@ -185,7 +191,7 @@ pub fn to_natnet_frame(
     ticks: u64,
     up: UpAxis,
 ) -> FrameOfData {
-    let pos = |m: &crate::frame::Marker| {
+    let pos = |m: &crate::model::frame::Marker| {
         let p = m.position;
         match up {
             UpAxis::Y => [p.x as f32, p.y as f32, p.z as f32],
@@ -241,19 +247,9 @@ pub fn model_def() -> ModelDef {
     }
 }
 
-/// Streams the recording at `path` (any format [`replay::open`] reads) until
-/// it ends (or forever with `looping`) or `shutdown` turns true.
+/// Streams the recordings `open` gives (called again for each loop) until
+/// the last ends (or forever with `looping`) or `shutdown` turns true.
 pub async fn serve(
-    path: &Path,
-    opts: &ServeOptions,
-    shutdown: watch::Receiver<bool>,
-) -> Result<ServeReport> {
-    let p = path.to_path_buf();
-    serve_with(move || replay::open(&p), opts, shutdown).await
-}
-
-/// [`serve`] over any source of recordings; `open` is called again for each loop.
-pub async fn serve_with(
     mut open: impl FnMut() -> Result<Box<dyn Recording>>,
     opts: &ServeOptions,
     mut shutdown: watch::Receiver<bool>,
@@ -705,7 +701,7 @@ fn answer_request(
         "FrameRate" => Packet::Response(Response::float(frame_rate as f32)),
         // Motive's property query; only the up axis is known here.
         "GetProperty" if text.ends_with(",Up Axis") => {
-            Packet::Response(Response::Text(opts.up_axis.to_string()))
+            Packet::Response(Response::Text(up_axis_name(opts.up_axis).into()))
         }
         "Bitstream" => {
             let current = client.as_ref().map_or(opts.version, |c| c.version);

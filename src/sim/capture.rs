@@ -22,7 +22,7 @@ use glam::DVec3;
 use super::motion::stream;
 use super::truth::{ColumnTruth, GapTruth, SpuriousTruth, Truth};
 use super::SynthOptions;
-use crate::frame::{Marker, MarkerFrame};
+use crate::model::frame::{Marker, MarkerFrame};
 use crate::rng::Rng;
 
 /// Stream labels under the capture stream.

@@ -124,7 +124,7 @@ mod tests {
     use glam::DVec3;
 
     use super::*;
-    use crate::frame::{Marker, MarkerFrame};
+    use crate::model::frame::{Marker, MarkerFrame};
     use crate::sim::{generate, ColumnTruth, SynthOptions};
 
     fn column(name: &str, tip: Option<usize>) -> ColumnTruth {

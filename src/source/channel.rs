@@ -10,7 +10,7 @@ use std::sync::Arc;
 
 use crossbeam_channel::{bounded, Receiver, Sender, TrySendError};
 
-use crate::frame::MarkerFrame;
+use crate::model::frame::MarkerFrame;
 
 /// The sending end every live source pushes into. Cheap to clone.
 #[derive(Clone)]

@@ -1,10 +1,11 @@
-//! Everything that yields `MarkerFrame`s: recorded files (`replay`) and live
-//! network sources, which deliver through a [`channel::FrameSink`].
+//! I/O that yields `MarkerFrame`s: live network sources (NatNet, OSC), a
+//! recording played at its recorded speed, and the serial wind sensor. They
+//! deliver through a [`channel::FrameSink`] and never block on the pipeline.
 
 pub mod allow;
 pub mod channel;
 pub mod live;
 pub mod natnet;
 pub mod osc;
-pub mod record;
-pub mod replay;
+pub mod player;
+pub mod wind_sensor;

@@ -16,8 +16,8 @@
 use glam::DVec3;
 use serde::Serialize;
 
-use super::trace::{Fill, Trace};
-use super::tracker::Timeline;
+use crate::model::trace::Timeline;
+use crate::model::trace::{Fill, Trace};
 
 /// What gap filling did, for the summary.
 #[derive(Debug, Clone, Default, PartialEq, Serialize)]
@@ -159,7 +159,7 @@ fn pchip_slope(d1: DVec3, h1: f64, d2: DVec3, h2: f64) -> DVec3 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::track::trace::SampleKind;
+    use crate::model::trace::SampleKind;
 
     fn timeline(n: usize) -> Timeline {
         Timeline {

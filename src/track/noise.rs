@@ -20,7 +20,7 @@ use glam::DVec3;
 use serde::Serialize;
 
 use super::assign::{Assigner, Edge};
-use super::trace::Trace;
+use crate::model::trace::Trace;
 
 /// A trace dropped as noise, and why.
 #[derive(Debug, Clone, PartialEq, Serialize)]

@@ -14,10 +14,10 @@
 //! the mean by tenths of a millimetre.
 
 use glam::DVec3;
-use serde::{Serialize, Serializer};
+use serde::Serialize;
 
-use super::trace::Trace;
-use super::tracker::Timeline;
+use crate::model::trace::Timeline;
+use crate::model::trace::Trace;
 
 /// A marker whose samples cover at least this fraction of a window takes
 /// part in deciding whether the window is still.
@@ -202,73 +202,6 @@ pub fn rest_of(trace: &Trace, start: i64, end: i64) -> Option<(DVec3, f64, usize
     Some((origin + mean, spread, n))
 }
 
-fn vec3<S: Serializer>(v: &DVec3, s: S) -> Result<S::Ok, S::Error> {
-    [v.x, v.y, v.z].serialize(s)
-}
-
-/// One branch tip: a cleaned marker and its rest position (contract 2).
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct Tip {
-    /// Index of the marker, 0.., in order of first appearance.
-    pub marker: usize,
-    /// Mean of the measured samples in the rest window (m, Y up).
-    #[serde(serialize_with = "vec3")]
-    pub rest: DVec3,
-    /// Measured samples that went into `rest`.
-    pub samples: usize,
-    /// Fraction of the session's frames in which the marker was not measured.
-    pub gap_fraction: f64,
-    /// Root mean square distance of those samples from `rest` (m): how
-    /// still the marker was, and with `samples` how precise `rest` is.
-    pub spread_m: f64,
-    /// The cleaned trace (measured, filled and missing frames).
-    #[serde(skip)]
-    pub trace: Trace,
-}
-
-/// The dominant wind, when known (filled in by the wind stage).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
-pub struct WindEstimate {
-    /// Unit vector the wind blows towards.
-    #[serde(serialize_with = "vec3")]
-    pub direction: DVec3,
-    /// m/s, or a relative strength when only the direction is measured.
-    pub speed: f64,
-}
-
-/// Result of the marker stage: what reconstruction reads (`tips.json`).
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct Tips {
-    /// Format version of `tips.json`.
-    pub version: u32,
-    /// Where the frames came from (take name, server, simulator seed).
-    pub source: String,
-    /// Frames per second of the recording.
-    pub frame_rate: f64,
-    /// The rest window in seconds from the start of the recording.
-    pub rest_window_s: [f64; 2],
-    pub tips: Vec<Tip>,
-    pub wind: Option<WindEstimate>,
-    /// Time of every internal frame (for plots of the traces).
-    #[serde(skip)]
-    pub timeline: Timeline,
-}
-
-impl Tips {
-    /// `tips.json` as specified by contract 2 (pretty-printed, stable order).
-    pub fn to_json(&self) -> String {
-        serde_json::to_string_pretty(self).unwrap_or_else(|_| "{}".into())
-    }
-
-    /// Writes `tips.json` to `path` atomically (a viewer or a later
-    /// `reconstruct` never reads half a file).
-    pub fn write_json(&self, path: &std::path::Path) -> crate::Result<()> {
-        let mut text = self.to_json();
-        text.push('\n');
-        crate::output::write_atomic(path, text.as_bytes())
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -315,32 +248,5 @@ mod tests {
             tr.push(n, at(n), None);
         }
         assert_eq!(find_rest_window(&[tr], &timeline(1000), 0.002), None);
-    }
-
-    #[test]
-    fn tips_json_has_contract_fields() {
-        let tips = Tips {
-            version: 1,
-            source: "test".into(),
-            frame_rate: 100.0,
-            rest_window_s: [0.0, 8.0],
-            tips: vec![Tip {
-                marker: 0,
-                rest: DVec3::new(0.1, 1.5, -0.2),
-                samples: 800,
-                gap_fraction: 0.05,
-                spread_m: 0.0002,
-                trace: Trace::new(0, 0, DVec3::ZERO, None),
-            }],
-            wind: None,
-            timeline: Timeline::default(),
-        };
-        let v: serde_json::Value = serde_json::from_str(&tips.to_json()).unwrap();
-        assert_eq!(v["version"], 1);
-        assert_eq!(v["rest_window_s"][1], 8.0);
-        assert_eq!(v["tips"][0]["rest"][1], 1.5);
-        assert_eq!(v["tips"][0]["samples"], 800);
-        assert!(v["tips"][0].get("trace").is_none());
-        assert!(v["wind"].is_null());
     }
 }

@@ -30,9 +30,9 @@ use kiddo::{ImmutableKdTree, SquaredEuclidean};
 use serde::Serialize;
 
 use super::assign::{Assigner, Edge};
-use super::trace::Trace;
-use crate::config::TrackingConfig;
-use crate::frame::MarkerFrame;
+use crate::model::frame::MarkerFrame;
+use crate::model::trace::{Timeline, Trace};
+use crate::track::TrackingSettings;
 
 /// Counters of what the tracker saw, for the summary and the daemon's metrics.
 #[derive(Debug, Clone, Default, PartialEq, Serialize)]
@@ -60,69 +60,6 @@ pub struct TrackStats {
     /// The smallest distance seen between two established traces'
     /// predictions (m), when closer than twice the gate.
     pub closest_spacing_m: Option<f64>,
-}
-
-/// Time of every internal frame index, and where the source's frame
-/// numbers map to it.
-#[derive(Debug, Clone, Default, PartialEq)]
-pub struct Timeline {
-    /// Seconds for internal frames 0, 1, 2, … (skipped frames interpolated).
-    pub times: Vec<f64>,
-    /// `(internal index, source frame number)` at the first frame and after
-    /// every discontinuity; in between the two advance together.
-    pub anchors: Vec<(i64, i64)>,
-}
-
-impl Timeline {
-    /// Number of internal frames.
-    pub fn len(&self) -> usize {
-        self.times.len()
-    }
-
-    pub fn is_empty(&self) -> bool {
-        self.times.is_empty()
-    }
-
-    /// Time of internal frame `t` (clamped to the recorded range; 0 if none).
-    pub fn time(&self, t: i64) -> f64 {
-        if self.times.is_empty() {
-            return 0.0;
-        }
-        let i = t.clamp(0, self.times.len() as i64 - 1) as usize;
-        self.times[i]
-    }
-
-    /// The first internal frame at or after `time_s`.
-    pub fn frame_at(&self, time_s: f64) -> i64 {
-        self.times.partition_point(|&t| t < time_s) as i64
-    }
-
-    /// Median frame interval (s), or `None` with fewer than two frames.
-    pub fn frame_interval(&self) -> Option<f64> {
-        if self.times.len() < 2 {
-            return None;
-        }
-        let step = (self.times.len() / 2001).max(1);
-        let mut d: Vec<f64> = self
-            .times
-            .windows(2)
-            .step_by(step)
-            .map(|w| w[1] - w[0])
-            .filter(|d| *d > 0.0)
-            .collect();
-        if d.is_empty() {
-            return None;
-        }
-        d.sort_by(f64::total_cmp);
-        Some(d[d.len() / 2])
-    }
-
-    /// The source's frame number of internal frame `t`.
-    pub fn source_frame(&self, t: i64) -> Option<i64> {
-        let i = self.anchors.partition_point(|a| a.0 <= t);
-        let (at, frame) = *self.anchors.get(i.checked_sub(1)?)?;
-        frame.checked_add(t - at)
-    }
 }
 
 /// What the tracker hands on when the session is over.
@@ -236,7 +173,7 @@ pub struct Tracker {
 impl Tracker {
     /// `frame_rate` (if known) gives the frame interval until two frames
     /// have been seen.
-    pub fn new(cfg: &TrackingConfig, frame_rate: Option<f64>) -> Self {
+    pub fn new(cfg: &TrackingSettings, frame_rate: Option<f64>) -> Self {
         let dt = frame_rate
             .filter(|r| r.is_finite() && *r > 0.0)
             .map_or(0.01, |r| 1.0 / r);
@@ -566,10 +503,10 @@ impl Tracker {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::frame::Marker;
+    use crate::model::frame::Marker;
 
-    fn cfg() -> TrackingConfig {
-        TrackingConfig::default()
+    fn cfg() -> TrackingSettings {
+        TrackingSettings::default()
     }
 
     fn frame(n: i64, pts: &[DVec3]) -> MarkerFrame {

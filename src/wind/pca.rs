@@ -12,7 +12,7 @@ use std::collections::VecDeque;
 
 use glam::DVec3;
 
-use super::{WindEstimate, WindSource};
+use crate::model::wind::{WindEstimate, WindSource};
 
 /// Second moments of one frame's horizontal displacements.
 #[derive(Debug, Clone, Copy, Default)]
@@ -111,8 +111,8 @@ impl SwayPca {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::model::wind::{angle_between_deg, direction_of};
     use crate::rng::Rng;
-    use crate::wind::{angle_between_deg, direction_of};
 
     #[test]
     fn finds_the_sway_axis_with_the_downwind_sign() {

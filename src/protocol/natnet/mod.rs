@@ -2,7 +2,7 @@
 //! clock. The message types ([`types`]) and their bitstream [`Version`]s, a
 //! strict decoder ([`decode()`]) and a byte-exact encoder ([`encode()`]) for
 //! every bitstream from 2.0 to 4.x, which markers of a frame become a
-//! [`MarkerFrame`](crate::frame::MarkerFrame) ([`select`]), and the client's
+//! [`MarkerFrame`](crate::model::frame::MarkerFrame) ([`select`]), and the client's
 //! protocol state ([`session`]): datagrams and the time in, actions out.
 //!
 //! The layouts are those of OptiTrack's `PacketClient.cpp` of each SDK,

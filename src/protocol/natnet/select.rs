@@ -12,7 +12,8 @@ use glam::DVec3;
 use serde::{Deserialize, Serialize};
 
 use super::{FrameOfData, Version};
-use crate::frame::{Marker, MarkerFrame};
+pub use crate::model::frame::UpAxis;
+use crate::model::frame::{Marker, MarkerFrame};
 
 /// The `natnet.markers` setting.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
@@ -75,44 +76,27 @@ impl std::str::FromStr for UpAxisSetting {
     }
 }
 
-/// The up axis of a stream once known.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
-#[serde(rename_all = "lowercase")]
-pub enum UpAxis {
-    /// Positions pass unchanged.
-    Y,
-    /// (x, y, z) becomes (x, z, -y): a right-handed turn that puts Z up on Y.
-    Z,
-}
-
-impl UpAxis {
-    /// Reads Motive's answer to `GetProperty,,Up Axis`: a text naming the
-    /// axis ("Y", "Z up", …). None when it names neither.
-    pub fn from_answer(text: &str) -> Option<UpAxis> {
-        let t = text.trim().to_ascii_uppercase();
-        match (t.contains('Z'), t.contains('Y')) {
-            (true, false) => Some(UpAxis::Z),
-            (false, true) => Some(UpAxis::Y),
-            _ => None,
-        }
+/// Reads Motive's answer to `GetProperty,,Up Axis`: a text naming the axis
+/// ("Y", "Z up", …). None when it names neither.
+pub fn up_axis_from_answer(text: &str) -> Option<UpAxis> {
+    let t = text.trim().to_ascii_uppercase();
+    match (t.contains('Z'), t.contains('Y')) {
+        (true, false) => Some(UpAxis::Z),
+        (false, true) => Some(UpAxis::Y),
+        _ => None,
     }
 }
 
-impl std::fmt::Display for UpAxis {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(match self {
-            UpAxis::Y => "Y",
-            UpAxis::Z => "Z",
-        })
+/// The axis as the server names it in its answer and the log says it.
+pub fn up_axis_name(up: UpAxis) -> &'static str {
+    match up {
+        UpAxis::Y => "Y",
+        UpAxis::Z => "Z",
     }
 }
 
 fn v3(p: &[f32; 3], up: UpAxis) -> DVec3 {
-    let (x, y, z) = (p[0] as f64, p[1] as f64, p[2] as f64);
-    match up {
-        UpAxis::Y => DVec3::new(x, y, z),
-        UpAxis::Z => DVec3::new(x, z, -y),
-    }
+    up.to_y_up(DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64))
 }
 
 /// What a NatNet frame becomes a [`MarkerFrame`] with: known once the
@@ -281,9 +265,9 @@ mod tests {
         );
         // Z up (1, 2, 3): height 3 becomes y, depth is -2.
         assert_eq!(m[0].position, DVec3::new(1.0, 3.0, -2.0));
-        assert_eq!(UpAxis::from_answer("Z Up"), Some(UpAxis::Z));
-        assert_eq!(UpAxis::from_answer("y"), Some(UpAxis::Y));
-        assert_eq!(UpAxis::from_answer("1"), None);
+        assert_eq!(up_axis_from_answer("Z Up"), Some(UpAxis::Z));
+        assert_eq!(up_axis_from_answer("y"), Some(UpAxis::Y));
+        assert_eq!(up_axis_from_answer("1"), None);
         assert_eq!("Z".parse(), Ok(UpAxisSetting::Z));
         assert!("up".parse::<UpAxisSetting>().is_err());
     }

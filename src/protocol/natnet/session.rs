@@ -49,14 +49,17 @@ use std::time::{Duration, Instant};
 
 use serde::Serialize;
 
-use super::select::{to_marker_frame, FrameContext, MarkerSelection, UpAxis, UpAxisSetting};
+use super::select::{
+    to_marker_frame, up_axis_from_answer, up_axis_name, FrameContext, MarkerSelection, UpAxis,
+    UpAxisSetting,
+};
 use super::{
     decode, encode, id, message_name, peek_id, Connect, ConnectionOptions, DecodeError,
     DecodeErrorKind, FrameOfData, Packet, Response, Sender, ServerInfo, Transport, Version,
     DEFAULT_DATA_PORT, DEFAULT_MULTICAST_GROUP, FRAME_BITSTREAM_CHANGED, FRAME_MODELS_CHANGED,
     OLDEST_VERSION,
 };
-use crate::frame::MarkerFrame;
+use crate::model::frame::MarkerFrame;
 
 /// Longest wait for the frame rate (and the up axis) before the first frames
 /// go out anyway: untimed frames then fall back to their arrival time.
@@ -783,9 +786,9 @@ impl Session {
                 let up = r
                     .as_ref()
                     .and_then(Response::as_text)
-                    .and_then(UpAxis::from_answer);
+                    .and_then(up_axis_from_answer);
                 match up {
-                    Some(up) => tracing::info!("the server streams {up} up"),
+                    Some(up) => tracing::info!("the server streams {} up", up_axis_name(up)),
                     None => tracing::info!(
                         "the server does not say its up axis ({r:?}); taking Y up \
                          (set natnet.up_axis = \"z\" for a Z-up stream)"

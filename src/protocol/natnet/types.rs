@@ -75,25 +75,37 @@ pub fn message_name(id: u16) -> &'static str {
 /// One NatNet datagram, decoded.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Packet {
+    /// A client says hello.
     Connect(Connect),
+    /// The server answers CONNECT or DISCOVERY.
     ServerInfo(ServerInfo),
     /// A command string: `FrameRate`, `Bitstream,4.1`, `TimelinePlay`, …
     Request(String),
+    /// The server answers a request.
     Response(Response),
+    /// A client asks for the model descriptions.
     RequestModelDef,
+    /// The model descriptions.
     ModelDef(ModelDef),
+    /// A client asks for the latest frame.
     RequestFrameOfData,
+    /// One frame (boxed: it is far larger than the other messages).
     FrameOfData(Box<FrameOfData>),
     /// A free-text message from the server.
     MessageString(String),
+    /// A client leaves.
     Disconnect,
+    /// A unicast client is still there.
     KeepAlive,
+    /// The server dropped a silent client.
     DisconnectByTimeout,
     /// Client's clock in its own ticks.
     EchoRequest(u64),
     /// The echoed client ticks and the server's receive time in its hi-res ticks.
     EchoResponse {
+        /// The client's clock, echoed.
         client_ticks: u64,
+        /// The server's hi-res clock when it received the request.
         server_ticks: u64,
     },
     /// Broadcast by clients looking for a server; same payload forms as CONNECT.
@@ -166,8 +178,11 @@ pub enum Connect {
     /// An `sSender`, optionally followed by `sConnectionOptions` and spare
     /// bytes (SDK 4.x PacketClient adds 4, OptiTrack's Python client 2).
     Sender {
+        /// Who is talking.
         sender: Sender,
+        /// 4.x clients: what they ask of the server.
         options: Option<ConnectionOptions>,
+        /// Bytes after the options, kept for byte-exact re-encoding.
         spare: Vec<u8>,
     },
 }
@@ -188,6 +203,7 @@ impl Connect {
 /// `sSender_Server`: the server's answer to CONNECT and DISCOVERY.
 #[derive(Debug, Clone, PartialEq, Eq, Default)]
 pub struct ServerInfo {
+    /// Who is talking.
     pub sender: Sender,
     /// Present from NatNet 3.0 (279-byte form); absent in 2.x (264 bytes).
     pub connection: Option<ServerConnection>,
@@ -198,14 +214,18 @@ pub struct ServerInfo {
 pub struct ServerConnection {
     /// Ticks per second of the server's hi-res clock (frame timestamps).
     pub clock_frequency: u64,
+    /// The port frames are sent from (and, in multicast, to).
     pub data_port: u16,
+    /// Whether frames go to the multicast group.
     pub multicast: bool,
+    /// The multicast group, as four octets.
     pub multicast_group: [u8; 4],
 }
 
 /// NAT_RESPONSE: four bytes (an int or a float, the request decides) or a string.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Response {
+    /// Four bytes: an int or a float, the request decides.
     Value([u8; 4]),
     /// A NUL-terminated string.
     Text(String),
@@ -216,18 +236,22 @@ pub enum Response {
 }
 
 impl Response {
+    /// An integer answer.
     pub fn int(v: i32) -> Self {
         Response::Value(v.to_le_bytes())
     }
+    /// A float answer (`FrameRate`).
     pub fn float(v: f32) -> Self {
         Response::Value(v.to_le_bytes())
     }
+    /// The answer as an integer, if it is four bytes.
     pub fn as_i32(&self) -> Option<i32> {
         match self {
             Response::Value(b) => Some(i32::from_le_bytes(*b)),
             _ => None,
         }
     }
+    /// The answer as a float, if it is four bytes.
     pub fn as_f32(&self) -> Option<f32> {
         match self {
             Response::Value(b) => Some(f32::from_le_bytes(*b)),
@@ -246,6 +270,7 @@ impl Response {
 /// NAT_MODELDEF: the descriptions of everything the server tracks.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct ModelDef {
+    /// One per tracked dataset.
     pub descriptions: Vec<Description>,
 }
 
@@ -253,13 +278,21 @@ pub struct ModelDef {
 #[derive(Debug, Clone, PartialEq)]
 pub enum Description {
     /// Type 0: a named set of markers.
-    MarkerSet { name: String, markers: Vec<String> },
+    MarkerSet {
+        /// Its name.
+        name: String,
+        /// Its markers' names.
+        markers: Vec<String>,
+    },
     /// Type 1.
     RigidBody(RigidBodyDescription),
     /// Type 2.
     Skeleton {
+        /// Its name.
         name: String,
+        /// The id the server gives it.
         id: i32,
+        /// Its bones.
         bones: Vec<RigidBodyDescription>,
     },
     /// Type 3 (3.0+ layout).
@@ -268,8 +301,11 @@ pub enum Description {
     Device(DeviceDescription),
     /// Type 5.
     Camera {
+        /// Its name.
         name: String,
+        /// Position (m).
         position: [f32; 3],
+        /// Rotation (qx, qy, qz, qw).
         orientation: [f32; 4],
     },
     /// Type 6 (4.1+).
@@ -281,8 +317,11 @@ pub enum Description {
 pub struct RigidBodyDescription {
     /// On the wire from 2.0.
     pub name: String,
+    /// The id the server gives it.
     pub id: i32,
+    /// The parent rigid body id (-1 for none).
     pub parent_id: i32,
+    /// Offset from the parent (m).
     pub offset: [f32; 3],
     /// Rotation offset (qx, qy, qz, qw), on the wire from 4.2.
     pub rotation: [f32; 4],
@@ -293,7 +332,9 @@ pub struct RigidBodyDescription {
 /// One marker of a rigid body description.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct RigidBodyMarkerDescription {
+    /// Offset from the parent (m).
     pub offset: [f32; 3],
+    /// The active marker label (0 for passive markers).
     pub active_label: i32,
     /// On the wire from 4.0.
     pub name: String,
@@ -302,47 +343,72 @@ pub struct RigidBodyMarkerDescription {
 /// A force plate description.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct ForcePlateDescription {
+    /// The id the server gives it.
     pub id: i32,
+    /// The serial number.
     pub serial: String,
+    /// Width (m).
     pub width: f32,
+    /// Length (m).
     pub length: f32,
+    /// Electrical centre offset (m).
     pub origin: [f32; 3],
     /// 12 × 12 calibration matrix, row-major.
     pub calibration: Vec<f32>,
+    /// The four corners (m).
     pub corners: [[f32; 3]; 4],
+    /// The plate type code.
     pub plate_type: i32,
+    /// The sample data type code.
     pub channel_data_type: i32,
+    /// Channel names.
     pub channels: Vec<String>,
 }
 
 /// An analog device description.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct DeviceDescription {
+    /// The id the server gives it.
     pub id: i32,
+    /// Its name.
     pub name: String,
+    /// The serial number.
     pub serial: String,
+    /// The device type code.
     pub device_type: i32,
+    /// The sample data type code.
     pub channel_data_type: i32,
+    /// Channel names.
     pub channels: Vec<String>,
 }
 
 /// An asset description (4.1+).
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct AssetDescription {
+    /// Its name.
     pub name: String,
+    /// The asset type code.
     pub asset_type: i32,
+    /// The id the server gives it.
     pub id: i32,
+    /// Its rigid bodies.
     pub rigid_bodies: Vec<RigidBodyDescription>,
+    /// Its markers.
     pub markers: Vec<AssetMarkerDescription>,
 }
 
 /// One marker of an asset description.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct AssetMarkerDescription {
+    /// Its name.
     pub name: String,
+    /// The id the server gives it.
     pub id: i32,
+    /// Position (m).
     pub position: [f32; 3],
+    /// Marker diameter (m).
     pub size: f32,
+    /// Status flags.
     pub params: i16,
 }
 
@@ -350,10 +416,13 @@ pub struct AssetMarkerDescription {
 /// are not written by the encoder ([`FrameOfData::restricted_to`] says which).
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct FrameOfData {
+    /// The server's frame number.
     pub frame_number: i32,
+    /// Named marker sets.
     pub marker_sets: Vec<MarkerSetData>,
     /// The legacy "other" (unlabeled) marker list.
     pub other_markers: Vec<[f32; 3]>,
+    /// Its rigid bodies.
     pub rigid_bodies: Vec<RigidBodyData>,
     /// 2.1+.
     pub skeletons: Vec<SkeletonData>,
@@ -370,15 +439,19 @@ pub struct FrameOfData {
     pub software_latency: f32,
     /// SMPTE packed: h = tc>>24, m = tc>>16 & 255, s = tc>>8 & 255, f = tc & 255.
     pub timecode: u32,
+    /// SMPTE subframe.
     pub timecode_subframe: u32,
     /// Seconds since the server started: f32 in 2.6, f64 from 2.7, absent before.
     pub timestamp: f64,
     /// 3.0+: server hi-res ticks at mid-exposure, at data receipt, at transmit.
     pub camera_mid_exposure: u64,
+    /// Server ticks when the camera data arrived (3.0+).
     pub camera_data_received: u64,
+    /// Server ticks when the frame was sent (3.0+).
     pub transmit: u64,
     /// 4.1+: PTP time (0 when the server has none).
     pub precision_seconds: u32,
+    /// PTP fraction of a second (4.1+).
     pub precision_fraction: u32,
     /// Frame flags (2.6+): 0x01 recording, 0x02 models changed, 0x04 edit
     /// mode, 0x08 bitstream changed.
@@ -388,19 +461,24 @@ pub struct FrameOfData {
 /// One marker set of a frame.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct MarkerSetData {
+    /// Its name.
     pub name: String,
+    /// Its markers.
     pub markers: Vec<[f32; 3]>,
 }
 
 /// One rigid body of a frame (also a skeleton bone).
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct RigidBodyData {
+    /// The id the server gives it.
     pub id: i32,
+    /// Position (m).
     pub position: [f32; 3],
     /// qx, qy, qz, qw.
     pub orientation: [f32; 4],
     /// Per-marker data, on the wire before 3.0 only.
     pub markers: Vec<RigidBodyMarker>,
+    /// Mean marker error (m).
     pub mean_error: f32,
     /// 2.6+: bit 0 = tracking valid.
     pub params: i16,
@@ -409,43 +487,61 @@ pub struct RigidBodyData {
 /// A rigid body marker in a pre-3.0 frame.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct RigidBodyMarker {
+    /// Position (m).
     pub position: [f32; 3],
+    /// The id the server gives it.
     pub id: i32,
+    /// Marker diameter (m).
     pub size: f32,
 }
 
 /// One skeleton of a frame.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct SkeletonData {
+    /// The id the server gives it.
     pub id: i32,
+    /// Its bones.
     pub bones: Vec<RigidBodyData>,
 }
 
 /// One asset of a frame (4.1+).
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct AssetData {
+    /// The id the server gives it.
     pub id: i32,
+    /// Its rigid bodies.
     pub rigid_bodies: Vec<AssetRigidBody>,
+    /// Its markers.
     pub markers: Vec<AssetMarker>,
 }
 
 /// A rigid body of an asset.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct AssetRigidBody {
+    /// The id the server gives it.
     pub id: i32,
+    /// Position (m).
     pub position: [f32; 3],
+    /// Rotation (qx, qy, qz, qw).
     pub orientation: [f32; 4],
+    /// Mean marker error (m).
     pub mean_error: f32,
+    /// Status flags.
     pub params: i16,
 }
 
 /// A marker of an asset.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct AssetMarker {
+    /// The id the server gives it.
     pub id: i32,
+    /// Position (m).
     pub position: [f32; 3],
+    /// Marker diameter (m).
     pub size: f32,
+    /// Status flags.
     pub params: i16,
+    /// Marker residual (m).
     pub residual: f32,
 }
 
@@ -454,7 +550,9 @@ pub struct AssetMarker {
 pub struct LabeledMarker {
     /// modelId << 16 | markerId (model 0 = unlabeled point cloud in 3.0+).
     pub id: i32,
+    /// Position (m).
     pub position: [f32; 3],
+    /// Marker diameter (m).
     pub size: f32,
     /// 2.6+: 0x01 occluded, 0x02 point-cloud solved, 0x04 model solved,
     /// 0x08 has model, 0x10 unlabeled, 0x20 active.
@@ -464,12 +562,15 @@ pub struct LabeledMarker {
 }
 
 impl LabeledMarker {
+    /// The model the marker belongs to (0: point cloud).
     pub fn model_id(&self) -> i32 {
         self.id >> 16
     }
+    /// The marker within its model.
     pub fn marker_id(&self) -> i32 {
         self.id & 0xFFFF
     }
+    /// Whether it is an unlabeled point-cloud marker (3.0+).
     pub fn is_unlabeled(&self) -> bool {
         self.params & MARKER_UNLABELED != 0
     }
@@ -478,7 +579,9 @@ impl LabeledMarker {
 /// A force plate or device: channels of sub-frame samples.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct AnalogData {
+    /// The id the server gives it.
     pub id: i32,
+    /// Channel names.
     pub channels: Vec<Vec<f32>>,
 }
 

@@ -115,7 +115,7 @@ pub async fn run(
     let mut buf = vec![0u8; 65536];
     let mut dbuf = vec![0u8; 65536];
     loop {
-        io.perform(&mut session).await?;
+        io.perform(&mut session, status).await?;
         status.publish(&session);
         if session.state() == State::Closed {
             break;
@@ -156,7 +156,7 @@ struct Io<'a> {
 impl Io<'_> {
     /// Carries out every queued action. A fatal one ends the client with
     /// its error; a sink whose receiver is gone closes the session.
-    async fn perform(&mut self, session: &mut Session) -> Result<()> {
+    async fn perform(&mut self, session: &mut Session, status: &NatNetStatus) -> Result<()> {
         while let Some(action) = session.poll_action() {
             match action {
                 Action::Send { to, datagram } => {
@@ -192,7 +192,11 @@ impl Io<'_> {
                     )));
                 }
                 Action::Fail(e) => return Err(e.into()),
-                Action::Connected(_) | Action::VersionChanged { .. } | Action::FrameRate(_) => {}
+                // Published before the frames that follow are pushed, so a
+                // reader of the first frame (record's log header) sees them.
+                Action::Connected(_) | Action::VersionChanged { .. } | Action::FrameRate(_) => {
+                    status.publish(session)
+                }
             }
         }
         Ok(())

@@ -1,5 +1,6 @@
 //! What the NatNet client can be told, typed once: the `[natnet]` section of
-//! the config and the `record` / daemon options land here, and nothing
+//! the config is this struct, `record`'s options and the daemon's
+//! `natnet_server` / `natnet_transport` land here too, and nothing
 //! downstream parses a string again.
 
 use std::net::{Ipv4Addr, SocketAddr, SocketAddrV4};
@@ -11,32 +12,44 @@ use crate::protocol::natnet::select::{MarkerSelection, UpAxisSetting};
 use crate::protocol::natnet::session::SessionSettings;
 use crate::protocol::natnet::{Transport, Version, DEFAULT_COMMAND_PORT};
 
-/// The NatNet client's settings (`[natnet]`).
+/// The NatNet client's settings (`[natnet]`). The server's address and
+/// the transport are given where the source is chosen (`--natnet`,
+/// `daemon.natnet_server`, `--unicast`, `daemon.natnet_transport`), the
+/// bitstream by `--natnet-version`, discovery only programmatically: those
+/// are not keys of the section.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct NatNetSettings {
     /// The server's address; its command port is `command_port`.
+    #[serde(skip)]
     pub server: Ipv4Addr,
     /// The server's command port (Motive: 1510).
     pub command_port: u16,
     /// Unicast or multicast; `auto` follows the server (3.0+ says) and, for
     /// 2.x servers, listens on both.
+    #[serde(skip)]
     pub transport: TransportSetting,
     /// The local network interface multicast is joined on (an IPv4 address
     /// or a name such as `eth1`): labs often have one card for the cameras
     /// and one for the office. `any` lets the OS choose.
     pub interface: Interface,
-    /// The multicast group; unset: what the server says (3.0+), else
+    /// The multicast group; unset (`""`): what the server says (3.0+), else
     /// 239.255.42.99.
+    #[serde(with = "unset_if_empty")]
     pub multicast_group: Option<Ipv4Addr>,
-    /// The server's data port; unset: what the server says (3.0+), else 1511.
+    /// The server's data port; unset (0): what the server says (3.0+),
+    /// else 1511.
+    #[serde(with = "unset_if_zero")]
     pub data_port: Option<u16>,
     /// Ask the server to stream this bitstream (unicast, server 3.0+).
+    #[serde(skip)]
     pub bitstream: Option<Version>,
-    /// With no server address given, look for one with a DISCOVERY
-    /// broadcast (never by default: it talks to the whole network).
+    /// Look for the server with a DISCOVERY broadcast instead of using
+    /// `server` (never by default: it talks to the whole network).
+    #[serde(skip)]
     pub discovery: bool,
     /// Where DISCOVERY goes (a broadcast address or a host).
+    #[serde(skip)]
     pub discovery_address: Ipv4Addr,
     /// Which markers of a frame are tracked.
     pub markers: MarkerSelection,
@@ -94,29 +107,36 @@ impl NatNetSettings {
         Ok(())
     }
 
-    /// Range checks, each naming the key.
-    pub fn validate(&self) -> Result<(), (&'static str, String)> {
-        let positive = |key, d: Duration| {
-            if d.is_zero() || d > Duration::from_secs(3600) {
-                Err((
-                    key,
-                    format!("{} s: must be above 0 and at most 3600", d.as_secs_f64()),
-                ))
-            } else {
-                Ok(())
-            }
-        };
-        positive("natnet.connect_timeout_s", self.connect_timeout)?;
-        positive("natnet.silence_timeout_s", self.silence_timeout)?;
-        positive("natnet.keepalive_interval_s", self.keepalive_interval)?;
+    /// Range checks, each naming the key and its allowed range.
+    pub fn validate(&self) -> crate::error::Result<()> {
+        use crate::error::{check_range, Error};
+        let s = |d: Duration| d.as_secs_f64();
+        check_range(
+            "natnet.connect_timeout_s",
+            s(self.connect_timeout),
+            0.1,
+            60.0,
+        )?;
+        check_range(
+            "natnet.silence_timeout_s",
+            s(self.silence_timeout),
+            0.1,
+            60.0,
+        )?;
+        check_range(
+            "natnet.keepalive_interval_s",
+            s(self.keepalive_interval),
+            0.05,
+            10.0,
+        )?;
         if let Some(g) = self.multicast_group.filter(|g| !g.is_multicast()) {
-            return Err((
+            return Err(Error::config(
                 "natnet.multicast_group",
                 format!("{g} is not a multicast address (224.0.0.0 to 239.255.255.255)"),
             ));
         }
-        if self.data_port == Some(0) {
-            return Err(("natnet.data_port", "0 is not a port".into()));
+        if self.command_port == 0 {
+            return Err(Error::config("natnet.command_port", "0 is not a port"));
         }
         Ok(())
     }
@@ -222,6 +242,46 @@ impl<'de> Deserialize<'de> for Interface {
     }
 }
 
+/// An optional address written as `""` when unset (TOML has no null).
+mod unset_if_empty {
+    use std::net::Ipv4Addr;
+
+    use serde::{Deserialize, Deserializer, Serializer};
+
+    pub(super) fn serialize<S: Serializer>(a: &Option<Ipv4Addr>, s: S) -> Result<S::Ok, S::Error> {
+        match a {
+            Some(a) => s.collect_str(a),
+            None => s.serialize_str(""),
+        }
+    }
+
+    pub(super) fn deserialize<'de, D: Deserializer<'de>>(
+        d: D,
+    ) -> Result<Option<Ipv4Addr>, D::Error> {
+        let text = String::deserialize(d)?;
+        if text.trim().is_empty() {
+            return Ok(None);
+        }
+        text.trim()
+            .parse()
+            .map(Some)
+            .map_err(|_| serde::de::Error::custom(format!("'{text}' is not an IPv4 address")))
+    }
+}
+
+/// An optional port written as 0 when unset.
+mod unset_if_zero {
+    use serde::{Deserialize, Deserializer, Serializer};
+
+    pub(super) fn serialize<S: Serializer>(p: &Option<u16>, s: S) -> Result<S::Ok, S::Error> {
+        s.serialize_u16(p.unwrap_or(0))
+    }
+
+    pub(super) fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<Option<u16>, D::Error> {
+        Ok(Some(u16::deserialize(d)?).filter(|&p| p != 0))
+    }
+}
+
 /// Durations written as seconds (`connect_timeout_s = 0.5`).
 mod seconds {
     use std::time::Duration;
@@ -246,22 +306,26 @@ mod tests {
     #[test]
     fn reads_the_natnet_section_with_typed_values() {
         let s: NatNetSettings = toml::from_str(
-            "server = \"10.0.0.5\"\ntransport = \"multicast\"\ninterface = \"eth1\"\n\
+            "command_port = 4510\ninterface = \"eth1\"\n\
              multicast_group = \"239.1.2.3\"\ndata_port = 9511\nup_axis = \"z\"\n\
              connect_timeout_s = 0.5\n",
         )
         .unwrap();
-        assert_eq!(s.server_addr().to_string(), "10.0.0.5:1510");
-        assert_eq!(s.transport.fixed(), Some(Transport::Multicast));
+        assert_eq!(s.server_addr().to_string(), "127.0.0.1:4510");
+        assert_eq!(s.data_port, Some(9511));
         assert_eq!(s.interface, Interface::Name("eth1".into()));
         assert_eq!(s.multicast_group, Some(Ipv4Addr::new(239, 1, 2, 3)));
         assert_eq!(s.connect_timeout, Duration::from_millis(500));
         assert_eq!(s.up_axis, UpAxisSetting::Z);
         assert!(s.validate().is_ok());
+        let unset: NatNetSettings =
+            toml::from_str("multicast_group = \"\"\ndata_port = 0").unwrap();
+        assert_eq!((unset.multicast_group, unset.data_port), (None, None));
         let bad: NatNetSettings = toml::from_str("multicast_group = \"10.0.0.1\"").unwrap();
-        assert_eq!(bad.validate().unwrap_err().0, "natnet.multicast_group");
+        let e = bad.validate().unwrap_err().to_string();
+        assert!(e.contains("natnet.multicast_group"), "{e}");
         assert!(toml::from_str::<NatNetSettings>("interface = \"../etc\"").is_err());
-        assert!(toml::from_str::<NatNetSettings>("transport = \"both\"").is_err());
+        assert!(toml::from_str::<NatNetSettings>("transport = \"unicast\"").is_err());
         assert_eq!(
             "192.168.1.4".parse(),
             Ok(Interface::Address(Ipv4Addr::new(192, 168, 1, 4)))

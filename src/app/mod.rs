@@ -1,0 +1,12 @@
+//! One module per command of `treemocap`. With `daemon`, the only place that
+//! names files: the stages below take and return values.
+
+pub mod files;
+pub mod inspect;
+pub mod live;
+pub mod open;
+pub mod reconstruct;
+pub mod record;
+pub mod replay;
+pub mod synth;
+pub mod tips;

@@ -1,0 +1,47 @@
+//! `treemocap reconstruct TIPS.json`: the particle flow again on saved tips,
+//! and the one place the tree files are written for a finished session
+//! (`replay` writes through it too).
+
+use std::path::Path;
+
+use crate::app::files::write_atomic;
+use crate::config::Config;
+use crate::error::{Error, Result};
+use crate::model::tips::parse_tips;
+use crate::render::outputs::{build_outputs, Outputs, Report};
+
+/// Writes tree.glb, tree.json and tree.png of `outputs` into `out_dir`
+/// (created if missing), each atomically, and returns the report with the
+/// files listed in the order written.
+pub fn write_tree_files(outputs: &Outputs, out_dir: &Path) -> Result<Report> {
+    std::fs::create_dir_all(out_dir).map_err(|e| Error::io(out_dir, e))?;
+    let mut report = outputs.report.clone();
+    for (name, bytes) in [
+        ("tree.glb", outputs.glb.as_slice()),
+        ("tree.json", outputs.tree_json.as_bytes()),
+        ("tree.png", outputs.png.as_slice()),
+    ] {
+        let path = out_dir.join(name);
+        write_atomic(&path, bytes)?;
+        report.files.push(path);
+    }
+    Ok(report)
+}
+
+/// Reconstructs from `tips` and the wind vector with `config.reconstruct`
+/// (and its seed) and writes the tree files into `out_dir`.
+pub fn run_and_write(
+    tips: &[crate::model::tips::CapturedTip],
+    wind: glam::DVec3,
+    config: &Config,
+    out_dir: &Path,
+) -> Result<Report> {
+    write_tree_files(&build_outputs(tips, wind, &config.reconstruct)?, out_dir)
+}
+
+/// The command: reads `tips_path`, reconstructs, writes into `out_dir`.
+pub fn command(tips_path: &Path, config: &Config, out_dir: &Path) -> Result<Report> {
+    let text = std::fs::read_to_string(tips_path).map_err(|e| Error::io(tips_path, e))?;
+    let input = parse_tips(&text, tips_path)?;
+    run_and_write(&input.tips, input.wind, config, out_dir)
+}

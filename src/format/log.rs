@@ -1,0 +1,452 @@
+//! treemocap's own recording format: a long-form CSV, one row per marker
+//! sample, behind a short `#` header.
+//!
+//! ```text
+//! # treemocap log 1
+//! # source: natnet 127.0.0.1:1510
+//! # frame_rate: 100
+//! # units: m
+//! # up_axis: Y
+//! frame,time_s,id,x,y,z
+//! 0,0,,0.1,1.2,0.3
+//! 0,0,,0.4,1.5,-0.2
+//! 1,0.01,,,,
+//! ```
+//!
+//! Why this shape: any CSV tool reads it, appending a frame is appending
+//! lines, and a crash can only cut the last line. Floats are written in
+//! Rust's shortest round-trip form, so writer and reader round-trip bit for
+//! bit. A frame with no markers is one row with empty x, y, z, so empty
+//! frames survive the round trip. Rows of one frame are consecutive and share
+//! frame and time; a change of either starts the next frame.
+//!
+//! The writer only hands whole frames to the OS and does so at least every
+//! `flush_interval`, so a killed process leaves a file that ends on a frame
+//! boundary and loses at most that interval.
+
+use std::fs::File;
+use std::io::{BufRead, BufReader, Write};
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+
+use glam::DVec3;
+
+use super::{Format, Recording, RecordingInfo};
+use crate::error::{Error, Result};
+use crate::model::frame::{Marker, MarkerFrame};
+
+/// First bytes of every log file; `detect` looks for them.
+pub const MAGIC: &str = "# treemocap log";
+const VERSION: &str = "1";
+const COLUMNS: &str = "frame,time_s,id,x,y,z";
+/// Bytes buffered before a write is forced regardless of the interval.
+const BUFFER_LIMIT: usize = 1 << 16;
+
+/// What the header of a log names.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LogHeader {
+    /// Where the samples came from (free text on one line).
+    pub source: String,
+    /// Nominal frames per second of the source.
+    pub frame_rate: f64,
+}
+
+/// Appends frames to a log file, flushing whole frames at least every
+/// `flush_interval`.
+pub struct LogWriter {
+    path: PathBuf,
+    file: File,
+    buf: Vec<u8>,
+    flush_interval: Duration,
+    last_flush: Instant,
+    samples: u64,
+}
+
+impl LogWriter {
+    /// Creates (truncates) `path` and writes the header.
+    pub fn create(path: &Path, header: &LogHeader, flush_interval: Duration) -> Result<Self> {
+        let file = File::create(path).map_err(|e| Error::io(path, e))?;
+        let source: String = header
+            .source
+            .chars()
+            .map(|c| if c.is_control() { ' ' } else { c })
+            .collect();
+        let mut w = LogWriter {
+            path: path.to_path_buf(),
+            file,
+            buf: Vec::with_capacity(BUFFER_LIMIT + 4096),
+            flush_interval,
+            last_flush: Instant::now(),
+            samples: 0,
+        };
+        let head = format!(
+            "{MAGIC} {VERSION}\n# source: {source}\n# frame_rate: {}\n# units: m\n# up_axis: Y\n{COLUMNS}\n",
+            header.frame_rate
+        );
+        w.buf.extend_from_slice(head.as_bytes());
+        w.flush()?;
+        Ok(w)
+    }
+
+    /// Appends one frame. It reaches the disk at the latest one flush interval later.
+    pub fn write_frame(&mut self, frame: &MarkerFrame) -> Result<()> {
+        // The "frame,time," prefix is the same for every row of the frame:
+        // format it once. ryu and itoa give the shortest round-trip text,
+        // several times faster than `Display`.
+        let mut f = ryu::Buffer::new();
+        let mut i = itoa::Buffer::new();
+        let mut prefix = [0u8; 64];
+        let mut n = 0;
+        for part in [
+            i.format(frame.frame).as_bytes(),
+            b",",
+            f.format(frame.time_s).as_bytes(),
+            b",",
+        ] {
+            prefix[n..n + part.len()].copy_from_slice(part);
+            n += part.len();
+        }
+        let prefix = &prefix[..n];
+        let buf = &mut self.buf;
+        if frame.markers.is_empty() {
+            buf.extend_from_slice(prefix);
+            buf.extend_from_slice(b",,,\n");
+        }
+        for m in &frame.markers {
+            buf.extend_from_slice(prefix);
+            if let Some(id) = m.id {
+                buf.extend_from_slice(i.format(id).as_bytes());
+            }
+            for v in m.position.to_array() {
+                buf.push(b',');
+                buf.extend_from_slice(f.format(v).as_bytes());
+            }
+            buf.push(b'\n');
+        }
+        self.samples += frame.markers.len() as u64;
+        if self.buf.len() >= BUFFER_LIMIT || self.last_flush.elapsed() >= self.flush_interval {
+            self.flush()?;
+        }
+        Ok(())
+    }
+
+    /// Flushes if the interval has passed; a live source calls this on a timer
+    /// so a quiet source still gets its last frames onto the disk.
+    pub fn tick(&mut self) -> Result<()> {
+        if !self.buf.is_empty() && self.last_flush.elapsed() >= self.flush_interval {
+            self.flush()?;
+        }
+        Ok(())
+    }
+
+    /// Hands everything buffered (whole frames only) to the OS.
+    pub fn flush(&mut self) -> Result<()> {
+        if !self.buf.is_empty() {
+            self.file
+                .write_all(&self.buf)
+                .map_err(|e| Error::io(&self.path, e))?;
+            self.buf.clear();
+        }
+        self.last_flush = Instant::now();
+        Ok(())
+    }
+
+    /// Marker samples written so far.
+    pub fn samples(&self) -> u64 {
+        self.samples
+    }
+
+    /// Flushes and syncs to the disk.
+    pub fn finish(mut self) -> Result<()> {
+        self.flush()?;
+        self.file.sync_all().map_err(|e| Error::io(&self.path, e))
+    }
+}
+
+impl Drop for LogWriter {
+    fn drop(&mut self) {
+        let _ = self.flush();
+    }
+}
+
+/// Reads a log frame by frame. At the end of the file `next()` returns
+/// `None`; called again later it picks up rows appended since, so a log can
+/// be followed while it is written. A last line without its newline (a crash
+/// mid-write) is held back and, if never completed, reported as a warning.
+pub struct LogReader {
+    path: PathBuf,
+    reader: BufReader<File>,
+    info: RecordingInfo,
+    line_no: u64,
+    /// A line read without its newline, completed on the next read.
+    partial: String,
+    /// The first row of the next frame (or the error found there), read while
+    /// finishing the previous frame; the finished frame is returned first.
+    pending: Option<Result<Row>>,
+    warnings: Vec<String>,
+}
+
+#[derive(Debug, Clone, Copy)]
+struct Row {
+    frame: i64,
+    time_s: f64,
+    marker: Option<Marker>,
+}
+
+impl LogReader {
+    /// Reads the header of an opened log (`path` names it in errors);
+    /// frames are read by iterating.
+    pub fn from_file(file: File, path: &Path) -> Result<Self> {
+        let mut reader = BufReader::new(file);
+        let mut line_no = 0;
+        let mut source = String::new();
+        let mut frame_rate = None;
+        let mut line = String::new();
+        loop {
+            line.clear();
+            let n = reader
+                .read_line(&mut line)
+                .map_err(|e| Error::io(path, e))?;
+            line_no += 1;
+            if n == 0 || !line.ends_with('\n') {
+                return Err(Error::at_line(
+                    path,
+                    line_no,
+                    None,
+                    "log header is incomplete (missing the 'frame,time_s,id,x,y,z' row)",
+                ));
+            }
+            let l = line.trim_end_matches(['\r', '\n']);
+            if line_no == 1 {
+                let Some(version) = l.strip_prefix(MAGIC) else {
+                    return Err(Error::at_line(path, 1, None, "not a treemocap log"));
+                };
+                if version.trim() != VERSION {
+                    return Err(Error::Unsupported {
+                        path: path.into(),
+                        msg: format!("unsupported log version '{}'", version.trim()),
+                    });
+                }
+                continue;
+            }
+            if l == COLUMNS {
+                break;
+            }
+            let Some(kv) = l.strip_prefix('#') else {
+                return Err(Error::at_line(
+                    path,
+                    line_no,
+                    None,
+                    format!("expected a '# key: value' header line or '{COLUMNS}'"),
+                ));
+            };
+            let (key, value) = kv.split_once(':').unwrap_or((kv, ""));
+            let value = value.trim();
+            match key.trim() {
+                "source" => source = value.to_string(),
+                "frame_rate" => {
+                    let rate: f64 = value.parse().map_err(|_| {
+                        Error::at_line(
+                            path,
+                            line_no,
+                            None,
+                            format!("frame_rate '{value}' is not a number"),
+                        )
+                    })?;
+                    if !(rate.is_finite() && rate > 0.0) {
+                        return Err(Error::at_line(
+                            path,
+                            line_no,
+                            None,
+                            "frame_rate must be positive",
+                        ));
+                    }
+                    frame_rate = Some(rate);
+                }
+                "units" if value != "m" => {
+                    return Err(Error::at_line(
+                        path,
+                        line_no,
+                        None,
+                        format!("units '{value}': logs are in metres ('m')"),
+                    ))
+                }
+                "up_axis" if value != "Y" => {
+                    return Err(Error::at_line(
+                        path,
+                        line_no,
+                        None,
+                        format!("up_axis '{value}': logs are Y up"),
+                    ))
+                }
+                _ => {} // unknown header keys are kept for newer writers
+            }
+        }
+        let Some(frame_rate) = frame_rate else {
+            return Err(Error::at_line(
+                path,
+                line_no,
+                None,
+                "log header has no frame_rate",
+            ));
+        };
+        Ok(LogReader {
+            path: path.to_path_buf(),
+            reader,
+            info: RecordingInfo {
+                format: Format::Log,
+                version: VERSION.into(),
+                frame_rate,
+                units: "m".into(),
+                up_axis: "Y".into(),
+                source,
+            },
+            line_no,
+            partial: String::new(),
+            pending: None,
+            warnings: Vec::new(),
+        })
+    }
+
+    /// The next whole row, or `None` at the current end of the file.
+    fn next_row(&mut self) -> Option<Result<Row>> {
+        loop {
+            let mut line = std::mem::take(&mut self.partial);
+            let start = line.len();
+            match self.reader.read_line(&mut line) {
+                Err(e) => return Some(Err(Error::io(&self.path, e))),
+                Ok(0) => {
+                    if !line.is_empty() {
+                        self.partial = line;
+                    }
+                    return None;
+                }
+                Ok(_) if !line.ends_with('\n') => {
+                    self.partial = line;
+                    return None;
+                }
+                Ok(_) => {}
+            }
+            let _ = start;
+            self.line_no += 1;
+            let l = line.trim_end_matches(['\r', '\n']);
+            if l.is_empty() || l.starts_with('#') {
+                continue;
+            }
+            return Some(
+                parse_row(l)
+                    .map_err(|(col, msg)| Error::at_line(&self.path, self.line_no, Some(col), msg)),
+            );
+        }
+    }
+}
+
+fn parse_row(l: &str) -> std::result::Result<Row, (u64, String)> {
+    let mut f = l.split(',');
+    let mut field = |col: u64, name: &str| {
+        f.next()
+            .ok_or_else(|| (col, format!("row has too few fields (missing {name})")))
+    };
+    let frame_s = field(1, "frame")?;
+    let time_s = field(2, "time_s")?;
+    let id_s = field(3, "id")?;
+    let xs = [field(4, "x")?, field(5, "y")?, field(6, "z")?];
+    if f.next().is_some() {
+        return Err((7, "row has more than 6 fields".into()));
+    }
+    let frame: i64 = frame_s
+        .parse()
+        .map_err(|_| (1, format!("frame '{frame_s}' is not an integer")))?;
+    let time: f64 = time_s
+        .parse()
+        .map_err(|_| (2, format!("time_s '{time_s}' is not a number")))?;
+    if xs.iter().all(|s| s.is_empty()) {
+        return Ok(Row {
+            frame,
+            time_s: time,
+            marker: None,
+        });
+    }
+    let mut p = [0.0; 3];
+    for (i, s) in xs.iter().enumerate() {
+        p[i] = s
+            .parse()
+            .map_err(|_| (4 + i as u64, format!("coordinate '{s}' is not a number")))?;
+    }
+    let id = if id_s.is_empty() {
+        None
+    } else {
+        Some(
+            id_s.parse()
+                .map_err(|_| (3, format!("id '{id_s}' is not an integer")))?,
+        )
+    };
+    Ok(Row {
+        frame,
+        time_s: time,
+        marker: Some(Marker {
+            position: DVec3::from_array(p),
+            id,
+        }),
+    })
+}
+
+impl Iterator for LogReader {
+    type Item = Result<MarkerFrame>;
+
+    fn next(&mut self) -> Option<Self::Item> {
+        let first = match self.pending.take().or_else(|| self.next_row())? {
+            Ok(r) => r,
+            Err(e) => return Some(Err(e)),
+        };
+        let mut frame = MarkerFrame::new(first.frame, first.time_s, Vec::new());
+        frame.markers.extend(first.marker);
+        loop {
+            match self.next_row() {
+                None => break,
+                Some(Err(e)) => {
+                    self.pending = Some(Err(e));
+                    break;
+                }
+                Some(Ok(r))
+                    if r.frame == frame.frame && r.time_s.to_bits() == frame.time_s.to_bits() =>
+                {
+                    frame.markers.extend(r.marker)
+                }
+                Some(Ok(r)) => {
+                    self.pending = Some(Ok(r));
+                    break;
+                }
+            }
+        }
+        Some(Ok(frame))
+    }
+}
+
+impl Recording for LogReader {
+    fn info(&self) -> &RecordingInfo {
+        &self.info
+    }
+
+    fn warnings(&self) -> &[String] {
+        &self.warnings
+    }
+}
+
+impl LogReader {
+    /// Call at the end of a replay: turns a held-back partial line into a
+    /// warning (the file was cut off mid-row, as by a crash).
+    pub fn finish(&mut self) -> &[String] {
+        if !self.partial.is_empty() {
+            let msg = format!(
+                "{}: line {}: last row is cut off (no newline); read up to the last whole row",
+                self.path.display(),
+                self.line_no + 1
+            );
+            tracing::warn!("{msg}");
+            self.warnings.push(msg);
+            self.partial.clear();
+        }
+        &self.warnings
+    }
+}

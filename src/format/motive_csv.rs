@@ -1,0 +1,567 @@
+//! OptiTrack Motive CSV exports, format versions 1.21–1.25
+//! (spec/motive-csv.md).
+//!
+//! The header is read once at `open`; data rows are then read one at a time,
+//! so memory does not grow with the take. Decisions the spec leaves to us:
+//! - Row 1 is a key/value map; only `Format Version`, the frame rates and
+//!   `Length Units` matter. Frame counts in row 1 are ignored: we read to EOF.
+//! - Descriptor rows are found by their label (`Type`, `Name`, `ID`,
+//!   `Parent`); rows with an empty label (1.21, and the component row) are
+//!   taken in order as Type, Name, ID, …, the last one being the component row.
+//! - Columns are grouped into channels by consecutive runs of equal
+//!   (Type, Name, ID), never by blocks of three.
+//! - Time is frame / export rate. The Time column is only a check (it is
+//!   quantized to 1 ms by some builds): a disagreement beyond
+//!   `time_tolerance_s` is a warning, never an error.
+
+use std::fs::File;
+use std::io::{BufRead, BufReader};
+use std::path::{Path, PathBuf};
+
+use glam::DVec3;
+
+use super::csv_rows::RowReader;
+use super::{Channel, ChannelKind, Format, Recording, RecordingInfo};
+use crate::error::{Error, Result};
+use crate::model::frame::{Marker, MarkerFrame};
+
+/// Default allowed disagreement of the Time column (s); see `config.replay`.
+/// How far the Time column may disagree with frame / rate by default (s):
+/// Motive quantizes Time to 1 ms at high rates.
+pub const DEFAULT_TIME_TOLERANCE_S: f64 = 0.002;
+
+/// Where a channel's numbers are in a data row.
+#[derive(Debug, Clone)]
+struct ChannelColumns {
+    /// All columns of the channel, for empty-cell counts and number checks.
+    first: usize,
+    end: usize,
+    /// For marker channels: the X, Y, Z columns of the `Position` component.
+    position: Option<[usize; 3]>,
+}
+
+/// Streaming reader of a Motive CSV export.
+pub struct MotiveCsvReader {
+    path: PathBuf,
+    rows: RowReader<BufReader<File>>,
+    info: RecordingInfo,
+    /// Row 1 as read, in order, for `inspect` and for users who want the take's
+    /// notes or start time.
+    pub header: Vec<(String, String)>,
+    channels: Vec<Channel>,
+    columns: Vec<ChannelColumns>,
+    /// Number of fields every data row must have (trailing empty ones may be
+    /// missing only if the row is otherwise short of nothing).
+    width: usize,
+    /// Metres per file unit.
+    scale: f64,
+    /// Index of the Time column (1) and whether a TimeCode column follows.
+    has_timecode: bool,
+    time_tolerance_s: f64,
+    /// (frame, Time column) of the first data row, for the time check.
+    time_origin: Option<(i64, f64)>,
+    time_mismatches: u64,
+    /// Latest values of non-marker channels (rigid bodies, bones), kept apart
+    /// from the tip candidates: (channel index, values in file order; NaN = empty).
+    poses: Vec<(usize, Vec<f64>)>,
+    warnings: Vec<String>,
+    done: bool,
+}
+
+fn channel_kind(type_: &str, name: &str) -> ChannelKind {
+    match type_.trim() {
+        "Marker" if is_unlabeled(name) => ChannelKind::Unlabeled,
+        "Marker" => ChannelKind::Marker,
+        "Unlabeled Marker" | "Unlabeled" => ChannelKind::Unlabeled,
+        "Rigid Body" => ChannelKind::RigidBody,
+        "Rigid Body Marker" => ChannelKind::RigidBodyMarker,
+        "Bone" => ChannelKind::Bone,
+        "Bone Marker" => ChannelKind::BoneMarker,
+        _ => ChannelKind::Other,
+    }
+}
+
+fn is_unlabeled(name: &str) -> bool {
+    name.strip_prefix("Unlabeled")
+        .is_some_and(|rest| rest.starts_with([' ', ':']))
+}
+
+impl MotiveCsvReader {
+    /// Reads the header of an opened export (`path` names it in errors);
+    /// data rows are read by iterating. `time_tolerance_s` is how far the
+    /// Time column may disagree with frame / rate before a warning.
+    pub fn from_file(file: File, path: &Path, time_tolerance_s: f64) -> Result<Self> {
+        let mut buf = BufReader::with_capacity(1 << 16, file);
+        // Skip a UTF-8 BOM ourselves: the CSV parser would keep it in the
+        // first key and `Format Version` would not be found.
+        let head = buf.fill_buf().map_err(|e| Error::io(path, e))?;
+        if head.starts_with(b"\xEF\xBB\xBF") {
+            buf.consume(3);
+        }
+        let mut r = MotiveCsvReader {
+            path: path.to_path_buf(),
+            rows: RowReader::new(buf),
+            info: RecordingInfo {
+                format: Format::MotiveCsv,
+                version: String::new(),
+                frame_rate: 0.0,
+                units: String::new(),
+                up_axis: "Y".into(),
+                source: String::new(),
+            },
+            header: Vec::new(),
+            channels: Vec::new(),
+            columns: Vec::new(),
+            width: 2,
+            scale: 1.0,
+            has_timecode: false,
+            time_tolerance_s,
+            time_origin: None,
+            time_mismatches: 0,
+            poses: Vec::new(),
+            warnings: Vec::new(),
+            done: false,
+        };
+        r.read_header()?;
+        Ok(r)
+    }
+
+    fn err(&self, line: u64, column: Option<u64>, msg: impl Into<String>) -> Error {
+        Error::at_line(&self.path, line, column, msg)
+    }
+
+    fn read_row(&mut self) -> Result<bool> {
+        self.rows.read().map_err(|e| Error::io(&self.path, e))
+    }
+
+    fn read_header(&mut self) -> Result<()> {
+        if !self.read_row()? {
+            return Err(self.err(1, None, "file is empty"));
+        }
+        let first = self.rows.text(0).to_string();
+        if first == "comment" {
+            return Err(Error::Unsupported {
+                path: self.path.clone(),
+                msg: "unsupported format version: row-typed Motive/Arena CSV (format 1.0/1.1); \
+                      re-export the take from Motive 1.5 or later (format 1.2x)"
+                    .into(),
+            });
+        }
+        // Row 1: key, value, key, value… Excel adds empty pairs at the end.
+        let cells: Vec<String> = (0..self.rows.len())
+            .map(|i| self.rows.text(i).trim().to_string())
+            .collect();
+        for pair in cells.chunks(2) {
+            let key = pair[0].clone();
+            let value = pair.get(1).cloned().unwrap_or_default();
+            if !key.is_empty() {
+                self.header.push((key, value));
+            }
+        }
+        let header = self.header.clone();
+        let get = |k: &str| {
+            header
+                .iter()
+                .find(|(key, _)| key == k)
+                .map(|(_, v)| v.as_str())
+        };
+        let Some(version) = get("Format Version") else {
+            return Err(self.err(
+                1,
+                None,
+                "row 1 has no 'Format Version' key: not a Motive CSV export",
+            ));
+        };
+        let version = version.to_string();
+        let numeric: Option<(u32, u32)> = version
+            .split_once('.')
+            .and_then(|(a, b)| Some((a.parse().ok()?, b.get(..b.len().min(1))?.parse().ok()?)));
+        match numeric {
+            Some((1, 2)) => {}
+            _ => {
+                return Err(Error::Unsupported {
+                    path: self.path.clone(),
+                    msg: format!(
+                        "unsupported format version {version}: treemocap reads Motive CSV formats 1.21–1.25"
+                    ),
+                })
+            }
+        }
+        if !matches!(
+            version.as_str(),
+            "1.2" | "1.21" | "1.22" | "1.23" | "1.24" | "1.25"
+        ) {
+            self.warn(format!(
+                "format version {version} is newer than 1.25; reading it like 1.25"
+            ));
+        }
+        let rate_text = get("Export Frame Rate")
+            .filter(|s| !s.is_empty())
+            .or_else(|| get("Capture Frame Rate"))
+            .map(str::to_string);
+        let Some(rate_text) = rate_text else {
+            return Err(self.err(
+                1,
+                None,
+                "row 1 has neither 'Export Frame Rate' nor 'Capture Frame Rate'",
+            ));
+        };
+        let rate: f64 = match rate_text.parse() {
+            Ok(r) if f64::is_finite(r) && r > 0.0 => r,
+            _ => {
+                return Err(self.err(
+                    1,
+                    None,
+                    format!("frame rate '{rate_text}' is not a positive number"),
+                ))
+            }
+        };
+        let units = get("Length Units").unwrap_or("").to_string();
+        self.scale = match units.as_str() {
+            "Meters" => 1.0,
+            "Centimeters" => 0.01,
+            "Millimeters" => 0.001,
+            "" => {
+                return Err(self.err(
+                    1,
+                    None,
+                    "row 1 has no 'Length Units' (Meters, Centimeters or Millimeters)",
+                ))
+            }
+            other => {
+                return Err(self.err(
+                    1,
+                    None,
+                    format!("Length Units '{other}' is not Meters, Centimeters or Millimeters"),
+                ))
+            }
+        };
+        self.info.version = version;
+        self.info.frame_rate = rate;
+        self.info.units = units;
+        self.info.source = get("Take Name").unwrap_or("").to_string();
+
+        // Descriptor rows up to the axis row `Frame,Time…`.
+        let mut labeled: Vec<(String, Vec<String>)> = Vec::new();
+        let mut unlabeled: Vec<Vec<String>> = Vec::new();
+        let axis_row: Vec<String>;
+        loop {
+            if !self.read_row()? {
+                return Err(self.err(
+                    self.rows.line() + 1,
+                    None,
+                    "no 'Frame,Time' header row before the end of the file",
+                ));
+            }
+            let line = self.rows.line();
+            let row: Vec<String> = (0..self.rows.len())
+                .map(|i| self.rows.text(i).to_string())
+                .collect();
+            if row.iter().all(|c| c.is_empty()) {
+                continue; // row 2, plain or Excel's `,,,,`
+            }
+            if row[0] == "Frame" {
+                axis_row = row;
+                break;
+            }
+            if !row[0].is_empty() {
+                return Err(self.err(
+                    line,
+                    Some(1),
+                    format!(
+                        "expected a header row (',Type,…', ',Name,…', ',ID,…' or 'Frame,Time,…'), found '{}'",
+                        row[0]
+                    ),
+                ));
+            }
+            let label = row.get(1).cloned().unwrap_or_default();
+            match label.as_str() {
+                "Type" | "Name" | "ID" | "Parent" => labeled.push((label, row)),
+                "" => unlabeled.push(row),
+                other => {
+                    return Err(self.err(
+                        line,
+                        Some(2),
+                        format!("unknown header row label '{other}'"),
+                    ))
+                }
+            }
+        }
+        let axis_line = self.rows.line();
+        if !axis_row.get(1).is_some_and(|t| t.starts_with("Time")) {
+            return Err(self.err(axis_line, Some(2), "the header row must begin 'Frame,Time'"));
+        }
+        self.has_timecode = axis_row.get(2).is_some_and(|t| t == "TimeCode");
+        let data_start = if self.has_timecode { 3 } else { 2 };
+        self.width = axis_row.len();
+
+        // The component row is the last unlabeled row; earlier unlabeled rows
+        // (format 1.21) stand for Type, Name, ID in that order.
+        let component = unlabeled.pop();
+        let mut order = ["Type", "Name", "ID"].into_iter();
+        for row in unlabeled {
+            let Some(label) = order.find(|l| !labeled.iter().any(|(k, _)| k == l)) else {
+                return Err(self.err(axis_line, None, "too many unlabeled header rows"));
+            };
+            labeled.push((label.to_string(), row));
+        }
+        let row_of = |label: &str| labeled.iter().find(|(k, _)| k == label).map(|(_, r)| r);
+        let Some(types) = row_of("Type") else {
+            return Err(self.err(axis_line, None, "header has no 'Type' row"));
+        };
+        let names = row_of("Name");
+        let ids = row_of("ID");
+        fn cell(row: Option<&Vec<String>>, i: usize) -> &str {
+            row.and_then(|r| r.get(i)).map(String::as_str).unwrap_or("")
+        }
+
+        let mut i = data_start;
+        while i < self.width {
+            let key = (cell(Some(types), i), cell(names, i), cell(ids, i));
+            if key.0.is_empty() && axis_row[i].is_empty() {
+                i += 1; // Excel's trailing empty columns
+                continue;
+            }
+            let mut end = i + 1;
+            while end < self.width
+                && (cell(Some(types), end), cell(names, end), cell(ids, end)) == key
+            {
+                end += 1;
+            }
+            let kind = channel_kind(key.0, key.1);
+            let mut position = None;
+            if kind.is_marker() {
+                let find = |axis: &str| {
+                    (i..end).find(|&c| {
+                        axis_row[c] == axis
+                            && component.as_ref().is_none_or(|r| {
+                                r.get(c).is_none_or(|s| s == "Position" || s.is_empty())
+                            })
+                    })
+                };
+                match (find("X"), find("Y"), find("Z")) {
+                    (Some(x), Some(y), Some(z)) => position = Some([x, y, z]),
+                    _ => {
+                        return Err(self.err(
+                            axis_line,
+                            Some(i as u64 + 1),
+                            format!("marker '{}' has no Position X, Y, Z columns", key.1),
+                        ))
+                    }
+                }
+            }
+            self.channels.push(Channel {
+                name: key.1.to_string(),
+                kind,
+                present: 0,
+                empty_cells: 0,
+            });
+            self.columns.push(ChannelColumns {
+                first: i,
+                end,
+                position,
+            });
+            i = end;
+        }
+        Ok(())
+    }
+
+    fn warn(&mut self, msg: String) {
+        let msg = format!("{}: {msg}", self.path.display());
+        tracing::warn!("{msg}");
+        self.warnings.push(msg);
+    }
+
+    /// Latest values of the non-marker channels (rigid bodies, bones and their
+    /// markers), by channel index. Rotations are X, Y, Z, W as in the file;
+    /// positions are in file units; empty cells are NaN.
+    pub fn poses(&self) -> &[(usize, Vec<f64>)] {
+        &self.poses
+    }
+
+    fn parse_row(&mut self) -> Result<MarkerFrame> {
+        let line = self.rows.line();
+        let n = self.rows.len();
+        if n < self.width {
+            // Trailing empty cells may be cut by hand-edited files; a row
+            // short of real data is malformed.
+            return Err(self.err(
+                line,
+                Some(n as u64 + 1),
+                format!("row has {n} fields, the header has {}", self.width),
+            ));
+        }
+        if let Some(c) = (self.width..n).find(|&c| !self.rows.get(c).is_empty()) {
+            return Err(self.err(
+                line,
+                Some(c as u64 + 1),
+                format!("row has {n} fields, the header has {}", self.width),
+            ));
+        }
+        let frame_text = self.rows.text(0);
+        let frame: i64 = frame_text.trim().parse().map_err(|_| {
+            self.err(
+                line,
+                Some(1),
+                format!("frame number '{frame_text}' is not an integer"),
+            )
+        })?;
+        let time_text = self.rows.text(1);
+        if !time_text.is_empty() {
+            let t: f64 = time_text.trim().parse().map_err(|_| {
+                self.err(line, Some(2), format!("time '{time_text}' is not a number"))
+            })?;
+            let (f0, t0) = *self.time_origin.get_or_insert((frame, t));
+            let expected = t0 + (frame - f0) as f64 / self.info.frame_rate;
+            if (t - expected).abs() > self.time_tolerance_s {
+                self.time_mismatches += 1;
+                if self.time_mismatches == 1 {
+                    self.warn(format!(
+                        "line {line}: Time column {t} differs from frame/rate ({expected:.6}); \
+                         using frame/rate (further mismatches counted, not logged)"
+                    ));
+                }
+            }
+        }
+        let rate = self.info.frame_rate;
+        let mut markers = Vec::new();
+        let mut values: [f64; 3];
+        for ci in 0..self.columns.len() {
+            let cols = &self.columns[ci];
+            let (first, end, position) = (cols.first, cols.end, cols.position);
+            let mut empty = 0u64;
+            for c in first..end {
+                if self.rows.get(c).is_empty() {
+                    empty += 1;
+                }
+            }
+            self.channels[ci].empty_cells += empty;
+            if let Some(xyz) = position {
+                values = [0.0; 3];
+                let mut complete = true;
+                for (k, &c) in xyz.iter().enumerate() {
+                    let raw = self.rows.get(c);
+                    if raw.is_empty() {
+                        complete = false;
+                        continue;
+                    }
+                    values[k] = parse_number(raw).ok_or_else(|| {
+                        self.err(
+                            line,
+                            Some(c as u64 + 1),
+                            format!(
+                                "'{}' is not a number (marker '{}')",
+                                String::from_utf8_lossy(raw),
+                                self.channels[ci].name
+                            ),
+                        )
+                    })?;
+                }
+                if complete {
+                    self.channels[ci].present += 1;
+                    markers.push(Marker {
+                        position: DVec3::from_array(values) * self.scale,
+                        id: Some(ci as i64),
+                    });
+                }
+            } else {
+                let mut vals = Vec::with_capacity(end - first);
+                for c in first..end {
+                    let raw = self.rows.get(c);
+                    if raw.is_empty() {
+                        vals.push(f64::NAN);
+                        continue;
+                    }
+                    vals.push(parse_number(raw).ok_or_else(|| {
+                        self.err(
+                            line,
+                            Some(c as u64 + 1),
+                            format!(
+                                "'{}' is not a number ({} '{}')",
+                                String::from_utf8_lossy(raw),
+                                kind_name(self.channels[ci].kind),
+                                self.channels[ci].name
+                            ),
+                        )
+                    })?);
+                }
+                if empty == 0 {
+                    self.channels[ci].present += 1;
+                }
+                match self.poses.iter_mut().find(|(i, _)| *i == ci) {
+                    Some(slot) => slot.1 = vals,
+                    None => self.poses.push((ci, vals)),
+                }
+            }
+        }
+        Ok(MarkerFrame::new(frame, frame as f64 / rate, markers))
+    }
+}
+
+fn kind_name(kind: ChannelKind) -> &'static str {
+    match kind {
+        ChannelKind::RigidBody => "rigid body",
+        ChannelKind::RigidBodyMarker => "rigid body marker",
+        ChannelKind::Bone => "bone",
+        ChannelKind::BoneMarker => "bone marker",
+        _ => "column",
+    }
+}
+
+fn parse_number(raw: &[u8]) -> Option<f64> {
+    let s = std::str::from_utf8(raw).ok()?;
+    let v: f64 = s.trim().parse().ok()?;
+    v.is_finite().then_some(v)
+}
+
+impl Iterator for MotiveCsvReader {
+    type Item = Result<MarkerFrame>;
+
+    fn next(&mut self) -> Option<Self::Item> {
+        if self.done {
+            return None;
+        }
+        loop {
+            match self.read_row() {
+                Err(e) => {
+                    self.done = true;
+                    return Some(Err(e));
+                }
+                Ok(false) => {
+                    self.done = true;
+                    if self.time_mismatches > 1 {
+                        let n = self.time_mismatches;
+                        self.warn(format!(
+                            "{n} rows had a Time column off frame/rate by more than {} s",
+                            self.time_tolerance_s
+                        ));
+                    }
+                    return None;
+                }
+                Ok(true) => {}
+            }
+            if self.rows.is_blank() {
+                continue; // a blank line, e.g. at the end
+            }
+            let r = self.parse_row();
+            if r.is_err() {
+                self.done = true;
+            }
+            return Some(r);
+        }
+    }
+}
+
+impl Recording for MotiveCsvReader {
+    fn info(&self) -> &RecordingInfo {
+        &self.info
+    }
+
+    fn channels(&self) -> &[Channel] {
+        &self.channels
+    }
+
+    fn warnings(&self) -> &[String] {
+        &self.warnings
+    }
+}

@@ -1,0 +1,309 @@
+//! The tree as binary glTF 2.0 (.glb): the branch mesh, the leaves as a
+//! second mesh (when there are any), and the skeleton as a LINES primitive
+//! (one line per node–parent pair) so a viewer can show the structure the
+//! flow produced. The JSON part is built with `gltf-json`; the GLB container
+//! (a 12-byte header and two chunks) is written here.
+
+use gltf_json as json;
+use json::validation::{Checked::Valid, USize64};
+
+use crate::error::{Error, Result};
+use crate::model::tree::Tree;
+use crate::reconstruct::mesh::Mesh;
+
+const GLB_MAGIC: u32 = 0x4654_6C67; // "glTF"
+const CHUNK_JSON: u32 = 0x4E4F_534A; // "JSON"
+const CHUNK_BIN: u32 = 0x004E_4942; // "BIN\0"
+
+/// Encodes the tree and its meshes as a .glb file's bytes.
+pub fn to_glb(tree: &Tree, branches: &Mesh, leaves: Option<&Mesh>) -> Result<Vec<u8>> {
+    let mut b = Builder::default();
+    let bark = b.material("bark", [0.40, 0.29, 0.20, 1.0], false);
+    let mut scene_nodes = Vec::new();
+    if let Some(mesh) = b.triangle_mesh("branches", branches, bark)? {
+        scene_nodes.push(b.node("branches", mesh));
+    }
+    if let Some(leaves) = leaves.filter(|m| !m.indices.is_empty()) {
+        let leaf = b.material("leaf", [0.27, 0.52, 0.16, 1.0], true);
+        if let Some(mesh) = b.triangle_mesh("leaves", leaves, leaf)? {
+            scene_nodes.push(b.node("leaves", mesh));
+        }
+    }
+    if let Some(mesh) = b.skeleton(tree)? {
+        scene_nodes.push(b.node("skeleton", mesh));
+    }
+    let scene = b.root.push(json::Scene {
+        extensions: None,
+        extras: Default::default(),
+        name: Some("tree".into()),
+        nodes: scene_nodes,
+    });
+    b.root.scene = Some(scene);
+    b.finish()
+}
+
+struct Builder {
+    root: json::Root,
+    bin: Vec<u8>,
+}
+
+impl Default for Builder {
+    fn default() -> Self {
+        let root = json::Root {
+            asset: json::Asset {
+                copyright: None,
+                extensions: None,
+                extras: Default::default(),
+                generator: Some(format!("treemocap {}", env!("CARGO_PKG_VERSION"))),
+                min_version: None,
+                version: "2.0".into(),
+            },
+            ..Default::default()
+        };
+        Builder {
+            root,
+            bin: Vec::new(),
+        }
+    }
+}
+
+impl Builder {
+    fn material(
+        &mut self,
+        name: &str,
+        rgba: [f32; 4],
+        double_sided: bool,
+    ) -> json::Index<json::Material> {
+        self.root.push(json::Material {
+            name: Some(name.into()),
+            double_sided,
+            pbr_metallic_roughness: json::material::PbrMetallicRoughness {
+                base_color_factor: json::material::PbrBaseColorFactor(rgba),
+                metallic_factor: json::material::StrengthFactor(0.0),
+                roughness_factor: json::material::StrengthFactor(0.9),
+                ..Default::default()
+            },
+            ..Default::default()
+        })
+    }
+
+    /// Appends `bytes` (4-byte aligned) as a buffer view.
+    fn view(
+        &mut self,
+        bytes: Vec<u8>,
+        target: json::buffer::Target,
+    ) -> json::Index<json::buffer::View> {
+        while !self.bin.len().is_multiple_of(4) {
+            self.bin.push(0);
+        }
+        let offset = self.bin.len();
+        let len = bytes.len();
+        self.bin.extend(bytes);
+        self.root.push(json::buffer::View {
+            buffer: json::Index::new(0),
+            byte_length: USize64::from(len),
+            byte_offset: Some(USize64::from(offset)),
+            byte_stride: None,
+            name: None,
+            target: Some(Valid(target)),
+            extensions: None,
+            extras: Default::default(),
+        })
+    }
+
+    /// A VEC3 float accessor; `bounds` adds min/max (required for POSITION).
+    fn vec3(&mut self, data: &[[f32; 3]], bounds: bool) -> json::Index<json::Accessor> {
+        let bytes: Vec<u8> = data
+            .iter()
+            .flatten()
+            .flat_map(|v| v.to_le_bytes())
+            .collect();
+        let view = self.view(bytes, json::buffer::Target::ArrayBuffer);
+        let (min, max) = if bounds {
+            let mut lo = [f32::INFINITY; 3];
+            let mut hi = [f32::NEG_INFINITY; 3];
+            for p in data {
+                for k in 0..3 {
+                    lo[k] = lo[k].min(p[k]);
+                    hi[k] = hi[k].max(p[k]);
+                }
+            }
+            (
+                Some(json::Value::from(lo.to_vec())),
+                Some(json::Value::from(hi.to_vec())),
+            )
+        } else {
+            (None, None)
+        };
+        self.root.push(json::Accessor {
+            buffer_view: Some(view),
+            byte_offset: None,
+            count: USize64::from(data.len()),
+            component_type: Valid(json::accessor::GenericComponentType(
+                json::accessor::ComponentType::F32,
+            )),
+            extensions: None,
+            extras: Default::default(),
+            type_: Valid(json::accessor::Type::Vec3),
+            min,
+            max,
+            name: None,
+            normalized: false,
+            sparse: None,
+        })
+    }
+
+    fn indices(&mut self, data: &[u32]) -> json::Index<json::Accessor> {
+        let bytes: Vec<u8> = data.iter().flat_map(|v| v.to_le_bytes()).collect();
+        let view = self.view(bytes, json::buffer::Target::ElementArrayBuffer);
+        self.root.push(json::Accessor {
+            buffer_view: Some(view),
+            byte_offset: None,
+            count: USize64::from(data.len()),
+            component_type: Valid(json::accessor::GenericComponentType(
+                json::accessor::ComponentType::U32,
+            )),
+            extensions: None,
+            extras: Default::default(),
+            type_: Valid(json::accessor::Type::Scalar),
+            min: None,
+            max: None,
+            name: None,
+            normalized: false,
+            sparse: None,
+        })
+    }
+
+    fn triangle_mesh(
+        &mut self,
+        name: &str,
+        mesh: &Mesh,
+        material: json::Index<json::Material>,
+    ) -> Result<Option<json::Index<json::Mesh>>> {
+        if mesh.indices.is_empty() {
+            return Ok(None);
+        }
+        if mesh.normals.len() != mesh.positions.len() {
+            return Err(Error::Runtime(format!(
+                "{name}: normals and positions differ in count"
+            )));
+        }
+        let positions = self.vec3(&mesh.positions, true);
+        let normals = self.vec3(&mesh.normals, false);
+        let indices = self.indices(&mesh.indices);
+        let mut attributes = std::collections::BTreeMap::new();
+        attributes.insert(Valid(json::mesh::Semantic::Positions), positions);
+        attributes.insert(Valid(json::mesh::Semantic::Normals), normals);
+        Ok(Some(self.mesh(
+            name,
+            attributes,
+            indices,
+            material,
+            json::mesh::Mode::Triangles,
+        )))
+    }
+
+    fn skeleton(&mut self, tree: &Tree) -> Result<Option<json::Index<json::Mesh>>> {
+        let positions: Vec<[f32; 3]> = tree
+            .nodes
+            .iter()
+            .map(|n| n.position.as_vec3().to_array())
+            .collect();
+        let mut lines = Vec::with_capacity(2 * tree.nodes.len());
+        for (i, n) in tree.nodes.iter().enumerate() {
+            if let Some(p) = n.parent {
+                let (a, b) = (u32::try_from(i), u32::try_from(p));
+                let (Ok(a), Ok(b)) = (a, b) else {
+                    return Err(Error::Runtime("skeleton has more than 2^32 nodes".into()));
+                };
+                lines.extend_from_slice(&[a, b]);
+            }
+        }
+        if lines.is_empty() {
+            return Ok(None);
+        }
+        let material = self.material("skeleton", [0.85, 0.12, 0.10, 1.0], false);
+        let pos = self.vec3(&positions, true);
+        let idx = self.indices(&lines);
+        let mut attributes = std::collections::BTreeMap::new();
+        attributes.insert(Valid(json::mesh::Semantic::Positions), pos);
+        Ok(Some(self.mesh(
+            "skeleton",
+            attributes,
+            idx,
+            material,
+            json::mesh::Mode::Lines,
+        )))
+    }
+
+    fn mesh(
+        &mut self,
+        name: &str,
+        attributes: std::collections::BTreeMap<
+            json::validation::Checked<json::mesh::Semantic>,
+            json::Index<json::Accessor>,
+        >,
+        indices: json::Index<json::Accessor>,
+        material: json::Index<json::Material>,
+        mode: json::mesh::Mode,
+    ) -> json::Index<json::Mesh> {
+        self.root.push(json::Mesh {
+            extensions: None,
+            extras: Default::default(),
+            name: Some(name.into()),
+            primitives: vec![json::mesh::Primitive {
+                attributes,
+                extensions: None,
+                extras: Default::default(),
+                indices: Some(indices),
+                material: Some(material),
+                mode: Valid(mode),
+                targets: None,
+            }],
+            weights: None,
+        })
+    }
+
+    fn node(&mut self, name: &str, mesh: json::Index<json::Mesh>) -> json::Index<json::Node> {
+        self.root.push(json::Node {
+            mesh: Some(mesh),
+            name: Some(name.into()),
+            ..Default::default()
+        })
+    }
+
+    fn finish(mut self) -> Result<Vec<u8>> {
+        while !self.bin.len().is_multiple_of(4) {
+            self.bin.push(0);
+        }
+        self.root.push(json::Buffer {
+            byte_length: USize64::from(self.bin.len()),
+            name: None,
+            uri: None,
+            extensions: None,
+            extras: Default::default(),
+        });
+        let mut text = self
+            .root
+            .to_vec()
+            .map_err(|e| Error::Runtime(format!("glTF JSON: {e}")))?;
+        while !text.len().is_multiple_of(4) {
+            text.push(b' ');
+        }
+        let total = 12 + 8 + text.len() + 8 + self.bin.len();
+        let total = u32::try_from(total).map_err(|_| {
+            Error::Runtime("the tree is too large for one .glb file (4 GiB)".into())
+        })?;
+        let mut out = Vec::with_capacity(total as usize);
+        out.extend_from_slice(&GLB_MAGIC.to_le_bytes());
+        out.extend_from_slice(&2u32.to_le_bytes());
+        out.extend_from_slice(&total.to_le_bytes());
+        out.extend_from_slice(&(text.len() as u32).to_le_bytes());
+        out.extend_from_slice(&CHUNK_JSON.to_le_bytes());
+        out.extend_from_slice(&text);
+        out.extend_from_slice(&(self.bin.len() as u32).to_le_bytes());
+        out.extend_from_slice(&CHUNK_BIN.to_le_bytes());
+        out.extend_from_slice(&self.bin);
+        Ok(out)
+    }
+}

@@ -1,0 +1,10 @@
+//! The model as bytes: the tree as binary glTF, JSON and a PNG picture, and
+//! the traces as a plot. Pure functions; writing the bytes somewhere is the
+//! caller's business (`app`, `daemon`, `serve`).
+
+pub mod gltf;
+pub mod json;
+pub mod outputs;
+pub mod picture;
+pub mod plot;
+pub mod raster;

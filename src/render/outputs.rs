@@ -1,0 +1,127 @@
+//! One reconstruction's outputs in memory: the tree and its encoded
+//! tree.glb, tree.json and tree.png. The daemon shares these very bytes with
+//! its viewers and `app` writes them to disk.
+
+use std::path::PathBuf;
+
+use glam::DVec3;
+use serde::Serialize;
+
+use crate::error::Result;
+use crate::model::tips::CapturedTip;
+use crate::model::tree::{Kind, Tree};
+use crate::reconstruct::{leaves, mesh, reconstruct, ReconstructSettings};
+
+/// What a reconstruction produced, for the CLI and the daemon to print.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Report {
+    /// Captured tips used.
+    pub captured_tips: usize,
+    /// Random tips added in the crown volume.
+    pub random_tips: usize,
+    /// Nodes in the skeleton.
+    pub nodes: usize,
+    /// Flow steps taken.
+    pub steps: usize,
+    /// Particles joined to the trunk after `max_steps` (should be 0).
+    pub forced_joins: usize,
+    /// Triangles of the branch mesh.
+    pub branch_triangles: usize,
+    /// Leaves (0 when leaves are off).
+    pub leaves: usize,
+    /// Files written, in order.
+    pub files: Vec<PathBuf>,
+}
+
+/// Everything one reconstruction produces, in memory: the daemon shares
+/// these very bytes with its viewers (`output::snapshot::TreeSnapshot`), and
+/// `run_and_write` writes them to disk.
+#[derive(Debug, Clone)]
+pub struct Outputs {
+    /// The tree itself.
+    pub tree: Tree,
+    /// tree.glb bytes.
+    pub glb: Vec<u8>,
+    /// tree.json text.
+    pub tree_json: String,
+    /// tree.png bytes.
+    pub png: Vec<u8>,
+    /// Counts for printing (its `files` is empty until written).
+    pub report: Report,
+}
+
+/// Reconstructs with `cfg` (and its seed) and encodes the
+/// three outputs, without touching the disk.
+pub fn build_outputs(
+    tips: &[CapturedTip],
+    wind: DVec3,
+    cfg: &ReconstructSettings,
+) -> Result<Outputs> {
+    let mut outputs = build_model(tips, wind, cfg)?;
+    outputs.png = super::picture::tree_png(&outputs.tree)?;
+    Ok(outputs)
+}
+
+/// Like [`build_outputs`] without the picture (`png` left empty): the daemon
+/// publishes the tree to its viewers first and draws the picture after.
+pub fn build_model(
+    tips: &[CapturedTip],
+    wind: DVec3,
+    cfg: &ReconstructSettings,
+) -> Result<Outputs> {
+    let tree = reconstruct(tips, wind, cfg, cfg.seed)?;
+    let branch_mesh = mesh::branches(&tree, cfg.sides)?;
+    let leaf_mesh = if cfg.leaves {
+        Some(leaves::leaves(&tree, cfg, cfg.seed)?)
+    } else {
+        None
+    };
+    let glb = super::gltf::to_glb(&tree, &branch_mesh, leaf_mesh.as_ref())?;
+    let tree_json = super::json::to_json(&tree, cfg)?;
+    let png = Vec::new();
+    let report = Report {
+        captured_tips: tips.len(),
+        random_tips: tree.nodes.iter().filter(|n| n.kind == Kind::Tip).count(),
+        nodes: tree.nodes.len(),
+        steps: tree.steps,
+        forced_joins: tree.forced_joins,
+        branch_triangles: branch_mesh.triangles(),
+        leaves: leaf_mesh.map_or(0, |m| m.triangles() / 2),
+        files: Vec::new(),
+    };
+    Ok(Outputs {
+        tree,
+        glb,
+        tree_json,
+        png,
+        report,
+    })
+}
+
+impl Report {
+    /// The reconstruction's counts on one line, as `replay` and
+    /// `reconstruct` print them.
+    pub fn counts(&self) -> String {
+        format!(
+            "tree: {} captured + {} random tips, {} nodes, {} flow steps, {} forced joins, {} triangles, {} leaves",
+            self.captured_tips,
+            self.random_tips,
+            self.nodes,
+            self.steps,
+            self.forced_joins,
+            self.branch_triangles,
+            self.leaves
+        )
+    }
+}
+
+impl std::fmt::Display for Report {
+    /// The counts, then a line per file written.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        writeln!(f, "{}", self.counts())?;
+        for file in &self.files {
+            writeln!(f, "wrote {}", file.display())?;
+        }
+        Ok(())
+    }
+}

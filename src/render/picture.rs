@@ -1,0 +1,138 @@
+//! tree.png: the reconstructed skeleton seen from the front (x–y) and the
+//! side (z–y) at the same scale, branches drawn as thick as they are (at
+//! least one pixel), captured tips as red dots, with a scale bar, so a user
+//! can judge a result without a 3D viewer.
+
+use glam::DVec3;
+
+use crate::error::Result;
+use crate::model::tree::{Kind, Tree};
+use crate::render::raster::{Canvas, Rgb};
+
+const WIDTH: u32 = 1400;
+const HEIGHT: u32 = 820;
+const MARGIN: f64 = 40.0;
+const TOP: f64 = 70.0;
+const BOTTOM: f64 = 60.0;
+
+const TRUNK: Rgb = [74, 50, 32];
+const BRANCH: Rgb = [122, 88, 58];
+const TIP_FILL: Rgb = [220, 30, 30];
+const TIP_EDGE: Rgb = [90, 0, 0];
+const INK: Rgb = [30, 30, 30];
+const GROUND: Rgb = [170, 170, 170];
+
+/// A view: title, the horizontal coordinate of a point, its lowest value
+/// and its span.
+type View = (&'static str, fn(DVec3) -> f64, f64, f64);
+
+/// Renders the front and side views as PNG bytes.
+pub fn tree_png(tree: &Tree) -> Result<Vec<u8>> {
+    render(tree).encode_png()
+}
+
+/// Renders the front and side views.
+pub fn render(tree: &Tree) -> Canvas {
+    let mut canvas = Canvas::new(WIDTH, HEIGHT);
+    let Some(first) = tree.nodes.first() else {
+        return canvas;
+    };
+    let mut lo = first.position;
+    let mut hi = first.position;
+    for n in &tree.nodes {
+        lo = lo.min(n.position - DVec3::splat(n.radius));
+        hi = hi.max(n.position + DVec3::splat(n.radius));
+    }
+    let span = (hi - lo).max(DVec3::splat(1e-6));
+    let panel_w = (WIDTH as f64 - 3.0 * MARGIN) / 2.0;
+    let panel_h = HEIGHT as f64 - TOP - BOTTOM;
+    // One scale for both views so their sizes compare.
+    let scale = (panel_w / span.x.max(span.z)).min(panel_h / span.y);
+
+    let views: [View; 2] = [
+        ("front (x right, y up)", |p| p.x, lo.x, span.x),
+        ("side (z right, y up)", |p| p.z, lo.z, span.z),
+    ];
+    // Segments thickest first, so thin branches stay visible on top.
+    let mut segments: Vec<usize> = (0..tree.nodes.len())
+        .filter(|&i| tree.nodes[i].parent.is_some())
+        .collect();
+    segments.sort_by(|&a, &b| {
+        tree.nodes[b]
+            .radius
+            .total_cmp(&tree.nodes[a].radius)
+            .then(a.cmp(&b))
+    });
+
+    for (v, (title, horizontal, h_lo, h_span)) in views.iter().enumerate() {
+        let left = MARGIN + v as f64 * (panel_w + MARGIN) + 0.5 * (panel_w - h_span * scale);
+        let base = HEIGHT as f64 - BOTTOM;
+        let to_px = |p: DVec3| {
+            (
+                left + (horizontal(p) - h_lo) * scale,
+                base - (p.y - lo.y) * scale,
+            )
+        };
+        canvas.text_scaled(MARGIN + v as f64 * (panel_w + MARGIN), 20.0, title, 2, INK);
+        // Ground under the trunk base.
+        let (_, gy) = to_px(first.position);
+        canvas.line(
+            MARGIN + v as f64 * (panel_w + MARGIN),
+            gy,
+            MARGIN + v as f64 * (panel_w + MARGIN) + panel_w,
+            gy,
+            1.0,
+            GROUND,
+        );
+        for &i in &segments {
+            let node = &tree.nodes[i];
+            let Some(parent) = node.parent.and_then(|p| tree.nodes.get(p)) else {
+                continue;
+            };
+            let (x0, y0) = to_px(node.position);
+            let (x1, y1) = to_px(parent.position);
+            let colour = if node.kind == Kind::Trunk {
+                TRUNK
+            } else {
+                BRANCH
+            };
+            canvas.line(x0, y0, x1, y1, (2.0 * node.radius * scale).max(1.0), colour);
+        }
+        for node in &tree.nodes {
+            if let Kind::Captured { .. } = node.kind {
+                let (x, y) = to_px(node.position);
+                canvas.circle(x, y, 5.0, TIP_EDGE);
+                canvas.circle(x, y, 3.5, TIP_FILL);
+            }
+        }
+    }
+
+    // Scale bar: the largest of 1, 0.5, 0.2, 0.1 m that fits in 200 px.
+    let bar = [1.0, 0.5, 0.2, 0.1, 0.05]
+        .into_iter()
+        .find(|m| m * scale <= 200.0)
+        .unwrap_or(0.05);
+    let y = HEIGHT as f64 - 25.0;
+    canvas.line(MARGIN, y, MARGIN + bar * scale, y, 3.0, INK);
+    canvas.text_scaled(
+        MARGIN + bar * scale + 10.0,
+        y - 7.0,
+        &format!("{bar} M"),
+        2,
+        INK,
+    );
+    let captured = tree
+        .nodes
+        .iter()
+        .filter(|n| matches!(n.kind, Kind::Captured { .. }))
+        .count();
+    let tips = tree.nodes.iter().filter(|n| n.kind.is_tip()).count();
+    let info = format!(
+        "captured tips {captured} (red)   all tips {tips}   nodes {}   steps {}   forced joins {}",
+        tree.nodes.len(),
+        tree.steps,
+        tree.forced_joins
+    );
+    canvas.text_scaled(MARGIN + 330.0, y - 7.0, &info, 2, INK);
+    canvas
+}

@@ -1,0 +1,231 @@
+//! A wind sensor on a serial port: NMEA 0183 `$--MWV` sentences or plain
+//! `angle,speed` lines, read on a blocking thread that reconnects with
+//! back-off when the port vanishes (a USB adapter unplugged).
+//!
+//! Both line kinds give the angle the wind comes *from*, relative to the
+//! sensor's 0° mark (the vessel's bow, for a marine sensor).
+//! `sensor_heading_deg` says where that mark points in capture coordinates, so
+//! downwind azimuth = heading + angle + 180°.
+
+use std::io::Read;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::{Arc, Mutex};
+use std::time::Duration;
+
+use serde::Serialize;
+
+use crate::model::wind::{direction_of, WindEstimate, WindSource};
+pub use crate::protocol::nmea::{parse_line, LineError, SensorReading};
+
+/// A reading turned into capture coordinates.
+pub fn to_estimate(reading: &SensorReading, heading_deg: f64, time_s: f64) -> WindEstimate {
+    WindEstimate {
+        time_s,
+        source: WindSource::Sensor,
+        direction: direction_of((heading_deg + reading.angle_deg + 180.0).rem_euclid(360.0)),
+        speed_m_s: Some(reading.speed_m_s),
+    }
+}
+
+/// Where and how to read the sensor.
+#[derive(Debug, Clone)]
+pub struct SerialOptions {
+    /// Device path, e.g. `/dev/ttyUSB0`.
+    pub port: String,
+    pub baud: u32,
+    /// Capture azimuth of the sensor's 0° mark (degrees).
+    pub heading_deg: f64,
+    /// First and longest wait between reconnection attempts.
+    pub backoff_min: Duration,
+    pub backoff_max: Duration,
+}
+
+/// Live counters of the sensor thread, for `/status` and the log.
+#[derive(Debug, Default)]
+pub struct SerialStatus {
+    pub connected: AtomicBool,
+    pub readings: AtomicU64,
+    pub bad_checksum: AtomicU64,
+    pub invalid: AtomicU64,
+    pub not_valid: AtomicU64,
+    pub other_sentences: AtomicU64,
+    /// Successful opens after the first one.
+    pub reconnects: AtomicU64,
+    pub last_error: Mutex<Option<String>>,
+}
+
+/// A copy of [`SerialStatus`] at one instant.
+#[derive(Debug, Clone, Default, PartialEq, Serialize)]
+pub struct SerialStatusSnapshot {
+    pub port: String,
+    pub connected: bool,
+    pub readings: u64,
+    pub bad_checksum: u64,
+    pub invalid: u64,
+    pub not_valid: u64,
+    pub other_sentences: u64,
+    pub reconnects: u64,
+    pub last_error: Option<String>,
+}
+
+impl SerialStatus {
+    pub fn snapshot(&self, port: &str) -> SerialStatusSnapshot {
+        SerialStatusSnapshot {
+            port: port.to_string(),
+            connected: self.connected.load(Ordering::Relaxed),
+            readings: self.readings.load(Ordering::Relaxed),
+            bad_checksum: self.bad_checksum.load(Ordering::Relaxed),
+            invalid: self.invalid.load(Ordering::Relaxed),
+            not_valid: self.not_valid.load(Ordering::Relaxed),
+            other_sentences: self.other_sentences.load(Ordering::Relaxed),
+            reconnects: self.reconnects.load(Ordering::Relaxed),
+            last_error: self.last_error.lock().map(|e| e.clone()).unwrap_or(None),
+        }
+    }
+
+    fn set_error(&self, msg: String) {
+        if let Ok(mut e) = self.last_error.lock() {
+            *e = Some(msg);
+        }
+    }
+}
+
+/// Longest line kept while waiting for its end; longer is garbage.
+const MAX_LINE: usize = 256;
+
+/// Reads the sensor until `shutdown` is set, calling `on_estimate` for every
+/// good reading. Never returns early: a missing or vanished port is retried
+/// with back-off and reported in `status`.
+pub fn run_blocking(
+    opts: &SerialOptions,
+    clock: &dyn Fn() -> f64,
+    on_estimate: &mut dyn FnMut(WindEstimate),
+    status: &SerialStatus,
+    shutdown: &AtomicBool,
+) {
+    let mut backoff = opts.backoff_min;
+    let mut opened_before = false;
+    while !shutdown.load(Ordering::Relaxed) {
+        let port = serialport::new(&opts.port, opts.baud)
+            .timeout(Duration::from_millis(100))
+            .open();
+        let mut port = match port {
+            Ok(p) => p,
+            Err(e) => {
+                status.connected.store(false, Ordering::Relaxed);
+                status.set_error(format!("{}: {e}", opts.port));
+                sleep_unless(shutdown, backoff);
+                backoff = (backoff * 2).min(opts.backoff_max);
+                continue;
+            }
+        };
+        if opened_before {
+            status.reconnects.fetch_add(1, Ordering::Relaxed);
+        }
+        opened_before = true;
+        backoff = opts.backoff_min;
+        status.connected.store(true, Ordering::Relaxed);
+        tracing::info!("wind sensor on {} connected", opts.port);
+        let mut line = Vec::with_capacity(MAX_LINE);
+        let mut buf = [0u8; 256];
+        let mut line_no = 0u64;
+        while !shutdown.load(Ordering::Relaxed) {
+            let n = match port.read(&mut buf) {
+                Ok(0) => {
+                    status.set_error(format!("{}: port closed", opts.port));
+                    break;
+                }
+                Ok(n) => n,
+                Err(e) if e.kind() == std::io::ErrorKind::TimedOut => continue,
+                Err(e) if e.kind() == std::io::ErrorKind::Interrupted => continue,
+                Err(e) => {
+                    status.set_error(format!("{}: {e}", opts.port));
+                    break;
+                }
+            };
+            for &b in &buf[..n] {
+                if b != b'\n' {
+                    if line.len() < MAX_LINE {
+                        line.push(b);
+                    }
+                    continue;
+                }
+                line_no += 1;
+                let text = String::from_utf8_lossy(&line).into_owned();
+                let too_long = line.len() >= MAX_LINE;
+                line.clear();
+                if too_long {
+                    status.invalid.fetch_add(1, Ordering::Relaxed);
+                    tracing::warn!(
+                        "{}: line {line_no}: longer than {MAX_LINE} bytes",
+                        opts.port
+                    );
+                    continue;
+                }
+                match parse_line(&text) {
+                    Ok(Some(r)) => {
+                        status.readings.fetch_add(1, Ordering::Relaxed);
+                        on_estimate(to_estimate(&r, opts.heading_deg, clock()));
+                    }
+                    Ok(None) => {}
+                    Err(e) => {
+                        let counter = match e {
+                            LineError::Checksum { .. } => &status.bad_checksum,
+                            LineError::Invalid { .. } => &status.invalid,
+                            LineError::NotValid => &status.not_valid,
+                            LineError::Other(_) => &status.other_sentences,
+                        };
+                        counter.fetch_add(1, Ordering::Relaxed);
+                        if !matches!(e, LineError::Other(_)) {
+                            tracing::warn!("{}: line {line_no}: {e}", opts.port);
+                        }
+                    }
+                }
+            }
+        }
+        status.connected.store(false, Ordering::Relaxed);
+        tracing::warn!("wind sensor on {} lost; reconnecting", opts.port);
+    }
+    status.connected.store(false, Ordering::Relaxed);
+}
+
+fn sleep_unless(shutdown: &AtomicBool, total: Duration) {
+    let step = Duration::from_millis(20);
+    let mut left = total;
+    while !left.is_zero() && !shutdown.load(Ordering::Relaxed) {
+        let d = left.min(step);
+        std::thread::sleep(d);
+        left -= d;
+    }
+}
+
+/// Starts [`run_blocking`] on its own thread.
+pub fn spawn(
+    opts: SerialOptions,
+    clock: Arc<dyn Fn() -> f64 + Send + Sync>,
+    mut on_estimate: Box<dyn FnMut(WindEstimate) + Send>,
+    status: Arc<SerialStatus>,
+    shutdown: Arc<AtomicBool>,
+) -> std::thread::JoinHandle<()> {
+    std::thread::Builder::new()
+        .name("wind-serial".into())
+        .spawn(move || run_blocking(&opts, &*clock, &mut *on_estimate, &status, &shutdown))
+        .expect("spawn wind sensor thread")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn plain_lines_and_heading() {
+        let r = parse_line("90,3.5").unwrap().unwrap();
+        assert_eq!((r.angle_deg, r.speed_m_s), (90.0, 3.5));
+        // Wind from the sensor's 90° mark; the mark points to capture azimuth 0:
+        // it comes from azimuth 90 and blows towards 270.
+        let e = to_estimate(&r, 0.0, 1.0);
+        assert!((e.azimuth_deg() - 270.0).abs() < 1e-9);
+        let e = to_estimate(&r, 100.0, 1.0);
+        assert!((e.azimuth_deg() - 10.0).abs() < 1e-9);
+    }
+}

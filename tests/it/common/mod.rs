@@ -1,0 +1,2 @@
+pub mod crowns;
+pub mod natnet;

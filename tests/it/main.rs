@@ -1,0 +1,26 @@
+//! treemocap's integration tests: one test binary, one module per
+//! capability, so the crate and its dependencies are linked once. Each module
+//! drives the program as a user would: real files, real UDP sockets on
+//! 127.0.0.1, real third-party peers (tests/peers/), pseudo-terminals.
+
+mod common;
+
+mod c3d;
+mod cli;
+mod daemon;
+mod log_format;
+mod motive_csv;
+mod natnet_bad_input;
+mod natnet_loopback;
+mod natnet_packet;
+mod natnet_pcap;
+mod natnet_peers;
+mod osc;
+mod outputs;
+mod reconstruct;
+mod record_natnet;
+mod replay;
+mod sim;
+mod tracking_accuracy;
+mod tracking_fixtures;
+mod wind_serial;
