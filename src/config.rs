@@ -22,15 +22,25 @@ pub const DEFAULT_TOML: &str = include_str!("../config/default.toml");
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Config {
+    /// `[replay]`: reading recorded sessions.
     pub replay: ReplayConfig,
+    /// `[record]`: writing our log format.
     pub record: RecordConfig,
+    /// `[osc]`: the OSC source.
     pub osc: OscSettings,
+    /// `[output]`: where results are written.
     pub output: OutputConfig,
+    /// `[natnet]`: the NatNet client.
     pub natnet: NatNetSettings,
+    /// `[tracking]`: the marker stage.
     pub tracking: TrackingSettings,
+    /// `[wind]`: the wind sources and their priority.
     pub wind: WindSettings,
+    /// `[daemon]`: `treemocap run`.
     pub daemon: DaemonConfig,
+    /// `[c3d]`: reading C3D files.
     pub c3d: C3dConfig,
+    /// `[reconstruct]`: the particle flow (docs/particle-flow.md).
     pub reconstruct: ReconstructSettings,
 }
 
@@ -67,9 +77,14 @@ pub struct OutputConfig {
 pub struct DaemonConfig {
     /// Where frames come from.
     pub source: DaemonSource,
+    /// The recording played when `source = "replay"`.
     pub replay_file: String,
+    /// Playback speed of that recording; 0 plays as fast as possible.
     pub replay_speed: f64,
+    /// Start the recording again at its end, times continuing.
     pub replay_loop: bool,
+    /// NatNet server, `ADDRESS` or `ADDRESS:COMMAND_PORT`, when
+    /// `source = "natnet"`.
     pub natnet_server: String,
     /// How NatNet frames travel; `auto` takes what the server says.
     pub natnet_transport: TransportSetting,
@@ -77,21 +92,30 @@ pub struct DaemonConfig {
     pub window_s: f64,
     /// Seconds of capture time between analyses.
     pub analysis_interval_s: f64,
+    /// Still phase (s) needed before the first tree is built.
     pub rest_min_s: f64,
+    /// How long (s) the tips must differ from the last tree's before a new
+    /// tree is built, so a marker hidden for a moment does not trigger one.
     pub tip_change_s: f64,
+    /// Distance (mm) beyond which a tip counts as moved.
     pub moved_mm: f64,
+    /// Wind turn (degrees) that triggers a new tree.
     pub wind_turn_deg: f64,
     /// 0 disables the periodic rebuild.
     pub period_s: f64,
     /// Gate of the live tip follower (mm).
     pub follow_gate_mm: f64,
+    /// Frames queued between the sources and the pipeline; when full, the
+    /// oldest is dropped and counted, so a slow pipeline never blocks a socket.
     pub channel_frames: u32,
+    /// Record every frame to `OUT/session.log.csv`.
     pub record: bool,
     /// HTTP and WebSocket address; `""` in the config (None) turns it off.
     #[serde(with = "optional_addr")]
     pub http: Option<SocketAddr>,
     /// Where the tree, tips and wind are sent as OSC.
     pub osc_targets: Vec<SocketAddr>,
+    /// Keep every tree as `tree-0001.glb`, `tree-0001.json`, … as well.
     pub history: bool,
     /// UDP address for `/treemocap/rebuild`; `""` (None) turns it off.
     #[serde(with = "optional_addr")]

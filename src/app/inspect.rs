@@ -23,16 +23,25 @@ const JUMPS_LISTED: usize = 20;
 /// Everything `inspect` reports; serialised as-is by `--json`.
 #[derive(Debug, Clone, Serialize)]
 pub struct Inspection {
+    /// The path as given on the command line.
     pub file: String,
+    /// The format detected from the content.
     pub format: Format,
+    /// The format's own version ("1.23" for Motive CSV, "1" for our log).
     pub version: String,
+    /// Frames per second from the header.
     pub frame_rate: f64,
+    /// Length unit as the file writes it (converted to metres on reading).
     pub units: String,
+    /// Up axis of the file ("Y" or "Z"; turned to Y up on reading).
     pub up_axis: String,
     /// Take name or source description from the file's header.
     pub source: String,
+    /// Frames in the file (read to its end, whatever the header claims).
     pub frames: u64,
+    /// Number of the first frame; `None` for a file without frames.
     pub first_frame: Option<i64>,
+    /// Number of the last frame.
     pub last_frame: Option<i64>,
     /// Seconds from the first to the last frame.
     pub duration_s: f64,
@@ -42,6 +51,7 @@ pub struct Inspection {
     pub jump_list: Vec<(i64, i64)>,
     /// Jumps that went backwards (a restarted source).
     pub backwards: u64,
+    /// Markers per frame, to see occlusions and spurious reflections at a glance.
     pub markers_per_frame: MarkerCounts,
     /// Marker samples in all frames.
     pub samples: u64,
@@ -55,24 +65,32 @@ pub struct Inspection {
     pub short_columns: u64,
     /// Columns that are not tip candidates, by kind (rigid bodies, bones…).
     pub other_channels: BTreeMap<String, u64>,
+    /// What the reader warned about (a cut-off last row, Time column drift).
     pub warnings: Vec<String>,
 }
 
 /// Markers per frame.
 #[derive(Debug, Clone, Copy, Default, Serialize)]
 pub struct MarkerCounts {
+    /// Fewest markers in one frame.
     pub min: usize,
+    /// Markers in the median frame: close to the markers placed when
+    /// occlusions and reflections are rare.
     pub median: usize,
+    /// Most markers in one frame.
     pub max: usize,
 }
 
 /// One marker column of the file.
 #[derive(Debug, Clone, Serialize)]
 pub struct ColumnSummary {
+    /// The column's name in the file.
     pub name: String,
+    /// An unlabeled point-cloud marker rather than a labeled one.
     pub unlabeled: bool,
     /// Frames in which the marker had a position.
     pub present: u64,
+    /// Empty cells in the column's coordinates.
     pub gap_cells: u64,
 }
 

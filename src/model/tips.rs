@@ -60,6 +60,8 @@ pub struct Tips {
     pub frame_rate: f64,
     /// The rest window in seconds from the start of the recording.
     pub rest_window_s: [f64; 2],
+    /// One entry per marker that survived cleaning, in marker order: the
+    /// captured tips the tree grows from.
     pub tips: Vec<Tip>,
     /// The wind the flow used (`wind` in tips.json: direction, speed or
     /// null when only the direction is known, and its source).

@@ -13,9 +13,13 @@ use crate::render::error::RenderError;
 /// An sRGB colour.
 pub type Rgb = [u8; 3];
 
+/// The canvas's background.
 pub const WHITE: Rgb = [255, 255, 255];
+/// Text and labels of the plots.
 pub const BLACK: Rgb = [0, 0, 0];
+/// Panel outlines of the plots.
 pub const GREY: Rgb = [128, 128, 128];
+/// Zero lines: visible, yet quieter than the data drawn over them.
 pub const LIGHT_GREY: Rgb = [225, 225, 225];
 
 /// An RGB image being drawn.
@@ -37,10 +41,12 @@ impl Canvas {
         }
     }
 
+    /// Width in pixels (after clamping).
     pub fn width(&self) -> u32 {
         self.width
     }
 
+    /// Height in pixels (after clamping).
     pub fn height(&self) -> u32 {
         self.height
     }

@@ -32,43 +32,63 @@ pub fn to_estimate(reading: &SensorReading, heading_deg: f64, time_s: f64) -> Wi
 pub struct SerialOptions {
     /// Device path, e.g. `/dev/ttyUSB0`.
     pub port: String,
+    /// Baud rate of the line (NMEA 0183 is 4800).
     pub baud: u32,
     /// Capture azimuth of the sensor's 0° mark (degrees).
     pub heading_deg: f64,
     /// First and longest wait between reconnection attempts.
     pub backoff_min: Duration,
+    /// Longest wait between attempts: how late a replugged sensor is seen.
     pub backoff_max: Duration,
 }
 
 /// Live counters of the sensor thread, for `/status` and the log.
 #[derive(Debug, Default)]
 pub struct SerialStatus {
+    /// The port is open right now.
     pub connected: AtomicBool,
+    /// Lines that gave a wind estimate.
     pub readings: AtomicU64,
+    /// NMEA sentences whose checksum did not match; skipped.
     pub bad_checksum: AtomicU64,
+    /// Lines with a missing, malformed or unknown field; skipped.
     pub invalid: AtomicU64,
+    /// MWV sentences flagged invalid by the sensor itself (status V); skipped.
     pub not_valid: AtomicU64,
+    /// Well-formed sentences other than MWV (a multi-sensor's other data).
     pub other_sentences: AtomicU64,
     /// Successful opens after the first one.
     pub reconnects: AtomicU64,
+    /// Why the port was last lost or could not be opened.
     pub last_error: Mutex<Option<String>>,
 }
 
 /// A copy of [`SerialStatus`] at one instant.
 #[derive(Debug, Clone, Default, PartialEq, Serialize)]
 pub struct SerialStatusSnapshot {
+    /// The device, so `/status` says which sensor it describes.
     pub port: String,
+    /// The port was open.
     pub connected: bool,
+    /// Lines that gave a wind estimate.
     pub readings: u64,
+    /// Sentences with a wrong checksum.
     pub bad_checksum: u64,
+    /// Lines with a missing or malformed field.
     pub invalid: u64,
+    /// Sentences the sensor flagged invalid (status V).
     pub not_valid: u64,
+    /// Sentences other than MWV.
     pub other_sentences: u64,
+    /// Successful opens after the first one.
     pub reconnects: u64,
+    /// Why the port was last lost or could not be opened.
     pub last_error: Option<String>,
 }
 
 impl SerialStatus {
+    /// The counters now, for `/status` (each read on its own; they may be
+    /// a few lines apart).
     pub fn snapshot(&self, port: &str) -> SerialStatusSnapshot {
         SerialStatusSnapshot {
             port: port.to_string(),

@@ -21,12 +21,16 @@ use super::{FormatError, UpAxis};
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Storage {
     /// int16 × scale (the scale is |POINT:SCALE|, in file units).
-    Int16 { scale: f64 },
+    Int16 {
+        /// |POINT:SCALE|: file units per integer step.
+        scale: f64,
+    },
     /// float32, already in file units.
     Float32,
 }
 
 impl Storage {
+    /// Bytes per coordinate or residual word: 2 for int16, 4 for float32.
     pub fn word_bytes(self) -> usize {
         match self {
             Storage::Int16 { .. } => 2,
@@ -34,6 +38,7 @@ impl Storage {
         }
     }
 
+    /// The storage's name in `inspect` and in error messages.
     pub fn name(self) -> &'static str {
         match self {
             Storage::Int16 { .. } => "int16",

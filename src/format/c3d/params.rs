@@ -69,6 +69,7 @@ impl Param {
         self.data.len() / self.kind.size()
     }
 
+    /// True for a parameter that holds no element (a declared, unset value).
     pub fn is_empty(&self) -> bool {
         self.data.is_empty()
     }
@@ -129,6 +130,8 @@ impl Param {
 /// All parameters of a file in file order.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct Params {
+    /// Parameters as they appear; lookups take the first match, as other
+    /// readers do when a file repeats one.
     pub list: Vec<Param>,
 }
 
