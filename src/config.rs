@@ -10,6 +10,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::error::{check_range, Error, Result};
 use crate::reconstruct::ReconstructSettings;
+use crate::source::natnet::settings::NatNetSettings;
 use crate::source::osc::OscSettings;
 use crate::track::TrackingSettings;
 use crate::wind::WindSettings;
@@ -30,7 +31,7 @@ pub struct Config {
     /// `[output]`: where results are written.
     pub output: OutputConfig,
     /// `[natnet]`: the NatNet client.
-    pub natnet: NatNetConfig,
+    pub natnet: NatNetSettings,
     /// `[tracking]`: the marker stage.
     pub tracking: TrackingSettings,
     /// `[wind]`: the wind sources and their priority.
@@ -68,20 +69,6 @@ pub struct RecordConfig {
 pub struct OutputConfig {
     /// Output folder for replay results and the daemon's files.
     pub dir: String,
-}
-
-/// The NatNet client (`treemocap record --natnet`, the daemon).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct NatNetConfig {
-    /// Which markers of a frame are tracked (see `source::natnet::select`).
-    pub markers: crate::source::natnet::select::MarkerSelection,
-    /// Wait for the server's SERVERINFO before reporting it unreachable (s).
-    pub connect_timeout_s: f64,
-    /// Silence after which the client reconnects (s).
-    pub silence_timeout_s: f64,
-    /// Unicast keep-alive period (s).
-    pub keepalive_interval_s: f64,
 }
 
 /// `treemocap run`: sources, triggers and outputs of the daemon.
@@ -148,16 +135,7 @@ pub enum DaemonSource {
 }
 
 /// `daemon.natnet_transport`: how NatNet frames reach the client.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum TransportSetting {
-    /// What the server's SERVERINFO says.
-    Auto,
-    /// Frames sent to this client only.
-    Unicast,
-    /// Frames sent to the multicast group.
-    Multicast,
-}
+pub use crate::source::natnet::settings::TransportSetting;
 
 /// An address that the config may leave empty (`""`) to turn a listener off.
 mod optional_addr {
@@ -283,24 +261,7 @@ impl Config {
         )?;
         check_range("osc.frame_rate", self.osc.frame_rate, 1.0, 10000.0)?;
         crate::source::osc::OscOptions::from_settings(&self.osc)?;
-        check_range(
-            "natnet.connect_timeout_s",
-            self.natnet.connect_timeout_s,
-            0.1,
-            60.0,
-        )?;
-        check_range(
-            "natnet.silence_timeout_s",
-            self.natnet.silence_timeout_s,
-            0.1,
-            60.0,
-        )?;
-        check_range(
-            "natnet.keepalive_interval_s",
-            self.natnet.keepalive_interval_s,
-            0.05,
-            10.0,
-        )?;
+        self.natnet.validate()?;
         let w = &self.wind;
         let mut seen = Vec::new();
         for name in &w.priority {
@@ -522,7 +483,7 @@ mod tests {
 
     #[test]
     fn natnet_marker_selection_is_checked() {
-        use crate::source::natnet::select::MarkerSelection;
+        use crate::protocol::natnet::select::MarkerSelection;
         assert_eq!(Config::default().natnet.markers, MarkerSelection::Unlabeled);
         let c = Config::from_toml_str("[natnet]\nmarkers = \"all\"\n").unwrap();
         assert_eq!(c.natnet.markers, MarkerSelection::All);

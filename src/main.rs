@@ -8,6 +8,7 @@ use std::process::ExitCode;
 use clap::{Parser, Subcommand};
 use treemocap::app::record::RecordOptions;
 use treemocap::config::TransportSetting;
+use treemocap::protocol::natnet;
 use treemocap::shutdown::Shutdown;
 use treemocap::{Error, Result};
 
@@ -128,6 +129,20 @@ struct RecordArgs {
     /// ADDRESS:COMMAND_PORT (default port 1510).
     #[arg(long, value_name = "SERVER")]
     natnet: Option<String>,
+    #[command(flatten)]
+    natnet_options: NatNetArgs,
+    /// The log file to write (truncated if it exists).
+    out: PathBuf,
+    /// Stop after N seconds (default: run until Ctrl-C).
+    #[arg(long, value_name = "N")]
+    seconds: Option<f64>,
+    #[command(flatten)]
+    config: ConfigArgs,
+}
+
+/// `record`'s NatNet options; each overrides its `[natnet]` key.
+#[derive(clap::Args, Debug)]
+struct NatNetArgs {
     /// NatNet: frames sent to this client only (default: what the
     /// server says it does).
     #[arg(long, requires = "natnet", conflicts_with = "multicast")]
@@ -138,13 +153,24 @@ struct RecordArgs {
     /// NatNet: ask the server for this bitstream version (e.g. 3.1).
     #[arg(long, value_name = "X.Y", requires = "natnet")]
     natnet_version: Option<String>,
-    /// The log file to write (truncated if it exists).
-    out: PathBuf,
-    /// Stop after N seconds (default: run until Ctrl-C).
-    #[arg(long, value_name = "N")]
-    seconds: Option<f64>,
-    #[command(flatten)]
-    config: ConfigArgs,
+    /// NatNet: the network interface multicast is joined on, an address
+    /// or a name such as eth1 (overrides natnet.interface).
+    #[arg(long, value_name = "ADDRESS|NAME", requires = "natnet")]
+    interface: Option<String>,
+    /// NatNet: the multicast group (overrides natnet.multicast_group).
+    #[arg(long, value_name = "GROUP", requires = "natnet")]
+    group: Option<std::net::Ipv4Addr>,
+    /// NatNet: the server's command port (overrides natnet.command_port;
+    /// so does --natnet ADDRESS:PORT).
+    #[arg(long, value_name = "PORT", requires = "natnet")]
+    command_port: Option<u16>,
+    /// NatNet: the server's data port (overrides natnet.data_port).
+    #[arg(long, value_name = "PORT", requires = "natnet")]
+    data_port: Option<u16>,
+    /// NatNet: which axis of the stream points up: auto, y or z
+    /// (overrides natnet.up_axis).
+    #[arg(long, value_name = "AXIS", requires = "natnet")]
+    up_axis: Option<String>,
 }
 
 /// Options of `treemocap serve`.
@@ -154,8 +180,8 @@ struct ServeArgs {
     file: PathBuf,
     /// NatNet bitstream version to stream (2.5 … 4.x); unicast clients
     /// may switch theirs with a `Bitstream,X.Y` request.
-    #[arg(long, value_name = "X.Y", default_value = "3.1")]
-    natnet_version: treemocap::source::natnet::packet::Version,
+    #[arg(long, value_name = "X.Y", default_value_t = natnet::DEFAULT_SERVE_VERSION)]
+    natnet_version: natnet::Version,
     /// Playback speed (2 = twice as fast as recorded).
     #[arg(long, default_value_t = 1.0)]
     speed: f64,
@@ -173,13 +199,13 @@ struct ServeArgs {
     #[arg(long, default_value = "0.0.0.0")]
     bind: std::net::Ipv4Addr,
     /// Command port (clients send CONNECT here).
-    #[arg(long, default_value_t = 1510)]
+    #[arg(long, default_value_t = natnet::DEFAULT_COMMAND_PORT)]
     command_port: u16,
     /// Data port (frames are sent from / to it).
-    #[arg(long, default_value_t = 1511)]
+    #[arg(long, default_value_t = natnet::DEFAULT_DATA_PORT)]
     data_port: u16,
     /// Multicast group.
-    #[arg(long, default_value = "239.255.42.99")]
+    #[arg(long, default_value_t = natnet::DEFAULT_MULTICAST_GROUP)]
     group: std::net::Ipv4Addr,
     /// Address of the interface multicast frames leave by.
     #[arg(long, default_value = "127.0.0.1")]
@@ -187,6 +213,18 @@ struct ServeArgs {
     /// Start streaming at once instead of when the first client connects.
     #[arg(long)]
     now: bool,
+    /// Stream Z up, as Motive's "Z up" option does (default: y).
+    #[arg(long, value_name = "AXIS", default_value = "y", value_parser = parse_up_axis)]
+    up_axis: natnet::select::UpAxis,
+}
+
+/// `y` or `z`.
+fn parse_up_axis(text: &str) -> std::result::Result<natnet::select::UpAxis, String> {
+    match text.to_ascii_lowercase().as_str() {
+        "y" => Ok(natnet::select::UpAxis::Y),
+        "z" => Ok(natnet::select::UpAxis::Z),
+        _ => Err(format!("'{text}' is not an up axis; use y or z")),
+    }
 }
 
 /// Options of `treemocap synth`; every one left out takes the default shown.
@@ -406,16 +444,8 @@ fn record(args: RecordArgs) -> Result<()> {
             treemocap::app::live::osc_source(&config, Some(bind))?
         }
         (None, Some(server)) => {
-            let transport = match (args.unicast, args.multicast) {
-                (true, _) => TransportSetting::Unicast,
-                (_, true) => TransportSetting::Multicast,
-                _ => TransportSetting::Auto,
-            };
-            let bitstream = args
-                .natnet_version
-                .map(|v| v.parse().map_err(|e| Error::config("--natnet-version", e)))
-                .transpose()?;
-            treemocap::app::live::natnet_source(&config, &server, "--natnet", transport, bitstream)?
+            let settings = natnet_options(&args.natnet_options, config.natnet.clone())?;
+            treemocap::app::live::natnet_source(settings, &server, "--natnet")?
         }
         (None, None) => return Err(Error::config("record", "give --osc or --natnet")),
     };
@@ -425,9 +455,37 @@ fn record(args: RecordArgs) -> Result<()> {
     Ok(())
 }
 
+/// The `[natnet]` settings with `record`'s NatNet options applied.
+fn natnet_options(
+    args: &NatNetArgs,
+    mut s: treemocap::source::natnet::settings::NatNetSettings,
+) -> Result<treemocap::source::natnet::settings::NatNetSettings> {
+    s.transport = match (args.unicast, args.multicast) {
+        (true, _) => TransportSetting::Unicast,
+        (_, true) => TransportSetting::Multicast,
+        _ => TransportSetting::Auto,
+    };
+    if let Some(v) = &args.natnet_version {
+        s.bitstream = Some(
+            v.parse()
+                .map_err(|e| Error::config("--natnet-version", e))?,
+        );
+    }
+    if let Some(i) = &args.interface {
+        s.interface = i.parse().map_err(|e| Error::config("--interface", e))?;
+    }
+    if let Some(a) = &args.up_axis {
+        s.up_axis = a.parse().map_err(|e| Error::config("--up-axis", e))?;
+    }
+    s.multicast_group = args.group.or(s.multicast_group);
+    s.command_port = args.command_port.unwrap_or(s.command_port);
+    s.data_port = args.data_port.or(s.data_port);
+    Ok(s)
+}
+
 /// `treemocap serve`: a recording streamed as a NatNet server.
 fn serve(args: ServeArgs) -> Result<()> {
-    use treemocap::source::natnet::server;
+    use treemocap::serve::natnet as server;
     let opts = server::ServeOptions {
         version: args.natnet_version,
         speed: args.speed,
@@ -443,10 +501,12 @@ fn serve(args: ServeArgs) -> Result<()> {
         multicast_group: args.group,
         multicast_interface: args.interface,
         wait_for_client: !args.now,
+        up_axis: args.up_axis,
         ..Default::default()
     };
     let (rt, shutdown) = runtime()?;
-    let report = rt.block_on(server::serve(&args.file, &opts, shutdown.receiver()))?;
+    let open = || treemocap::app::open::open(&args.file);
+    let report = rt.block_on(server::serve(open, &opts, shutdown.receiver()))?;
     eprintln!(
         "served {} frames ({} loops) to {} clients in {:.1} s",
         report.frames, report.loops, report.clients, report.elapsed_s

@@ -5,30 +5,26 @@
 use std::net::SocketAddr;
 use std::sync::Arc;
 
-use crate::config::{Config, TransportSetting};
-use crate::error::Result;
+use crate::config::Config;
+use crate::error::{Error, Result};
 use crate::source::live::LiveSource;
-use crate::source::natnet::{client::NatNetOptions, live::NatNetSource, Transport};
+use crate::source::natnet::live::NatNetSource;
+use crate::source::natnet::settings::NatNetSettings;
 use crate::source::osc::{OscOptions, OscSource};
 
 /// The NatNet client for `server` ("ADDRESS" or "ADDRESS:COMMAND_PORT";
-/// `key` names where it came from in errors), with `[natnet]` settings.
+/// `key` names where it came from in errors) with `settings` (the `[natnet]`
+/// section with the command's own options applied).
 pub fn natnet_source(
-    config: &Config,
+    mut settings: NatNetSettings,
     server: &str,
     key: &str,
-    transport: TransportSetting,
-    bitstream: Option<crate::source::natnet::packet::Version>,
 ) -> Result<Arc<dyn LiveSource>> {
-    let mut opts = NatNetOptions::from_config(&config.natnet);
-    opts.set_server(server, key)?;
-    opts.transport = match transport {
-        TransportSetting::Unicast => Some(Transport::Unicast),
-        TransportSetting::Multicast => Some(Transport::Multicast),
-        TransportSetting::Auto => None,
-    };
-    opts.bitstream = bitstream;
-    Ok(Arc::new(NatNetSource(opts)))
+    settings
+        .set_server(server)
+        .map_err(|e| Error::config(key, e))?;
+    settings.validate()?;
+    Ok(Arc::new(NatNetSource::new(settings)))
 }
 
 /// The OSC source with `[osc]` settings, listening on `bind` if given.

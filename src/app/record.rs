@@ -353,6 +353,15 @@ pub fn command(
     ))?;
     println!("{}", progress_line(&summary.progress));
     println!("{}", summary.source);
+    if summary.progress.frames == 0 {
+        // A header alone is no recording: leave nothing to be mistaken for one.
+        let _ = std::fs::remove_file(&summary.out);
+        return Err(Error::Runtime(format!(
+            "no frame came from {} in {:.1} s; nothing was recorded (NatNet multicast: check \
+             natnet.interface, the group and the data port; OSC: check the sender's address)",
+            summary.source.source, summary.progress.elapsed_s
+        )));
+    }
     println!("wrote {}", summary.out.display());
     Ok(summary)
 }

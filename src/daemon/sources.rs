@@ -29,13 +29,11 @@ pub(crate) fn start_source(
     let d = &c.daemon;
     let source: Arc<dyn LiveSource> = match d.source {
         DaemonSource::Replay => return start_replay(shared, sink).map(Some),
-        DaemonSource::Natnet => natnet_source(
-            c,
-            &d.natnet_server,
-            "daemon.natnet_server",
-            d.natnet_transport,
-            None,
-        )?,
+        DaemonSource::Natnet => {
+            let mut settings = c.natnet.clone();
+            settings.transport = d.natnet_transport;
+            natnet_source(settings, &d.natnet_server, "daemon.natnet_server")?
+        }
         DaemonSource::Osc => osc_source(c, None)?,
     };
     *lock(&shared.status.source) = source.describe();
