@@ -288,7 +288,12 @@ pub enum Value {
     Float(Vec<f32>, Vec<usize>),
     /// Strings padded with spaces to a common length (`[len, n]`), or one
     /// string (`[len]`) when `array` is false.
-    Chars { strings: Vec<String>, array: bool },
+    Chars {
+        /// The strings, in order.
+        strings: Vec<String>,
+        /// Written as a 2-D array (`[len, n]`) rather than one string.
+        array: bool,
+    },
 }
 
 /// Encodes a parameter section: `groups` are (id, name), `params` are
