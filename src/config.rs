@@ -241,6 +241,19 @@ impl Config {
 
     /// Range checks, each naming the key and its allowed range.
     pub fn validate(&self) -> Result<()> {
+        self.validate_io()?;
+        validate_wind(&self.wind)?;
+        validate_daemon(&self.daemon)?;
+        if self.output.dir.is_empty() {
+            return Err(Error::config("output.dir", "must not be empty"));
+        }
+        self.tracking.validate()?;
+        self.reconstruct.validate()?;
+        Ok(())
+    }
+
+    /// `[replay]`, `[record]`, `[osc]`, `[natnet]`.
+    fn validate_io(&self) -> Result<()> {
         check_range(
             "replay.time_tolerance_s",
             self.replay.time_tolerance_s,
@@ -262,59 +275,64 @@ impl Config {
         check_range("osc.frame_rate", self.osc.frame_rate, 1.0, 10000.0)?;
         crate::source::osc::OscOptions::from_settings(&self.osc)?;
         self.natnet.validate()?;
-        let w = &self.wind;
-        let mut seen = Vec::new();
-        for name in &w.priority {
-            if seen.contains(&name) {
-                return Err(Error::config(
-                    "wind.priority",
-                    format!("'{}' is repeated", name.name()),
-                ));
-            }
-            seen.push(name);
-        }
-        check_range("wind.max_age_s", w.max_age_s, 0.5, 600.0)?;
-        if !(w.fan_position.is_empty()
-            || (w.fan_position.len() == 3 && w.fan_position.iter().all(|v| v.is_finite())))
-        {
-            return Err(Error::config(
-                "wind.fan_position",
-                "must be [] or three numbers [x, y, z] in metres",
-            ));
-        }
-        check_range("wind.fan_speed_m_s", w.fan_speed_m_s, 0.0, 50.0)?;
-        check_range("wind.sensor_baud", w.sensor_baud as f64, 300.0, 921_600.0)?;
-        check_range("wind.sensor_heading_deg", w.sensor_heading_deg, 0.0, 360.0)?;
-        check_range("wind.pca_window_s", w.pca_window_s, 1.0, 120.0)?;
-        check_range("wind.pca_min_sway_mm", w.pca_min_sway_mm, 0.1, 100.0)?;
-        let d = &self.daemon;
-        check_range("daemon.replay_speed", d.replay_speed, 0.0, 100.0)?;
-        check_range("daemon.window_s", d.window_s, 5.0, 600.0)?;
-        check_range(
-            "daemon.analysis_interval_s",
-            d.analysis_interval_s,
-            0.1,
-            60.0,
-        )?;
-        check_range("daemon.rest_min_s", d.rest_min_s, 1.0, 600.0)?;
-        check_range("daemon.tip_change_s", d.tip_change_s, 0.0, 600.0)?;
-        check_range("daemon.moved_mm", d.moved_mm, 1.0, 1000.0)?;
-        check_range("daemon.wind_turn_deg", d.wind_turn_deg, 1.0, 180.0)?;
-        check_range("daemon.period_s", d.period_s, 0.0, 86_400.0)?;
-        check_range("daemon.follow_gate_mm", d.follow_gate_mm, 5.0, 500.0)?;
-        check_range(
-            "daemon.channel_frames",
-            d.channel_frames as f64,
-            16.0,
-            1_000_000.0,
-        )?;
-        if self.output.dir.is_empty() {
-            return Err(Error::config("output.dir", "must not be empty"));
-        }
-        self.tracking.validate()?;
-        self.reconstruct.validate()?;
         Ok(())
     }
+}
+
+/// `[wind]`: no source twice in the priority, a fan position of three
+/// numbers or none, numbers in range.
+fn validate_wind(w: &WindSettings) -> Result<()> {
+    let mut seen = Vec::new();
+    for name in &w.priority {
+        if seen.contains(&name) {
+            return Err(Error::config(
+                "wind.priority",
+                format!("'{}' is repeated", name.name()),
+            ));
+        }
+        seen.push(name);
+    }
+    check_range("wind.max_age_s", w.max_age_s, 0.5, 600.0)?;
+    if !(w.fan_position.is_empty()
+        || (w.fan_position.len() == 3 && w.fan_position.iter().all(|v| v.is_finite())))
+    {
+        return Err(Error::config(
+            "wind.fan_position",
+            "must be [] or three numbers [x, y, z] in metres",
+        ));
+    }
+    check_range("wind.fan_speed_m_s", w.fan_speed_m_s, 0.0, 50.0)?;
+    check_range("wind.sensor_baud", w.sensor_baud as f64, 300.0, 921_600.0)?;
+    check_range("wind.sensor_heading_deg", w.sensor_heading_deg, 0.0, 360.0)?;
+    check_range("wind.pca_window_s", w.pca_window_s, 1.0, 120.0)?;
+    check_range("wind.pca_min_sway_mm", w.pca_min_sway_mm, 0.1, 100.0)?;
+    Ok(())
+}
+
+/// `[daemon]`: numbers in range (addresses and enums are checked when the
+/// table is read).
+fn validate_daemon(d: &DaemonConfig) -> Result<()> {
+    check_range("daemon.replay_speed", d.replay_speed, 0.0, 100.0)?;
+    check_range("daemon.window_s", d.window_s, 5.0, 600.0)?;
+    check_range(
+        "daemon.analysis_interval_s",
+        d.analysis_interval_s,
+        0.1,
+        60.0,
+    )?;
+    check_range("daemon.rest_min_s", d.rest_min_s, 1.0, 600.0)?;
+    check_range("daemon.tip_change_s", d.tip_change_s, 0.0, 600.0)?;
+    check_range("daemon.moved_mm", d.moved_mm, 1.0, 1000.0)?;
+    check_range("daemon.wind_turn_deg", d.wind_turn_deg, 1.0, 180.0)?;
+    check_range("daemon.period_s", d.period_s, 0.0, 86_400.0)?;
+    check_range("daemon.follow_gate_mm", d.follow_gate_mm, 5.0, 500.0)?;
+    check_range(
+        "daemon.channel_frames",
+        d.channel_frames as f64,
+        16.0,
+        1_000_000.0,
+    )?;
+    Ok(())
 }
 
 /// A value of the wrong type (`-5` for a count, `"x"` for a list) names its

@@ -291,8 +291,7 @@ pub enum Value {
     Chars {
         /// The strings, in order.
         strings: Vec<String>,
-        /// Written as a 2-D array even when there is one string, as
-        /// `POINT:LABELS` must be.
+        /// Written as a 2-D array (`[len, n]`) rather than one string.
         array: bool,
     },
 }
