@@ -8,3 +8,4 @@ pub mod reconstruct;
 pub mod record;
 pub mod replay;
 pub mod tips;
+pub mod view;

@@ -3,7 +3,10 @@
 //! triggers and shutdown; every stage it runs is the plain library code that
 //! `treemocap replay` runs too.
 
+mod console;
 pub mod follow;
+mod live_tips;
+pub mod progress;
 pub mod run;
 pub mod status;
 pub mod triggers;

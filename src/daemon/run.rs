@@ -21,9 +21,11 @@ use std::time::{Duration, Instant};
 
 use crossbeam_channel::{bounded, Receiver, Sender, TrySendError};
 use glam::DVec3;
-use tokio::sync::{broadcast, watch};
+use tokio::sync::watch;
 
 use super::follow::TipFollower;
+use super::live_tips::LiveTips;
+use super::progress::Progress;
 use super::status::Status;
 use super::triggers::{compare_tips, Reason, TriggerConfig, Triggers};
 use super::window::{FrameWindow, WindowRecording};
@@ -37,6 +39,7 @@ use crate::model::tips::{CapturedTip, Tips};
 use crate::model::wind::WindEstimate;
 use crate::render::outputs::build_model;
 use crate::serve::http;
+use crate::serve::live::LiveHub;
 use crate::serve::osc::{tips_datagram, tree_datagrams, wind_datagram, OscSender};
 use crate::serve::snapshot::SnapshotNode;
 use crate::serve::snapshot::TreeSnapshot;
@@ -75,7 +78,8 @@ struct Shared {
     wind: Mutex<WindSelector>,
     wind_log: Mutex<Option<WindLog>>,
     rebuild: Arc<AtomicBool>,
-    live: broadcast::Sender<Arc<str>>,
+    /// Frames and events for the live page (`/live`).
+    hub: Arc<LiveHub>,
     tree_tx: watch::Sender<Option<Arc<TreeSnapshot>>>,
     slot: Slot,
 }
@@ -134,8 +138,11 @@ pub fn run_with_reload(
         });
     }
 
-    let status = Arc::new(Status::default());
-    let (live_tx, _) = broadcast::channel(1024);
+    let status = Arc::new(Status {
+        progress: Progress::new(d.rest_min_s),
+        ..Status::default()
+    });
+    let hub = Arc::new(LiveHub::default());
     let (tree_tx, tree_rx) = watch::channel(None);
     let rebuild = Arc::new(AtomicBool::new(false));
     let wind_log = match WindLog::create(&out.join("wind.csv")) {
@@ -155,7 +162,7 @@ pub fn run_with_reload(
         )),
         wind_log: Mutex::new(wind_log),
         rebuild: rebuild.clone(),
-        live: live_tx.clone(),
+        hub: hub.clone(),
         tree_tx,
         slot: Slot::default(),
         recon_config: Mutex::new(config.clone()),
@@ -185,10 +192,10 @@ pub fn run_with_reload(
         let rb = rebuild.clone();
         let state = http::HttpState {
             tree: tree_rx,
-            live: live_tx.clone(),
+            hub: hub.clone(),
             status: Arc::new(move || st.to_json()),
             metrics: Arc::new(move || st2.to_prometheus()),
-            rebuild: Arc::new(move || rb.store(true, Ordering::Relaxed)),
+            rebuild: Some(Arc::new(move || rb.store(true, Ordering::Relaxed))),
             shutdown: stop_rx.clone(),
         };
         rt.spawn(async move {
@@ -201,6 +208,13 @@ pub fn run_with_reload(
 
     let (sink, rx) = frame_channel(d.channel_frames as usize);
     let source_thread = start_source(&shared, &rt, sink.clone(), stop_rx.clone())?;
+    let console = handle_signals.then(|| {
+        super::console::spawn(
+            super::console::start_line(&status, &d.http),
+            status.clone(),
+            shutdown.clone(),
+        )
+    });
 
     let mut threads = Vec::new();
     if !shared.config.wind.sensor_port.is_empty() {
@@ -225,6 +239,9 @@ pub fn run_with_reload(
         let _ = t.join();
     }
     if let Some(t) = source_thread {
+        let _ = t.join();
+    }
+    if let Some(t) = console {
         let _ = t.join();
     }
     rt.shutdown_timeout(Duration::from_millis(500));
@@ -375,6 +392,11 @@ fn start_source(
                 Arc::new(crate::source::osc::OscSource(opts))
             };
             set_source(source.describe());
+            let counted = source.clone();
+            shared
+                .status
+                .progress
+                .set_losses(Box::new(move || counted.losses()));
             let s = shared.clone();
             rt.spawn(async move {
                 if let Err(e) = source.start(sink, stop).await {
@@ -437,7 +459,7 @@ fn new_wind(shared: &Shared, e: WindEstimate) {
     if let Ok(mut w) = shared.status.wind.lock() {
         *w = current;
     }
-    let _ = shared.live.send(
+    shared.hub.publish_event(
         serde_json::json!({
             "type": "wind", "source": e.source.name(), "azimuth_deg": e.azimuth_deg(),
             "direction": [e.direction.x, e.direction.y, e.direction.z], "speed_m_s": e.speed_m_s,
@@ -469,6 +491,7 @@ fn pipeline_loop(
     let status = &shared.status;
     let mut window = FrameWindow::new(d.window_s);
     let mut follower = TipFollower::new(d.follow_gate_mm / 1000.0);
+    let mut live_tips = LiveTips::new(c.tracking.max_fill_s);
     let mut pca = SwayPca::new(c.wind.pca_window_s, c.wind.pca_min_sway_mm / 1000.0);
     let mut next_pca = f64::NEG_INFINITY;
     let mut next_analysis = f64::NEG_INFINITY;
@@ -501,6 +524,7 @@ fn pipeline_loop(
         }
         while let Ok(tips) = tips_rx.try_recv() {
             follower.set_tips(&tips);
+            live_tips.set_tips(&tips);
             status.tips.store(tips.len() as u64, Ordering::Relaxed);
         }
         let frame = match rx.recv_timeout(Duration::from_millis(50)) {
@@ -517,6 +541,7 @@ fn pipeline_loop(
             Err(crossbeam_channel::RecvTimeoutError::Disconnected) => break,
         };
         let arrived = Instant::now();
+        status.progress.frame_arrived();
         status.frames.fetch_add(1, Ordering::Relaxed);
         status
             .samples
@@ -559,11 +584,7 @@ fn pipeline_loop(
             let seen = follower.update(&positions);
             status.tips_live.store(seen.len() as u64, Ordering::Relaxed);
             pca.push(now, follower.displacements(&seen));
-            if shared.live.receiver_count() > 0 {
-                let _ = shared
-                    .live
-                    .send(http::tips_message(frame.frame, now, &seen));
-            }
+            live_tips.update(now, &seen);
             if let Some(o) = osc.as_mut() {
                 o.send(&tips_datagram(frame.frame, now, &seen));
             }
@@ -576,6 +597,13 @@ fn pipeline_loop(
                     }
                 }
             }
+        }
+        // The viewers' frame: built only while someone watches, published
+        // into a latest-wins slot (never a wait on a viewer).
+        if shared.hub.has_viewers() {
+            shared
+                .hub
+                .publish_frame(live_tips.frame(&frame, follower.claimed()));
         }
         window.push(frame);
         if now >= next_analysis || now < next_analysis - 2.0 * d.analysis_interval_s {
@@ -654,6 +682,7 @@ fn analysis_loop(shared: &Arc<Shared>, rx: Receiver<(WindowRecording, f64)>) {
         } else {
             0.0
         };
+        shared.status.progress.set_still(rest_len);
         if !fan_set && still && !rest.is_empty() {
             if let Some(e) = fan::configured_fan_wind(&c.wind, &rest, now) {
                 new_wind(shared, e);
@@ -749,7 +778,7 @@ fn recon_loop(shared: &Arc<Shared>, tips_tx: Sender<Vec<(usize, DVec3)>>) {
         // Viewers first (memory, sockets), then the picture and the disk.
         let _ = shared.tree_tx.send(Some(snapshot.clone()));
         let _ = tips_tx.try_send(build.tips.iter().map(|t| (t.marker, t.position)).collect());
-        let _ = shared.live.send(http::tree_notice(&snapshot));
+        shared.hub.publish_event(http::tree_notice(&snapshot));
         let published_ms = build.fired.elapsed().as_secs_f64() * 1000.0;
         if let Some(o) = osc.as_mut() {
             o.send_paced(&tree_datagrams(&snapshot));
@@ -767,6 +796,7 @@ fn recon_loop(shared: &Arc<Shared>, tips_tx: Sender<Vec<(usize, DVec3)>>) {
             *t = Some(serde_json::json!({
                 "version": v,
                 "reason": build.reason,
+                "reason_text": build.reason.to_string(),
                 "time_s": build.time_s,
                 "nodes": snapshot.nodes.len(),
                 "tips": build.tips.len(),

@@ -7,6 +7,7 @@ use std::sync::Mutex;
 
 use serde_json::json;
 
+use super::progress::Progress;
 use crate::model::wind::WindEstimate;
 
 /// Shared counters of a running daemon.
@@ -46,6 +47,9 @@ pub struct Status {
     /// last bucket everything slower. Fixed size, so percentiles cost no
     /// memory however long the daemon runs.
     pub latency_hist: LatencyHistogram,
+    /// Source connection, still-phase progress and rejected input, for the
+    /// live page and the console.
+    pub progress: Progress,
 }
 
 /// Buckets of 10 µs up to 20 ms.
@@ -107,7 +111,7 @@ impl Status {
                 "time_s": w.time_s,
             })
         });
-        json!({
+        let mut doc = json!({
             "source": self.source.lock().map(|s| s.clone()).unwrap_or_default(),
             "source_error": self.source_error.lock().ok().and_then(|e| e.clone()),
             "config_error": self.config_error.lock().ok().and_then(|e| e.clone()),
@@ -132,7 +136,13 @@ impl Status {
                 "p99": self.latency_hist.quantile_us(0.99),
                 "max": get(&self.latency_us_max),
             },
-        })
+        });
+        if let (Some(doc), serde_json::Value::Object(more)) =
+            (doc.as_object_mut(), self.progress.to_json())
+        {
+            doc.extend(more);
+        }
+        doc
     }
 
     /// The `/metrics` text (Prometheus exposition format 0.0.4).
