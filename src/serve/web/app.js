@@ -269,6 +269,14 @@ function triangles(obj) {
   return n;
 }
 
+/** The newest tree version announced (status or notice); each is loaded once. */
+let treeAsked = 0;
+function wantTree(version) {
+  if (!(version > treeAsked)) return;
+  treeAsked = version;
+  loadTree();
+}
+
 /** Loads /tree.glb and swaps it in; the camera stays where the person put it. */
 async function loadTree() {
   if (treeLoading) { treeWanted = true; return; }
@@ -417,7 +425,7 @@ function setStatus(s) {
   const windChanged = JSON.stringify(s.wind) !== JSON.stringify(tm.status?.wind);
   tm.status = s;
   if (windChanged) placeWind();
-  if (tm.mode === 'live' && s.tree_version && s.tree_version !== tm.tree?.version) loadTree();
+  if (tm.mode === 'live') wantTree(s.tree_version);
   renderStatus();
 }
 
@@ -445,7 +453,7 @@ function connect() {
     }
     const msg = JSON.parse(ev.data);
     if (msg.type === 'status') setStatus(msg.status);
-    else if (msg.type === 'tree') loadTree();
+    else if (msg.type === 'tree') wantTree(msg.version);
   };
 }
 
