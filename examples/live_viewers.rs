@@ -9,13 +9,13 @@
 //!
 //! `cargo run --release --example live_viewers`
 
-use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use futures_util::StreamExt;
 use treemocap::config::Config;
-use treemocap::sim::{self, CrownShape, SynthOptions};
+use treemocap::sim::{CrownShape, SynthOptions};
 
 const PORT: u16 = 18_337;
 
@@ -49,10 +49,15 @@ fn run(file: &std::path::Path, viewers: usize, seconds: f64) -> (serde_json::Val
     )
     .expect("config");
     let out = tempfile::tempdir().unwrap();
-    let stop = Arc::new(AtomicBool::new(false));
+    // The daemon's runtime as `treemocap run` has it; the viewers get their own.
+    let daemon_rt = tokio::runtime::Runtime::new().unwrap();
+    let stop = treemocap::shutdown::Shutdown::new();
     let flag = stop.clone();
+    let handle_rt = daemon_rt.handle().clone();
     let out_path = out.path().to_path_buf();
-    let daemon = std::thread::spawn(move || treemocap::daemon::run(config, &out_path, flag, false));
+    let daemon = std::thread::spawn(move || {
+        treemocap::daemon::run(config, &out_path, &handle_rt, &flag, None)
+    });
     let received = Arc::new(Received::default());
     let rt = tokio::runtime::Builder::new_multi_thread()
         .worker_threads(1)
@@ -91,7 +96,7 @@ fn run(file: &std::path::Path, viewers: usize, seconds: f64) -> (serde_json::Val
     } else {
         received.frames.load(Ordering::Relaxed) as f64 / viewers as f64 / t0.elapsed().as_secs_f64()
     };
-    stop.store(true, Ordering::Relaxed);
+    stop.trigger();
     daemon.join().unwrap().unwrap();
     rt.shutdown_timeout(Duration::from_millis(200));
     (last, per_viewer_fps)
@@ -109,7 +114,7 @@ fn main() {
         wind_s: 10.0,
         ..Default::default()
     };
-    sim::write_session(&opts, &file).expect("synthetic session");
+    treemocap::app::synth::write_session(&opts, &file).expect("synthetic session");
     let mut p99 = [Vec::new(), Vec::new()];
     for round in 0..2 {
         for (k, viewers) in [0usize, 10].into_iter().enumerate() {

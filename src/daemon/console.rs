@@ -94,12 +94,11 @@ impl Console {
 }
 
 /// The line printed at start: the source and where the page is.
-pub(crate) fn start_line(status: &Status, http: &str) -> String {
+pub(crate) fn start_line(status: &Status, http: Option<std::net::SocketAddr>) -> String {
     let source = status.source.lock().map(|s| s.clone()).unwrap_or_default();
-    if http.is_empty() {
-        format!("treemocap run: {source}; no HTTP server (daemon.http is empty)")
-    } else {
-        format!("treemocap run: {source}; live view at http://{http}/")
+    match http {
+        Some(addr) => format!("treemocap run: {source}; live view at http://{addr}/"),
+        None => format!("treemocap run: {source}; no HTTP server (daemon.http is empty)"),
     }
 }
 

@@ -4,6 +4,7 @@
 
 pub mod http;
 pub mod live;
+pub mod natnet;
 pub mod osc;
 pub mod snapshot;
 pub mod view;
