@@ -562,7 +562,7 @@ impl Session {
             return;
         }
         let mid = peek_id(datagram);
-        if !self.from_server(from, channel, mid) {
+        if !self.is_from_server(from, channel, mid) {
             self.counters.wrong_sender += 1;
             if self.should_warn() {
                 tracing::warn!(
@@ -595,7 +595,7 @@ impl Session {
     }
 
     /// The sender rule of the module docs.
-    fn from_server(&self, from: SocketAddr, channel: Channel, mid: Option<u16>) -> bool {
+    fn is_from_server(&self, from: SocketAddr, channel: Channel, mid: Option<u16>) -> bool {
         if from.ip() != self.server.ip() {
             return false;
         }
