@@ -303,7 +303,7 @@ fn multicast_inside_a_private_network_namespace() {
             "-n",
             "sh",
             "-c",
-            "ip link set lo up && ip link set lo multicast on && ip route add 224.0.0.0/4 dev lo && exec \"$0\" multicast_inside_a_private_network_namespace --exact --nocapture",
+            "ip link set lo up && ip link set lo multicast on && ip route add 224.0.0.0/4 dev lo && exec \"$0\" natnet_loopback::multicast_inside_a_private_network_namespace --exact --nocapture",
         ])
         .arg(&exe)
         .env("TREEMOCAP_IN_NETNS", "1")
