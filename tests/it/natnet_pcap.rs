@@ -13,6 +13,7 @@ use std::time::{Duration, Instant};
 
 use crate::common::natnet::{check_session, free_port, session};
 use treemocap::format::pcap::{PcapOptions, PcapRecording};
+use treemocap::format::Recording;
 use treemocap::model::frame::MarkerFrame;
 use treemocap::protocol::natnet::{Version, SUPPORTED_VERSIONS};
 use treemocap::serve::natnet::{self as server, ServeOptions, ServerStats};
@@ -131,6 +132,7 @@ fn captures_of_every_version_read_back_as_the_session() {
             "NatNet {version}: FrameRate answer"
         );
         assert!(rec.source().contains("treemocap"), "{}", rec.source());
+        assert_eq!(rec.info().format, treemocap::format::Format::Pcap);
         // What the capture holds is what the client got, frame for frame.
         check_session(version, &sent, &frames);
         assert_eq!(frames, live, "NatNet {version}");
