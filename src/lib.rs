@@ -20,6 +20,7 @@ pub mod rng;
 pub mod serve;
 pub mod sim;
 pub mod source;
+pub mod throttle;
 pub mod track;
 pub mod wind;
 

@@ -3,7 +3,9 @@
 //! triggers and shutdown; every stage it runs is the plain library code that
 //! `treemocap replay` runs too.
 
+pub mod counters;
 pub mod follow;
+mod osc_control;
 pub mod run;
 pub mod status;
 pub mod triggers;

@@ -46,6 +46,10 @@ pub struct Status {
     /// last bucket everything slower. Fixed size, so percentiles cost no
     /// memory however long the daemon runs.
     pub latency_hist: LatencyHistogram,
+    /// Bad input of every listening socket, by source and kind.
+    pub bad_input: super::counters::InputCounters,
+    /// The recording's counters, once recording.
+    pub recording: std::sync::OnceLock<std::sync::Arc<crate::app::recording::RecordingStats>>,
 }
 
 /// Buckets of 10 µs up to 20 ms.
@@ -132,6 +136,8 @@ impl Status {
                 "p99": self.latency_hist.quantile_us(0.99),
                 "max": get(&self.latency_us_max),
             },
+            "bad_input": self.bad_input.to_json(),
+            "recording": super::counters::recording_json(self.recording.get()),
         })
     }
 
@@ -206,6 +212,8 @@ impl Status {
                 .map(|e| e.is_some() as u8 as f64)
                 .unwrap_or(0.0),
         );
+        self.bad_input.to_prometheus(&mut out);
+        super::counters::recording_prometheus(self.recording.get(), &mut out);
         out
     }
 }
