@@ -6,5 +6,6 @@ pub mod inspect;
 pub mod open;
 pub mod reconstruct;
 pub mod record;
+pub mod recording;
 pub mod replay;
 pub mod tips;

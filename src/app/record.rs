@@ -17,8 +17,9 @@ use crossbeam_channel::RecvTimeoutError;
 use serde::Serialize;
 use tokio::sync::watch;
 
+use crate::app::recording::{Recorder, RecordingStats};
 use crate::error::{Error, Result};
-use crate::format::log::{LogHeader, LogWriter};
+use crate::format::log::LogHeader;
 use crate::source::channel::{frame_channel, FrameReceiver};
 use crate::source::live::{LiveSource, SourceReport};
 
@@ -79,6 +80,11 @@ pub struct Progress {
     pub restarts: u64,
     /// The source's own losses by kind (see `LiveSource::losses`).
     pub losses: Vec<(String, u64)>,
+    /// Frames lost because writes failed (a full disk); see
+    /// [`crate::app::recording`].
+    pub lost_to_disk: u64,
+    /// Files written (more than one after a failed write).
+    pub files: u64,
 }
 
 /// What `record` tells its caller as it goes.
@@ -103,6 +109,8 @@ pub struct RecordSummary {
 /// Counters shared by the writer thread and the reporting loop.
 #[derive(Debug, Default)]
 struct WriterStats {
+    /// The recording's own counters (files, frames lost to the disk).
+    recording: Arc<RecordingStats>,
     frames: AtomicU64,
     samples: AtomicU64,
     last_frame: AtomicI64,
@@ -123,6 +131,8 @@ impl WriterStats {
             missed_frames: self.missed_frames.load(Ordering::Relaxed),
             restarts: self.restarts.load(Ordering::Relaxed),
             losses,
+            lost_to_disk: self.recording.frames_lost.load(Ordering::Relaxed),
+            files: self.recording.files.load(Ordering::Relaxed),
         }
     }
 }
@@ -257,6 +267,9 @@ pub fn progress_line(p: &Progress) -> String {
     for (kind, n) in &p.losses {
         line += &format!("  {kind} {n}");
     }
+    if p.lost_to_disk > 0 || p.files > 1 {
+        line += &format!("  lost to the disk {}  files {}", p.lost_to_disk, p.files);
+    }
     line
 }
 
@@ -282,20 +295,23 @@ fn write_loop(
             .filter(|r| r.is_finite() && *r > 0.0)
             .unwrap_or(opts.default_frame_rate),
     };
-    let mut log: Option<LogWriter> = None;
+    let mut log: Option<Recorder> = None;
     let mut last: Option<i64> = None;
     loop {
         match rx.recv_timeout(WRITER_TICK) {
             Ok(frame) => {
                 let w = match &mut log {
                     Some(w) => w,
-                    None => log.insert(LogWriter::create(
+                    None => log.insert(Recorder::create(
                         &opts.out,
-                        &header(source),
+                        header(source),
                         opts.flush_interval,
+                        stats.recording.clone(),
                     )?),
                 };
-                w.write_frame(&frame)?;
+                // A failed write is counted and logged by the recorder,
+                // which goes on in a new file once writes work again.
+                w.write_frame(&frame);
                 if let Some(prev) = last {
                     if frame.frame > prev {
                         let gap = frame.frame.saturating_sub(prev).saturating_sub(1);
@@ -320,15 +336,24 @@ fn write_loop(
             Err(RecvTimeoutError::Disconnected) => break,
         }
         if let Some(w) = &mut log {
-            w.tick()?;
+            w.tick();
         }
     }
     let w = match log {
         Some(w) => w,
         // Nothing arrived: still leave a valid, empty log.
-        None => LogWriter::create(&opts.out, &header(source), opts.flush_interval)?,
+        None => Recorder::create(
+            &opts.out,
+            header(source),
+            opts.flush_interval,
+            stats.recording.clone(),
+        )?,
     };
-    w.finish()
+    let counts = w.finish();
+    if counts.frames_lost > 0 {
+        tracing::warn!("{counts}");
+    }
+    Ok(())
 }
 
 /// Runs [`record`] on its own runtime until Ctrl-C or `opts.seconds`: the
