@@ -12,19 +12,26 @@
 //!
 //! The server only reads shared state handed to it ([`HttpState`]); it never
 //! blocks the pipeline. A WebSocket client too slow for the frame rate skips
-//! frames (it is told how many) instead of holding memory.
+//! frames (it is told how many) instead of holding memory; one that stops
+//! reading altogether is closed after the idle timeout. Who may connect, how
+//! many at once and for how long: [`super::limits`]. `POST /rebuild` from a
+//! web page of another site (a browser on the allowed machine visiting it)
+//! is refused by its `Origin` header.
 
 use std::sync::Arc;
+use std::time::Duration;
 
 use axum::extract::ws::{Message, WebSocket, WebSocketUpgrade};
 use axum::extract::State;
-use axum::http::{header, StatusCode};
+use axum::http::{header, HeaderMap, StatusCode};
 use axum::response::{IntoResponse, Response};
 use axum::routing::{get, post};
 use axum::Router;
-use tokio::sync::{broadcast, watch};
+use tokio::sync::{broadcast, watch, Semaphore};
 
+use super::limits::HttpLimits;
 use super::snapshot::TreeSnapshot;
+use crate::source::bad_input::BadInput;
 
 /// What the HTTP server reads. Cheap to clone.
 #[derive(Clone)]
@@ -45,6 +52,16 @@ pub struct HttpState {
 
 /// The router, for tests and for [`serve`].
 pub fn router(state: HttpState) -> Router {
+    router_with(
+        state,
+        LiveGate {
+            sessions: Arc::new(Semaphore::new(Semaphore::MAX_PERMITS)),
+            send_timeout: Duration::from_secs(60),
+        },
+    )
+}
+
+fn router_with(state: HttpState, gate: LiveGate) -> Router {
     Router::new()
         .route("/tree.glb", get(tree_glb))
         .route("/tree.json", get(tree_json))
@@ -54,14 +71,32 @@ pub fn router(state: HttpState) -> Router {
         .route("/rebuild", post(rebuild))
         .route("/live", get(live))
         .with_state(state)
+        .layer(axum::Extension(gate))
 }
 
-/// Serves until `shutdown` turns true.
-pub async fn serve(listener: tokio::net::TcpListener, state: HttpState) -> std::io::Result<()> {
+/// The WebSocket sessions that may still open, and how long a send may
+/// wait for a client that stopped reading.
+#[derive(Clone)]
+struct LiveGate {
+    sessions: Arc<Semaphore>,
+    send_timeout: Duration,
+}
+
+/// Serves until `shutdown` turns true, within `limits`; bad input is counted
+/// in `bad`.
+pub async fn serve(
+    listener: tokio::net::TcpListener,
+    state: HttpState,
+    limits: HttpLimits,
+    bad: Arc<BadInput>,
+) -> std::io::Result<()> {
     let shutdown = state.shutdown.clone();
-    axum::serve(listener, router(state))
-        .with_graceful_shutdown(until_true(shutdown))
-        .await
+    let gate = LiveGate {
+        sessions: Arc::new(Semaphore::new(limits.max_websockets)),
+        send_timeout: limits.idle_timeout,
+    };
+    let app = router_with(state, gate);
+    super::limits::serve(listener, app, limits, bad, shutdown).await
 }
 
 /// Resolves when the flag turns true (or its sender is gone).
@@ -125,26 +160,67 @@ async fn metrics(State(s): State<HttpState>) -> Response {
         .into_response()
 }
 
-async fn rebuild(State(s): State<HttpState>) -> Response {
+async fn rebuild(State(s): State<HttpState>, headers: HeaderMap) -> Response {
+    if !same_origin(&headers) {
+        return (
+            StatusCode::FORBIDDEN,
+            "POST /rebuild from a page of another site is refused\n",
+        )
+            .into_response();
+    }
     (s.rebuild)();
     (StatusCode::ACCEPTED, "rebuild requested\n").into_response()
 }
 
-async fn live(ws: WebSocketUpgrade, State(s): State<HttpState>) -> Response {
-    ws.on_upgrade(move |socket| live_session(socket, s))
+/// False when a browser says the request comes from a page of another site
+/// (its `Origin` names another host than the one asked). Scripts, curl and
+/// our viewer send no `Origin` or our own.
+fn same_origin(headers: &HeaderMap) -> bool {
+    let Some(origin) = headers.get(header::ORIGIN).and_then(|o| o.to_str().ok()) else {
+        return true;
+    };
+    let host = headers
+        .get(header::HOST)
+        .and_then(|h| h.to_str().ok())
+        .unwrap_or("");
+    let origin_host = origin.split_once("://").map_or(origin, |(_, h)| h);
+    !host.is_empty() && origin_host.eq_ignore_ascii_case(host)
 }
 
-async fn live_session(mut socket: WebSocket, s: HttpState) {
+async fn live(
+    ws: WebSocketUpgrade,
+    State(s): State<HttpState>,
+    axum::Extension(gate): axum::Extension<LiveGate>,
+) -> Response {
+    let Ok(permit) = gate.sessions.clone().try_acquire_owned() else {
+        return (
+            StatusCode::SERVICE_UNAVAILABLE,
+            "too many /live sessions (daemon.http_max_websockets)\n",
+        )
+            .into_response();
+    };
+    ws.on_upgrade(move |socket| async move {
+        live_session(socket, s, gate.send_timeout).await;
+        drop(permit);
+    })
+}
+
+/// Sends `text`; false when the client is gone or has not taken it within
+/// `timeout` (it stopped reading: the session ends rather than wait).
+async fn send(socket: &mut WebSocket, text: &str, timeout: Duration) -> bool {
+    matches!(
+        tokio::time::timeout(timeout, socket.send(Message::Text(text.into()))).await,
+        Ok(Ok(()))
+    )
+}
+
+async fn live_session(mut socket: WebSocket, s: HttpState, timeout: Duration) {
     let mut rx = s.live.subscribe();
     let shutdown = until_true(s.shutdown.clone());
     tokio::pin!(shutdown);
     if let Some(t) = latest(&s) {
         let hello = tree_notice(&t);
-        if socket
-            .send(Message::Text(hello.as_ref().into()))
-            .await
-            .is_err()
-        {
+        if !send(&mut socket, &hello, timeout).await {
             return;
         }
     }
@@ -152,13 +228,13 @@ async fn live_session(mut socket: WebSocket, s: HttpState) {
         tokio::select! {
             msg = rx.recv() => match msg {
                 Ok(text) => {
-                    if socket.send(Message::Text(text.as_ref().into())).await.is_err() {
+                    if !send(&mut socket, &text, timeout).await {
                         return;
                     }
                 }
                 Err(broadcast::error::RecvError::Lagged(n)) => {
                     let note = format!("{{\"type\":\"skipped\",\"messages\":{n}}}");
-                    if socket.send(Message::Text(note.into())).await.is_err() {
+                    if !send(&mut socket, &note, timeout).await {
                         return;
                     }
                 }

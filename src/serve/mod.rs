@@ -3,5 +3,6 @@
 //! immutable [`snapshot::TreeSnapshot`]; none of them can slow the pipeline.
 
 pub mod http;
+pub mod limits;
 pub mod osc;
 pub mod snapshot;
