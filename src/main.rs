@@ -30,11 +30,20 @@ struct ConfigArgs {
     /// Override one setting, e.g. --set record.flush_interval_s=0.5 (repeatable).
     #[arg(long = "set", value_name = "KEY=VALUE")]
     set: Vec<String>,
+    /// Refuse a recording that can be read only in part (a C3D file holding
+    /// fewer frames than it declares) instead of reading its complete frames
+    /// with a warning; the same as --set replay.strict=true.
+    #[arg(long)]
+    strict: bool,
 }
 
 impl ConfigArgs {
     fn load(&self) -> Result<treemocap::config::Config> {
-        treemocap::config::Config::load(self.config.as_deref(), &self.set)
+        let mut sets = self.set.clone();
+        if self.strict {
+            sets.push("replay.strict=true".into());
+        }
+        treemocap::config::Config::load(self.config.as_deref(), &sets)
     }
 }
 
@@ -86,6 +95,10 @@ enum Command {
         /// Print one JSON object instead of the table.
         #[arg(long)]
         json: bool,
+        /// Refuse a file that can be read only in part (a C3D file holding
+        /// fewer frames than it declares).
+        #[arg(long)]
+        strict: bool,
     },
     /// Record a live source (OSC or NatNet) to a treemocap log until Ctrl-C
     /// or --seconds, printing frames, markers and losses once a second.
@@ -139,8 +152,10 @@ enum Command {
         /// Send frames to each client that connects (the default).
         #[arg(long)]
         unicast: bool,
-        /// Local address to listen on.
-        #[arg(long, default_value = "0.0.0.0")]
+        /// Local address to listen on: loopback, so that only clients on
+        /// this machine can connect; 0.0.0.0 (or the lab interface's
+        /// address) to serve the lab network.
+        #[arg(long, default_value = "127.0.0.1")]
         bind: std::net::Ipv4Addr,
         /// Command port (clients send CONNECT here).
         #[arg(long, default_value_t = 1510)]
@@ -269,10 +284,45 @@ fn main() -> ExitCode {
     match run(cli.command) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("treemocap: {e}");
+            // One line whatever the error holds; a closed stderr is no
+            // reason to panic either.
+            use std::io::Write;
+            let line = treemocap::error::one_line(&e.to_string());
+            let _ = writeln!(std::io::stderr(), "treemocap: {line}");
             ExitCode::from(e.exit_code() as u8)
         }
     }
+}
+
+/// Set once standard output is closed by its reader.
+static STDOUT_CLOSED: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
+
+/// Writes command output to standard output. A reader that closed the pipe
+/// (`| head -c 800`) no longer wants the output: the rest is dropped and
+/// the command ends quietly with its work done, instead of panicking. Any
+/// other write error (a full disk behind `> file`) is an error.
+fn emit(args: std::fmt::Arguments) -> Result<()> {
+    use std::io::Write;
+    use std::sync::atomic::Ordering;
+    if STDOUT_CLOSED.load(Ordering::Relaxed) {
+        return Ok(());
+    }
+    let mut out = std::io::stdout().lock();
+    match out.write_fmt(args).and_then(|()| out.flush()) {
+        Ok(()) => Ok(()),
+        Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => {
+            STDOUT_CLOSED.store(true, Ordering::Relaxed);
+            Ok(())
+        }
+        Err(e) => Err(Error::Runtime(format!(
+            "cannot write to standard output: {e}"
+        ))),
+    }
+}
+
+/// `print!` through [`emit`].
+macro_rules! say {
+    ($($arg:tt)*) => { emit(format_args!($($arg)*)) };
 }
 
 fn init_logging(verbose: u8) {
@@ -307,7 +357,7 @@ fn run(command: Command) -> Result<()> {
             let config = config.load()?;
             let out = out.unwrap_or_else(|| PathBuf::from(&config.output.dir));
             let report = treemocap::app::replay::run(&file, &config, &out)?;
-            print!("{report}");
+            say!("{report}")?;
             Ok(())
         }
         Command::Tips {
@@ -323,15 +373,17 @@ fn run(command: Command) -> Result<()> {
                 json.as_deref(),
                 plot.as_deref(),
             )?;
-            print!("{text}");
+            say!("{text}")?;
             Ok(())
         }
-        Command::Inspect { file, json } => {
-            let report = treemocap::app::inspect::inspect(&file)?;
+        Command::Inspect { file, json, strict } => {
+            let mut options = treemocap::app::open::ReplayOptions::default();
+            options.c3d.strict = strict;
+            let report = treemocap::app::inspect::inspect_with(&file, &options)?;
             if json {
-                println!("{}", to_json(&report)?);
+                say!("{}\n", to_json(&report)?)?;
             } else {
-                print!("{report}");
+                say!("{report}")?;
             }
             Ok(())
         }
@@ -388,14 +440,19 @@ fn run(command: Command) -> Result<()> {
                 (None, None) => return Err(Error::config("record", "give --osc or --natnet")),
             };
             let opts = RecordOptions::from_config(out, seconds, &config);
-            println!("recording to {}", opts.out.display());
+            say!("recording to {}\n", opts.out.display())?;
             let summary = record::record_until_ctrl_c(source, &opts, |event| match event {
-                RecordEvent::Status(s) => println!("{s}"),
-                RecordEvent::Progress(p) => println!("{}", record::progress_line(&p)),
+                // Recording goes on when the reader of the progress is gone.
+                RecordEvent::Status(s) => {
+                    let _ = say!("{s}\n");
+                }
+                RecordEvent::Progress(p) => {
+                    let _ = say!("{}\n", record::progress_line(&p));
+                }
             })?;
-            println!("{}", record::progress_line(&summary.progress));
-            println!("{}", summary.source);
-            println!("wrote {}", summary.out.display());
+            say!("{}\n", record::progress_line(&summary.progress))?;
+            say!("{}\n", summary.source)?;
+            say!("wrote {}\n", summary.out.display())?;
             Ok(())
         }
         Command::Serve {
@@ -432,27 +489,28 @@ fn run(command: Command) -> Result<()> {
             };
             let report =
                 with_ctrl_c(|shutdown| async move { server::serve(&file, &opts, shutdown).await })?;
-            eprintln!(
+            use std::io::Write;
+            let _ = writeln!(
+                std::io::stderr(),
                 "served {} frames ({} loops) to {} clients in {:.1} s",
-                report.frames, report.loops, report.clients, report.elapsed_s
+                report.frames,
+                report.loops,
+                report.clients,
+                report.elapsed_s
             );
             Ok(())
         }
         Command::Synth(args) => {
             let summary = treemocap::sim::write_session(&args.options(), &args.out)?;
-            print!("{summary}");
+            say!("{summary}")?;
             Ok(())
         }
         Command::Reconstruct { tips, config, out } => {
             let config = config.load()?;
             let out = out.unwrap_or_else(|| PathBuf::from(&config.output.dir));
             let report = treemocap::app::reconstruct::command(&tips, &config, &out)?;
-            // A closed pipe (`| head`) is not an error worth a panic.
-            use std::io::Write;
-            let mut stdout = std::io::stdout().lock();
-            let _ = writeln!(
-                stdout,
-                "{} captured + {} random tips, {} nodes, {} steps, {} forced joins, {} triangles, {} leaves",
+            say!(
+                "{} captured + {} random tips, {} nodes, {} steps, {} forced joins, {} triangles, {} leaves\n",
                 report.captured_tips,
                 report.random_tips,
                 report.nodes,
@@ -460,9 +518,9 @@ fn run(command: Command) -> Result<()> {
                 report.forced_joins,
                 report.branch_triangles,
                 report.leaves
-            );
+            )?;
             for f in &report.files {
-                let _ = writeln!(stdout, "wrote {}", f.display());
+                say!("wrote {}\n", f.display())?;
             }
             Ok(())
         }

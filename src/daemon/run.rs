@@ -32,7 +32,7 @@ use crate::app::open::{self as replay, ReplayOptions};
 use crate::config::Config;
 use crate::daemon::wind_log::WindLog;
 use crate::error::{Error, Result};
-use crate::format::log::{LogHeader, LogWriter};
+use crate::format::log::LogHeader;
 use crate::model::tips::{CapturedTip, Tips};
 use crate::model::wind::WindEstimate;
 use crate::render::outputs::build_model;
@@ -170,9 +170,13 @@ pub fn run_with_reload(
             .block_on(tokio::net::UdpSocket::bind(&d.osc_control))
             .map_err(|e| Error::Runtime(format!("OSC control on {}: {e}", d.osc_control)))?;
         let allow = crate::source::allow::AllowList::parse("osc.allow", &shared.config.osc.allow)?;
-        let s = shared.clone();
-        let stop = stop_rx.clone();
-        rt.spawn(async move { osc_control(socket, allow, s, stop).await });
+        let bad = Arc::new(crate::source::bad_input::BadInput::default());
+        let b = bad.clone();
+        status
+            .bad_input
+            .register("osc_control", Arc::new(move || b.counts()));
+        let (rb, stop) = (rebuild.clone(), stop_rx.clone());
+        rt.spawn(super::osc_control::run(socket, allow, rb, bad, stop));
     }
 
     // HTTP first: a busy port is an error the user must see at once.
@@ -191,8 +195,9 @@ pub fn run_with_reload(
             rebuild: Arc::new(move || rb.store(true, Ordering::Relaxed)),
             shutdown: stop_rx.clone(),
         };
+        let (limits, bad) = super::counters::http_limits(&d, &status)?;
         rt.spawn(async move {
-            if let Err(e) = http::serve(listener, state).await {
+            if let Err(e) = http::serve(listener, state, limits, bad).await {
                 tracing::error!("HTTP server: {e}");
             }
         });
@@ -281,41 +286,6 @@ async fn reload_on_hangup(shared: Arc<Shared>, reload: Option<Reload>) {
 #[cfg(not(unix))]
 async fn reload_on_hangup(_shared: Arc<Shared>, _reload: Option<Reload>) {}
 
-/// `/treemocap/rebuild` over OSC, from allowed senders only.
-async fn osc_control(
-    socket: tokio::net::UdpSocket,
-    allow: crate::source::allow::AllowList,
-    shared: Arc<Shared>,
-    stop: watch::Receiver<bool>,
-) {
-    fn asks_rebuild(p: &rosc::OscPacket) -> bool {
-        match p {
-            rosc::OscPacket::Message(m) => m.addr == "/treemocap/rebuild",
-            rosc::OscPacket::Bundle(b) => b.content.iter().any(asks_rebuild),
-        }
-    }
-    let mut buf = vec![0u8; 65536];
-    let stopped = http::until_true(stop);
-    tokio::pin!(stopped);
-    loop {
-        tokio::select! {
-            r = socket.recv_from(&mut buf) => {
-                let Ok((n, from)) = r else { continue };
-                if !allow.allows(from.ip()) {
-                    tracing::warn!("OSC control: {from} is not in osc.allow; ignored");
-                    continue;
-                }
-                match rosc::decoder::decode_udp(&buf[..n]) {
-                    Ok((_, p)) if asks_rebuild(&p) => shared.rebuild.store(true, Ordering::Relaxed),
-                    Ok(_) => {}
-                    Err(e) => tracing::warn!("OSC control from {from}: {e:?}"),
-                }
-            }
-            _ = &mut stopped => return,
-        }
-    }
-}
-
 fn spawn(name: &str, f: impl FnOnce() + Send + 'static) -> std::thread::JoinHandle<()> {
     std::thread::Builder::new()
         .name(name.into())
@@ -375,6 +345,12 @@ fn start_source(
                 Arc::new(crate::source::osc::OscSource(opts))
             };
             set_source(source.describe());
+            let name = if kind == "natnet" { "natnet" } else { "osc" };
+            let counted = source.clone();
+            shared
+                .status
+                .bad_input
+                .register(name, Arc::new(move || counted.losses()));
             let s = shared.clone();
             rt.spawn(async move {
                 if let Err(e) = source.start(sink, stop).await {
@@ -479,25 +455,22 @@ fn pipeline_loop(
     let mut last_time: Option<f64> = None;
     let mut osc = osc_sender(&d.osc_targets)?;
     let mut recorder = if d.record {
-        let path = shared.out.join("session.log.csv");
         let header = LogHeader {
             source: status.source.lock().map(|s| s.clone()).unwrap_or_default(),
             frame_rate,
         };
-        Some(LogWriter::create(
-            &path,
-            &header,
-            Duration::from_secs_f64(c.record.flush_interval_s),
+        Some(super::counters::start_recording(
+            &shared.out,
+            c.record.flush_interval_s,
+            status,
+            header,
         )?)
     } else {
         None
     };
-    let mut record_error_logged = false;
     while !shared.shutdown.load(Ordering::Relaxed) {
         if let Some(w) = recorder.as_mut() {
-            if let Err(e) = w.tick() {
-                record_failed(status, &e, &mut record_error_logged);
-            }
+            w.tick();
         }
         while let Ok(tips) = tips_rx.try_recv() {
             follower.set_tips(&tips);
@@ -548,9 +521,7 @@ fn pipeline_loop(
         }
         last_time = Some(frame.time_s);
         if let Some(w) = recorder.as_mut() {
-            if let Err(e) = w.write_frame(&frame) {
-                record_failed(status, &e, &mut record_error_logged);
-            }
+            w.write_frame(&frame);
         }
 
         let now = frame.time_s;
@@ -592,21 +563,9 @@ fn pipeline_loop(
         status.latency_hist.record(us);
     }
     if let Some(w) = recorder.take() {
-        if let Err(e) = w.finish() {
-            record_failed(status, &e, &mut record_error_logged);
-        }
+        super::counters::finish_recording(w);
     }
     Ok(())
-}
-
-fn record_failed(status: &Status, e: &Error, logged: &mut bool) {
-    if !*logged {
-        tracing::error!("recording: {e}");
-        *logged = true;
-    }
-    if let Ok(mut g) = status.output_error.lock() {
-        *g = Some(format!("recording: {e}"));
-    }
 }
 
 /// Tracks the window, finds tips and decides whether a new tree is due.

@@ -312,7 +312,10 @@ pub fn resolve(
         other => {
             return Err(err(
                 params.get("POINT", "UNITS").map_or(0, |p| p.offset),
-                format!("POINT:UNITS '{other}' is not a length treemocap knows (mm, cm, m)"),
+                format!(
+                    "POINT:UNITS \"{}\" is not a length treemocap knows (mm, cm, m)",
+                    crate::error::excerpt(other)
+                ),
             ))
         }
     };
@@ -331,9 +334,10 @@ pub fn resolve(
             (Some("+Z" | "Z"), _) => UpAxis::Z,
             (Some(y), x) => {
                 warnings.push(format!(
-                    "POINT:Y_SCREEN is '{y}' (X_SCREEN {}); only +Y and +Z are understood, assuming Z up \
+                    "POINT:Y_SCREEN is \"{}\" (X_SCREEN \"{}\"); only +Y and +Z are understood, assuming Z up \
                      (set c3d.up_axis to override)",
-                    x.unwrap_or("absent")
+                    crate::error::excerpt(y),
+                    crate::error::excerpt(x.unwrap_or("absent"))
                 ));
                 UpAxis::Z
             }
