@@ -414,7 +414,7 @@ fn record_osc_writes_what_python_osc_sent() {
     assert!(
         printed
             .iter()
-            .any(|l| l.contains("100 frames") && l.contains("bad_args 0")),
+            .any(|l| l.contains("100 frames") && l.contains("invalid 0")),
         "progress lines: {printed:#?}"
     );
     let mut reader = LogReader::open(&out).unwrap();
