@@ -3,9 +3,13 @@
 
 pub mod files;
 pub mod inspect;
+pub mod live;
 pub mod open;
 pub mod reconstruct;
 pub mod record;
 pub mod recording;
 pub mod replay;
+pub mod stdout;
+pub mod synth;
 pub mod tips;
+pub mod view;

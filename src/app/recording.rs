@@ -44,9 +44,13 @@ pub struct RecordingStats {
 pub struct RecordingCounts {
     /// The file being written, or the last one.
     pub file: PathBuf,
+    /// Files started.
     pub files: u64,
+    /// Frames handed to the OS whole, over all files.
     pub frames_written: u64,
+    /// Frames lost because writes failed.
     pub frames_lost: u64,
+    /// True while writes fail.
     pub failing: bool,
     /// The last write error, if any write failed.
     pub error: Option<String>,

@@ -4,15 +4,14 @@
 //! daemon. Bad input is counted by kind and warned about once per kind every
 //! 10 s.
 
-use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::Duration;
 
 use rosc::OscPacket;
 use tokio::net::UdpSocket;
-use tokio::sync::watch;
 
 use crate::protocol::osc::{parse_datagram, MAX_DATAGRAM_BYTES};
+use crate::shutdown::Shutdown;
 use crate::source::allow::AllowList;
 use crate::source::bad_input::{BadInput, BadInputKind};
 use crate::throttle::LogThrottle;
@@ -29,19 +28,19 @@ fn asks_rebuild(p: &OscPacket) -> bool {
     }
 }
 
-/// Receives on `socket` until `stop` turns true; sets `rebuild` on each
-/// request from an allowed sender and counts the rest in `bad`.
+/// Receives on `socket` until `stop`; calls `rebuild` on each request from
+/// an allowed sender and counts the rest in `bad`.
 pub(crate) async fn run(
     socket: UdpSocket,
     allow: AllowList,
-    rebuild: Arc<AtomicBool>,
+    rebuild: impl Fn(),
     bad: Arc<BadInput>,
-    mut stop: watch::Receiver<bool>,
+    stop: Shutdown,
 ) {
     let throttle = LogThrottle::default();
     let mut buf = vec![0u8; MAX_DATAGRAM_BYTES + 1];
     let mut flush = tokio::time::interval(Duration::from_secs(1));
-    while !*stop.borrow() {
+    loop {
         tokio::select! {
             r = socket.recv_from(&mut buf) => {
                 let Ok((n, from)) = r else { continue };
@@ -53,7 +52,7 @@ pub(crate) async fn run(
                     continue;
                 }
                 match parse_datagram(buf.get(..n).unwrap_or(&[])) {
-                    Ok(p) if asks_rebuild(&p) => rebuild.store(true, Ordering::Relaxed),
+                    Ok(p) if asks_rebuild(&p) => rebuild(),
                     Ok(_) => {
                         bad.add(BadInputKind::Invalid);
                         throttle.warn("osc control: messages other than /treemocap/rebuild", || {
@@ -69,7 +68,7 @@ pub(crate) async fn run(
                 }
             }
             _ = flush.tick() => throttle.flush(),
-            changed = stop.changed() => if changed.is_err() { break },
+            _ = stop.triggered() => break,
         }
     }
     throttle.finish();

@@ -4,5 +4,9 @@
 
 pub mod http;
 pub mod limits;
+pub mod live;
+pub mod natnet;
 pub mod osc;
 pub mod snapshot;
+pub mod view;
+mod web;

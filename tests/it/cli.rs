@@ -259,17 +259,13 @@ fn shipped_configs_listen_on_loopback_or_name_their_clients() {
             continue;
         }
         let c = treemocap::config::Config::load(Some(&path), &[]).unwrap();
-        let loopback = |addr: &str| {
-            addr.is_empty()
-                || addr
-                    .parse::<std::net::SocketAddr>()
-                    .is_ok_and(|a| a.ip().is_loopback())
-        };
+        let loopback =
+            |addr: Option<std::net::SocketAddr>| addr.is_none_or(|a| a.ip().is_loopback());
         let d = &c.daemon;
-        assert!(loopback(&d.http), "{}: http {}", path.display(), d.http);
+        assert!(loopback(d.http), "{}: http {:?}", path.display(), d.http);
         assert!(
-            loopback(&d.osc_control),
-            "{}: {}",
+            loopback(d.osc_control),
+            "{}: {:?}",
             path.display(),
             d.osc_control
         );
@@ -280,7 +276,7 @@ fn shipped_configs_listen_on_loopback_or_name_their_clients() {
             path.display()
         );
         assert!(
-            loopback(&c.osc.bind) || !c.osc.allow.iter().any(|a| a.starts_with("127.")),
+            loopback(Some(c.osc.bind)) || !c.osc.allow.iter().any(|a| a.starts_with("127.")),
             "{}: osc.bind {} off loopback must name its senders",
             path.display(),
             c.osc.bind
