@@ -34,11 +34,20 @@ struct ConfigArgs {
     /// Override one setting, e.g. --set record.flush_interval_s=0.5 (repeatable).
     #[arg(long = "set", value_name = "KEY=VALUE")]
     set: Vec<String>,
+    /// Refuse a recording that can be read only in part (a C3D file holding
+    /// fewer frames than it declares) instead of reading its complete frames
+    /// with a warning; the same as --set replay.strict=true.
+    #[arg(long)]
+    strict: bool,
 }
 
 impl ConfigArgs {
     fn load(&self) -> Result<treemocap::config::Config> {
-        treemocap::config::Config::load(self.config.as_deref(), &self.set)
+        let mut sets = self.set.clone();
+        if self.strict {
+            sets.push("replay.strict=true".into());
+        }
+        treemocap::config::Config::load(self.config.as_deref(), &sets)
     }
 }
 
@@ -105,6 +114,10 @@ enum Command {
         /// Print one JSON object instead of the table.
         #[arg(long)]
         json: bool,
+        /// Refuse a file that can be read only in part (a C3D file holding
+        /// fewer frames than it declares).
+        #[arg(long)]
+        strict: bool,
     },
     /// Record a live source (OSC or NatNet) to a treemocap log until Ctrl-C
     /// or --seconds, printing frames, markers and losses once a second.
@@ -229,8 +242,10 @@ struct ServeArgs {
     /// Send frames to each client that connects (the default).
     #[arg(long)]
     unicast: bool,
-    /// Local address to listen on.
-    #[arg(long, default_value = "0.0.0.0")]
+    /// Local address to listen on: loopback, so that only clients on this
+    /// machine can connect; 0.0.0.0 (or the lab interface's address) to
+    /// serve the lab network.
+    #[arg(long, default_value = "127.0.0.1")]
     bind: std::net::Ipv4Addr,
     /// Command port (clients send CONNECT here).
     #[arg(long, default_value_t = natnet::DEFAULT_COMMAND_PORT)]
@@ -352,10 +367,19 @@ fn main() -> ExitCode {
     match run(cli.command) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("treemocap: {e}");
+            // One line whatever the error holds; a closed stderr is no
+            // reason to panic either.
+            use std::io::Write;
+            let line = treemocap::error::one_line(&e.to_string());
+            let _ = writeln!(std::io::stderr(), "treemocap: {line}");
             ExitCode::from(e.exit_code() as u8)
         }
     }
+}
+
+/// `print!` that ends quietly on a closed pipe (see `app::stdout`).
+macro_rules! say {
+    ($($arg:tt)*) => { treemocap::app::stdout::print(format_args!($($arg)*)) };
 }
 
 /// The process's one async runtime and one shutdown signal, with the one
@@ -407,8 +431,8 @@ fn run(command: Command) -> Result<()> {
             let frames = session.frames.len();
             let (_stop, shutdown) = tokio::sync::watch::channel(false);
             treemocap::app::view::serve(session, listener, shutdown, |url| {
-                println!(
-                    "{}: {frames} frames; the page is at {url} (Ctrl-C stops)",
+                let _ = say!(
+                    "{}: {frames} frames; the page is at {url} (Ctrl-C stops)\n",
                     path.display()
                 );
             })
@@ -423,7 +447,7 @@ fn run(command: Command) -> Result<()> {
             config.replay.natnet_version = natnet_version.or(config.replay.natnet_version);
             let out = out.unwrap_or_else(|| PathBuf::from(&config.output.dir));
             let report = treemocap::app::replay::run(&file, &config, &out)?;
-            print!("{report}");
+            say!("{report}")?;
             Ok(())
         }
         Command::Tips {
@@ -441,22 +465,23 @@ fn run(command: Command) -> Result<()> {
                 json.as_deref(),
                 plot.as_deref(),
             )?;
-            print!("{text}");
+            say!("{text}")?;
             Ok(())
         }
         Command::Inspect {
             file,
             json,
             natnet_version,
+            strict,
         } => {
             let mut options = treemocap::app::open::ReplayOptions::default();
             options.pcap.version = natnet_version;
-            let mut rec = treemocap::app::open::open_with(&file, &options)?;
-            let report = treemocap::app::inspect::inspect_recording(&file, rec.as_mut())?;
+            options.c3d.strict = strict;
+            let report = treemocap::app::inspect::inspect_with(&file, &options)?;
             if json {
-                println!("{}", to_json(&report)?);
+                say!("{}\n", to_json(&report)?)?;
             } else {
-                print!("{report}");
+                say!("{report}")?;
             }
             Ok(())
         }
@@ -464,16 +489,14 @@ fn run(command: Command) -> Result<()> {
         Command::Serve(args) => serve(args),
         Command::Synth(args) => {
             let summary = treemocap::app::synth::write_session(&args.options(), &args.out)?;
-            print!("{summary}");
+            say!("{summary}")?;
             Ok(())
         }
         Command::Reconstruct { tips, config, out } => {
             let config = config.load()?;
             let out = out.unwrap_or_else(|| PathBuf::from(&config.output.dir));
             let report = treemocap::app::reconstruct::command(&tips, &config, &out)?;
-            // A closed pipe (`| head`) is not an error worth a panic.
-            use std::io::Write;
-            let _ = write!(std::io::stdout().lock(), "{report}");
+            say!("{report}")?;
             Ok(())
         }
     }
@@ -579,9 +602,14 @@ fn serve(args: ServeArgs) -> Result<()> {
     options.pcap.version = Some(args.natnet_version);
     let open = || treemocap::app::open::open_with(&args.file, &options);
     let report = rt.block_on(server::serve(open, &opts, shutdown.receiver()))?;
-    eprintln!(
+    use std::io::Write;
+    let _ = writeln!(
+        std::io::stderr(),
         "served {} frames ({} loops) to {} clients in {:.1} s",
-        report.frames, report.loops, report.clients, report.elapsed_s
+        report.frames,
+        report.loops,
+        report.clients,
+        report.elapsed_s
     );
     Ok(())
 }

@@ -89,6 +89,7 @@ impl ReplayOptions {
             time_tolerance_s: config.replay.time_tolerance_s,
             c3d: crate::format::c3d::C3dOptions {
                 up_axis: config.c3d.up_axis,
+                strict: config.replay.strict,
             },
             pcap: PcapOptions {
                 version: config.replay.natnet_version,

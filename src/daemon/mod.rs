@@ -22,8 +22,10 @@
 mod analysis;
 mod builder;
 mod console;
+pub mod counters;
 pub mod follow;
 mod live_tips;
+mod osc_control;
 mod pipeline;
 pub mod progress;
 mod shared;
@@ -111,7 +113,11 @@ fn run_with(
     threads.extend(sources::start_source(&shared, rt, sink.clone())?);
     if console {
         let start = console::start_line(&shared.status, d.http);
-        threads.push(console::spawn(start, shared.status.clone(), shutdown.flag()));
+        threads.push(console::spawn(
+            start,
+            shared.status.clone(),
+            shutdown.flag(),
+        ));
     }
     if !shared.config.wind.sensor_port.is_empty() {
         threads.push(sources::start_serial(&shared));
@@ -180,8 +186,9 @@ fn start_http(shared: &Arc<Shared>, rt: &tokio::runtime::Handle, addr: SocketAdd
         rebuild: Some(Arc::new(move || s.ask_rebuild())),
         shutdown: shared.shutdown.receiver(),
     };
+    let (limits, bad) = counters::http_limits(&shared.config.daemon, &shared.status)?;
     rt.spawn(async move {
-        if let Err(e) = http::serve(listener, state).await {
+        if let Err(e) = http::serve(listener, state, limits, bad).await {
             tracing::error!("HTTP server: {e}");
         }
     });
