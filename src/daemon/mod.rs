@@ -22,8 +22,10 @@
 mod analysis;
 mod builder;
 mod console;
+pub mod counters;
 pub mod follow;
 mod live_tips;
+mod osc_control;
 mod pipeline;
 pub mod progress;
 mod shared;
@@ -184,8 +186,9 @@ fn start_http(shared: &Arc<Shared>, rt: &tokio::runtime::Handle, addr: SocketAdd
         rebuild: Some(Arc::new(move || s.ask_rebuild())),
         shutdown: shared.shutdown.receiver(),
     };
+    let (limits, bad) = counters::http_limits(&shared.config.daemon, &shared.status)?;
     rt.spawn(async move {
-        if let Err(e) = http::serve(listener, state).await {
+        if let Err(e) = http::serve(listener, state, limits, bad).await {
             tracing::error!("HTTP server: {e}");
         }
     });

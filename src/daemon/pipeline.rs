@@ -14,8 +14,8 @@ use super::follow::TipFollower;
 use super::live_tips::LiveTips;
 use super::shared::{lock, Shared};
 use super::window::{FrameWindow, WindowRecording};
-use crate::error::{Error, Result};
-use crate::format::log::{LogHeader, LogWriter};
+use crate::error::Result;
+use crate::format::log::LogHeader;
 use crate::model::frame::MarkerFrame;
 use crate::serve::osc::{tips_datagram, wind_datagram, OscSender};
 use crate::source::channel::{FrameReceiver, FrameSink};
@@ -40,8 +40,8 @@ pub(crate) struct Pipeline {
     next_analysis: f64,
     rate: RateEstimate,
     osc: Option<OscSender>,
-    recorder: Option<LogWriter>,
-    record_error_logged: bool,
+    /// The recording (`daemon.record`), which survives a full disk.
+    recorder: Option<crate::app::recording::Recorder>,
     analysis_tx: Sender<AnalysisJob>,
 }
 
@@ -86,10 +86,11 @@ impl Pipeline {
                 source: lock(&shared.status.source).clone(),
                 frame_rate: rate.hz,
             };
-            Some(LogWriter::create(
-                &shared.out.join("session.log.csv"),
-                &header,
-                Duration::from_secs_f64(c.record.flush_interval_s),
+            Some(super::counters::start_recording(
+                &shared.out,
+                c.record.flush_interval_s,
+                &shared.status,
+                header,
             )?)
         } else {
             None
@@ -104,7 +105,6 @@ impl Pipeline {
             rate,
             osc: super::osc_sender(&d.osc_targets)?,
             recorder,
-            record_error_logged: false,
             analysis_tx,
             shared,
         })
@@ -141,9 +141,7 @@ impl Pipeline {
             self.flush_recording();
         }
         if let Some(w) = self.recorder.take() {
-            if let Err(e) = w.finish() {
-                self.record_failed(&e);
-            }
+            super::counters::finish_recording(w);
         }
     }
 
@@ -170,9 +168,7 @@ impl Pipeline {
 
     fn flush_recording(&mut self) {
         if let Some(w) = self.recorder.as_mut() {
-            if let Err(e) = w.tick() {
-                self.record_failed(&e);
-            }
+            w.tick();
         }
     }
 
@@ -182,9 +178,7 @@ impl Pipeline {
         self.shared.status.progress.frame_arrived();
         self.count(&frame, sink);
         if let Some(w) = self.recorder.as_mut() {
-            if let Err(e) = w.write_frame(&frame) {
-                self.record_failed(&e);
-            }
+            w.write_frame(&frame);
         }
         let now = frame.time_s;
         if !self.follower.is_empty() {
@@ -268,15 +262,5 @@ impl Pipeline {
             Err(TrySendError::Disconnected(_)) => return false,
         }
         true
-    }
-
-    /// A recording that fails is said once in the log and stays on /status;
-    /// ingest goes on.
-    fn record_failed(&mut self, e: &Error) {
-        if !self.record_error_logged {
-            tracing::error!("recording: {e}");
-            self.record_error_logged = true;
-        }
-        self.shared.output_error(Some(format!("recording: {e}")));
     }
 }

@@ -59,6 +59,10 @@ pub struct Status {
     /// last bucket everything slower. Fixed size, so percentiles cost no
     /// memory however long the daemon runs.
     pub latency_hist: LatencyHistogram,
+    /// Bad input of every listening socket, by source and kind.
+    pub bad_input: super::counters::InputCounters,
+    /// The recording's counters, once recording.
+    pub recording: std::sync::OnceLock<std::sync::Arc<crate::app::recording::RecordingStats>>,
     /// Source connection, still-phase progress and rejected input, for the
     /// live page and the console.
     pub progress: Progress,
@@ -151,6 +155,8 @@ impl Status {
                 "p99": self.latency_hist.quantile_us(0.99),
                 "max": get(&self.latency_us_max),
             },
+            "bad_input": self.bad_input.to_json(),
+            "recording": super::counters::recording_json(self.recording.get()),
         });
         if let (Some(doc), serde_json::Value::Object(more)) =
             (doc.as_object_mut(), self.progress.to_json())
@@ -231,6 +237,8 @@ impl Status {
                 .map(|e| e.is_some() as u8 as f64)
                 .unwrap_or(0.0),
         );
+        self.bad_input.to_prometheus(&mut out);
+        super::counters::recording_prometheus(self.recording.get(), &mut out);
         out
     }
 }

@@ -19,15 +19,17 @@ use std::sync::Arc;
 
 use axum::extract::ws::WebSocketUpgrade;
 use axum::extract::{Request, State};
-use axum::http::{header, HeaderValue, Method, StatusCode, Uri};
+use axum::http::{header, HeaderMap, HeaderValue, Method, StatusCode, Uri};
 use axum::middleware::Next;
 use axum::response::{IntoResponse, Response};
 use axum::routing::{get, post};
 use axum::Router;
-use tokio::sync::watch;
+use tokio::sync::{watch, Semaphore};
 
+use super::limits::HttpLimits;
 use super::live::{self, FrameFormat, LiveHub};
 use super::snapshot::TreeSnapshot;
+use crate::source::bad_input::BadInput;
 
 /// What the HTTP server reads. Cheap to clone.
 #[derive(Clone)]
@@ -82,10 +84,22 @@ async fn cors(req: Request, next: Next) -> Response {
 }
 
 /// Serves until `shutdown` turns true.
-pub async fn serve(listener: tokio::net::TcpListener, state: HttpState) -> std::io::Result<()> {
+pub async fn serve(
+    listener: tokio::net::TcpListener,
+    state: HttpState,
+    limits: HttpLimits,
+    bad: Arc<BadInput>,
+) -> std::io::Result<()> {
     let shutdown = state.shutdown.clone();
-    serve_router(listener, router(state), shutdown).await
+    let gate = LiveGate(Arc::new(Semaphore::new(limits.max_websockets)));
+    let app = router(state).layer(axum::Extension(gate));
+    super::limits::serve(listener, app, limits, bad, shutdown).await
 }
+
+/// The `/live` sessions that may still open (`daemon.http_max_websockets`);
+/// without one (`treemocap view`) there is no cap.
+#[derive(Clone)]
+struct LiveGate(Arc<Semaphore>);
 
 /// Serves `router` (e.g. [`router`] merged with `treemocap view`'s routes)
 /// until `shutdown` turns true.
@@ -170,14 +184,55 @@ async fn metrics(State(s): State<HttpState>) -> Response {
         .into_response()
 }
 
-async fn rebuild(State(s): State<HttpState>) -> Response {
+async fn rebuild(State(s): State<HttpState>, headers: HeaderMap) -> Response {
+    if !same_origin(&headers) {
+        return (
+            StatusCode::FORBIDDEN,
+            "POST /rebuild from a page of another site is refused\n",
+        )
+            .into_response();
+    }
     if let Some(r) = &s.rebuild {
         r();
     }
     (StatusCode::ACCEPTED, "rebuild requested\n").into_response()
 }
 
-async fn live(ws: WebSocketUpgrade, uri: Uri, State(s): State<HttpState>) -> Response {
+/// False when a browser says the request comes from a page of another site
+/// (its `Origin` names another host than the one asked): a page visited on
+/// the rig's machine must not trigger rebuilds. Scripts, curl and our own
+/// page send no `Origin` or our own.
+fn same_origin(headers: &HeaderMap) -> bool {
+    let Some(origin) = headers.get(header::ORIGIN).and_then(|o| o.to_str().ok()) else {
+        return true;
+    };
+    let host = headers
+        .get(header::HOST)
+        .and_then(|h| h.to_str().ok())
+        .unwrap_or("");
+    let origin_host = origin.split_once("://").map_or(origin, |(_, h)| h);
+    !host.is_empty() && origin_host.eq_ignore_ascii_case(host)
+}
+
+async fn live(
+    ws: WebSocketUpgrade,
+    uri: Uri,
+    State(s): State<HttpState>,
+    gate: Option<axum::Extension<LiveGate>>,
+) -> Response {
+    let permit = match gate {
+        Some(axum::Extension(LiveGate(g))) => match g.try_acquire_owned() {
+            Ok(p) => Some(p),
+            Err(_) => {
+                return (
+                    StatusCode::SERVICE_UNAVAILABLE,
+                    "too many /live sessions (daemon.http_max_websockets)\n",
+                )
+                    .into_response()
+            }
+        },
+        None => None,
+    };
     // `/live?format=json`: frames as JSON text, for scripts.
     let json = uri
         .query()
@@ -187,7 +242,10 @@ async fn live(ws: WebSocketUpgrade, uri: Uri, State(s): State<HttpState>) -> Res
     } else {
         FrameFormat::Binary
     };
-    ws.on_upgrade(move |socket| live::session(socket, s, format))
+    ws.on_upgrade(move |socket| async move {
+        live::session(socket, s, format).await;
+        drop(permit);
+    })
 }
 
 /// The `/live` message announcing a new tree.
