@@ -367,11 +367,11 @@ fn learn(s: &mut Stream, d: &Datagram) {
                 s.client.get_or_insert(d.dst);
             }
         }
-        Some(id::FRAMEOFDATA) if s.frames_to.is_none() => {
-            if s.server.is_none_or(|srv| srv.ip() == d.src.ip()) {
-                s.frames_to = Some(d.dst);
-                s.server.get_or_insert(d.src);
-            }
+        Some(id::FRAMEOFDATA)
+            if s.frames_to.is_none() && s.server.is_none_or(|srv| srv.ip() == d.src.ip()) =>
+        {
+            s.frames_to = Some(d.dst);
+            s.server.get_or_insert(d.src);
         }
         Some(id::REQUEST) if Some(d.src) == s.client && Some(d.dst) == s.server => {
             if let Ok(Packet::Request(text)) = decode(&d.payload, Version::new(3, 0)) {
