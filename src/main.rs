@@ -123,6 +123,24 @@ enum Command {
         #[arg(long, value_name = "DIR")]
         out: Option<PathBuf>,
     },
+    /// Show a finished session in the live page, with a timeline to scrub:
+    /// a recording (the marker stage runs on it) or an output folder
+    /// (`replay --out`, or the daemon's out/ with its session.log.csv).
+    /// Serves until Ctrl-C.
+    View {
+        /// A recording (Motive CSV, C3D, treemocap log) or an output folder.
+        path: PathBuf,
+        /// For an output folder without session.log.csv: the recording its
+        /// tips came from, for the timeline.
+        #[arg(long, value_name = "FILE")]
+        recording: Option<PathBuf>,
+        /// Where to serve the page (0.0.0.0:8080 for the lab network; port 0
+        /// picks a free one).
+        #[arg(long, value_name = "ADDR:PORT", default_value = "127.0.0.1:8080")]
+        http: String,
+        #[command(flatten)]
+        config: ConfigArgs,
+    },
     /// Make a synthetic capture session of a simulated tree: a Motive 1.23
     /// CSV of unlabeled markers plus NAME.truth.json beside it (the true tree,
     /// rest positions, wind and every gap), for testing without a mocap lab.
@@ -376,6 +394,25 @@ fn to_json(value: &impl serde::Serialize) -> Result<String> {
 fn run(command: Command) -> Result<()> {
     match command {
         Command::Run { config, out } => run_daemon(config, out),
+        Command::View {
+            path,
+            recording,
+            http,
+            config,
+        } => {
+            let config = config.load()?;
+            let session = treemocap::app::view::load(&path, recording.as_deref(), &config)?;
+            let listener = std::net::TcpListener::bind(&http)
+                .map_err(|e| Error::Runtime(format!("view: HTTP on {http}: {e}")))?;
+            let frames = session.frames.len();
+            let (_stop, shutdown) = tokio::sync::watch::channel(false);
+            treemocap::app::view::serve(session, listener, shutdown, |url| {
+                println!(
+                    "{}: {frames} frames; the page is at {url} (Ctrl-C stops)",
+                    path.display()
+                );
+            })
+        }
         Command::Replay {
             file,
             config,
@@ -448,7 +485,8 @@ fn run_daemon(args: ConfigArgs, out: Option<PathBuf>) -> Result<()> {
     let out = out.unwrap_or_else(|| PathBuf::from(&config.output.dir));
     let (rt, shutdown) = runtime()?;
     let reload: treemocap::daemon::Reload = Box::new(move || args.load());
-    let result = treemocap::daemon::run(config, &out, rt.handle(), &shutdown, Some(reload));
+    let result =
+        treemocap::daemon::run_at_the_rig(config, &out, rt.handle(), &shutdown, Some(reload));
     rt.shutdown_timeout(std::time::Duration::from_millis(500));
     result
 }

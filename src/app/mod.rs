@@ -10,3 +10,4 @@ pub mod record;
 pub mod replay;
 pub mod synth;
 pub mod tips;
+pub mod view;

@@ -83,6 +83,7 @@ impl Default for ReplayOptions {
 }
 
 impl ReplayOptions {
+    /// The reading settings of `[replay]` and `[c3d]`.
     pub fn from_config(config: &crate::config::Config) -> Self {
         ReplayOptions {
             time_tolerance_s: config.replay.time_tolerance_s,

@@ -93,6 +93,7 @@ pub enum RecordEvent {
 /// What a finished recording did.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct RecordSummary {
+    /// The log file written.
     pub out: PathBuf,
     /// Final counts.
     pub progress: Progress,

@@ -20,11 +20,14 @@ use crate::wind::{fan::configured_fan_wind, pca::SwayPca, WindSelector};
 
 /// What a replay found and wrote.
 pub struct ReplayReport {
+    /// The tips found, as written to tips.json.
     pub tips: Tips,
+    /// What the marker stage did, printed before the tree's line.
     pub summary: Summary,
     /// The wind used by the flow, with its source; `None` when no source
     /// gave one (the flow then runs without a wind force).
     pub wind: Option<WindEstimate>,
+    /// Counts of the reconstruction (tips, nodes, steps, forced joins).
     pub tree: Report,
     /// Every file written, tips.json first.
     pub files: Vec<PathBuf>,

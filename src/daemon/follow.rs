@@ -11,13 +11,19 @@ pub struct TipFollower {
     /// (marker index, rest position, last seen position).
     tips: Vec<(usize, DVec3, DVec3)>,
     gate_m: f64,
+    /// Per marker of the last frame: claimed by a tip (for the live view's
+    /// noise markers). Reused, so it costs no allocation per frame.
+    claimed: Vec<bool>,
 }
 
 impl TipFollower {
+    /// A follower with no tips yet; `gate_m` is `daemon.follow_gate_mm` in
+    /// metres.
     pub fn new(gate_m: f64) -> Self {
         TipFollower {
             tips: Vec::new(),
             gate_m,
+            claimed: Vec::new(),
         }
     }
 
@@ -26,6 +32,7 @@ impl TipFollower {
         self.tips = tips.iter().map(|&(m, p)| (m, p, p)).collect();
     }
 
+    /// True before the first tree: there is nothing to follow.
     pub fn is_empty(&self) -> bool {
         self.tips.is_empty()
     }
@@ -44,7 +51,9 @@ impl TipFollower {
         }
         pairs.sort_by(|a, b| a.0.total_cmp(&b.0));
         let mut tip_taken = vec![false; self.tips.len()];
-        let mut marker_taken = vec![false; markers.len()];
+        let mut marker_taken = std::mem::take(&mut self.claimed);
+        marker_taken.clear();
+        marker_taken.resize(markers.len(), false);
         let mut seen = Vec::new();
         for (_, ti, mi) in pairs {
             if tip_taken[ti] || marker_taken[mi] {
@@ -56,7 +65,14 @@ impl TipFollower {
             seen.push((self.tips[ti].0, markers[mi]));
         }
         seen.sort_by_key(|s| s.0);
+        self.claimed = marker_taken;
         seen
+    }
+
+    /// Per marker of the last frame given to [`Self::update`]: whether a
+    /// tip took it.
+    pub fn claimed(&self) -> &[bool] {
+        &self.claimed
     }
 
     /// Displacements from rest of the tips seen (for the sway PCA).

@@ -11,12 +11,12 @@ use crossbeam_channel::{select, Receiver, Sender, TrySendError};
 use glam::DVec3;
 
 use super::follow::TipFollower;
+use super::live_tips::LiveTips;
 use super::shared::{lock, Shared};
 use super::window::{FrameWindow, WindowRecording};
 use crate::error::{Error, Result};
 use crate::format::log::{LogHeader, LogWriter};
 use crate::model::frame::MarkerFrame;
-use crate::serve::http;
 use crate::serve::osc::{tips_datagram, wind_datagram, OscSender};
 use crate::source::channel::{FrameReceiver, FrameSink};
 use crate::wind::pca::SwayPca;
@@ -33,6 +33,8 @@ pub(crate) struct Pipeline {
     shared: Arc<Shared>,
     window: FrameWindow,
     follower: TipFollower,
+    /// The tips' states for the live page (measured, filled, not seen).
+    live_tips: LiveTips,
     pca: SwayPca,
     next_pca: f64,
     next_analysis: f64,
@@ -95,6 +97,7 @@ impl Pipeline {
         Ok(Pipeline {
             window: FrameWindow::new(d.window_s),
             follower: TipFollower::new(d.follow_gate_mm / 1000.0),
+            live_tips: LiveTips::new(c.tracking.max_fill_s),
             pca: SwayPca::new(c.wind.pca_window_s, c.wind.pca_min_sway_mm / 1000.0),
             next_pca: f64::NEG_INFINITY,
             next_analysis: f64::NEG_INFINITY,
@@ -147,6 +150,7 @@ impl Pipeline {
     /// The tips of a new tree: the live follower starts from them.
     fn on_tips(&mut self, tips: &[(usize, DVec3)]) {
         self.follower.set_tips(tips);
+        self.live_tips.set_tips(tips);
         self.shared
             .status
             .tips
@@ -175,6 +179,7 @@ impl Pipeline {
     /// One frame through the pipeline; false when the analysis has gone.
     fn on_frame(&mut self, frame: MarkerFrame, sink: &FrameSink) -> bool {
         let arrived = Instant::now();
+        self.shared.status.progress.frame_arrived();
         self.count(&frame, sink);
         if let Some(w) = self.recorder.as_mut() {
             if let Err(e) = w.write_frame(&frame) {
@@ -184,6 +189,12 @@ impl Pipeline {
         let now = frame.time_s;
         if !self.follower.is_empty() {
             self.follow(&frame);
+        }
+        // The viewers' frame: built only while someone watches, published
+        // into a latest-wins slot (never a wait on a viewer).
+        if self.shared.hub.has_viewers() {
+            let live = self.live_tips.frame(&frame, self.follower.claimed());
+            self.shared.hub.publish_frame(live);
         }
         self.window.push(frame);
         let alive = self.maybe_analyse(now);
@@ -226,11 +237,7 @@ impl Pipeline {
             .tips_live
             .store(seen.len() as u64, Ordering::Relaxed);
         self.pca.push(now, self.follower.displacements(&seen));
-        if shared.live.receiver_count() > 0 {
-            let _ = shared
-                .live
-                .send(http::tips_message(frame.frame, now, &seen));
-        }
+        self.live_tips.update(now, &seen);
         if let Some(o) = self.osc.as_mut() {
             o.send(&tips_datagram(frame.frame, now, &seen));
         }

@@ -37,6 +37,11 @@ pub(crate) fn start_source(
         DaemonSource::Osc => osc_source(c, None)?,
     };
     *lock(&shared.status.source) = source.describe();
+    let counted = source.clone();
+    shared
+        .status
+        .progress
+        .set_losses(Box::new(move || counted.losses()));
     let s = shared.clone();
     let stop = shared.shutdown.receiver();
     rt.spawn(async move {
@@ -103,7 +108,11 @@ pub(crate) fn start_osc_control(
 ) -> Result<()> {
     let socket = rt
         .block_on(tokio::net::UdpSocket::bind(addr))
-        .map_err(|e| Error::Runtime(format!("OSC control on {addr}: {e}")))?;
+        .map_err(|source| Error::Bind {
+            what: "OSC control",
+            addr,
+            source,
+        })?;
     let allow = AllowList::parse("osc.allow", &shared.config.osc.allow)?;
     let s = shared.clone();
     rt.spawn(async move { osc_control(socket, allow, s).await });

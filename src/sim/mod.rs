@@ -58,6 +58,7 @@ pub struct SynthOptions {
     pub seed: u64,
     /// Markers placed on the tree (1–70; the paper uses 24 and 35).
     pub tips: usize,
+    /// Crown form: round (maple) or conical (pine), the paper's two trees.
     pub shape: CrownShape,
     /// Frames per second (Hz).
     pub frame_rate: f64,
@@ -83,6 +84,7 @@ pub struct SynthOptions {
     pub long_gaps: Option<usize>,
     /// Shortest and longest long occlusion (s).
     pub long_gap_min_s: f64,
+    /// Longest long occlusion (s).
     pub long_gap_max_s: f64,
     /// Mean number of spurious reflections appearing per second.
     pub spurious_per_s: f64,
@@ -178,6 +180,7 @@ pub struct Synthetic {
     pub frames: Vec<MarkerFrame>,
     /// The CSV's columns (same as `truth.columns`).
     pub columns: Vec<ColumnTruth>,
+    /// What the session was made from, to score every stage against.
     pub truth: Truth,
 }
 
@@ -242,18 +245,29 @@ pub fn truth_path(csv: &Path) -> PathBuf {
 /// What `write_session` wrote, for the CLI to print.
 #[derive(Debug, Clone, Serialize)]
 pub struct SessionSummary {
+    /// The Motive CSV written.
     pub csv: PathBuf,
+    /// The truth file beside it.
     pub truth: PathBuf,
+    /// Size of the CSV.
     pub csv_bytes: u64,
+    /// Frames in the session.
     pub frames: usize,
+    /// Markers placed on the tree.
     pub tips: usize,
+    /// `Unlabeled N` columns (one per marker appearance and reflection).
     pub columns: usize,
+    /// Occlusions, short and long.
     pub gaps: usize,
     /// Fraction of tip samples missing.
     pub gap_fraction: f64,
+    /// Spurious reflections added.
     pub spurious: usize,
+    /// Height of the true tree (m).
     pub tree_height_m: f64,
+    /// Nodes of the true tree.
     pub tree_nodes: usize,
+    /// Unit vector the simulated wind blows towards.
     pub wind_direction: DVec3,
 }
 

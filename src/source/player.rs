@@ -12,7 +12,9 @@ use crate::source::channel::FrameSink;
 /// What a playback did.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct PlayReport {
+    /// Frames handed to the sink.
     pub frames: u64,
+    /// Passes started again at the recording's end (`repeat`).
     pub loops: u64,
 }
 

@@ -8,6 +8,7 @@ mod common;
 mod c3d;
 mod cli;
 mod daemon;
+mod live_view;
 mod log_format;
 mod motive_csv;
 mod natnet_bad_input;
