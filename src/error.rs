@@ -100,3 +100,15 @@ impl Error {
 }
 
 pub type Result<T, E = Error> = std::result::Result<T, E>;
+
+/// Fails unless `lo <= value <= hi` (and the value is a number).
+pub fn check_range(key: &str, value: f64, lo: f64, hi: f64) -> Result<()> {
+    if value.is_finite() && value >= lo && value <= hi {
+        Ok(())
+    } else {
+        Err(Error::config(
+            key,
+            format!("{value} is out of range; allowed {lo} to {hi}"),
+        ))
+    }
+}

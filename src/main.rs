@@ -359,7 +359,7 @@ fn run(command: Command) -> Result<()> {
             }
             let source: Arc<dyn LiveSource> = match (osc, natnet) {
                 (Some(addr), _) => {
-                    let mut opts = treemocap::source::osc::OscOptions::from_config(&config.osc)?;
+                    let mut opts = treemocap::source::osc::OscOptions::from_settings(&config.osc)?;
                     opts.bind = addr.parse().map_err(|_| {
                         Error::config(
                             "--osc",

@@ -60,12 +60,12 @@ pub fn run(file: &Path, config: &Config, out_dir: &Path) -> Result<ReplayReport>
 pub fn estimate_wind(tips: &Tips, config: &Config) -> Option<WindEstimate> {
     let w = &config.wind;
     let end_s = tips.timeline.time(tips.timeline.len() as i64 - 1);
-    let mut selector = WindSelector::new(w.priority(), f64::INFINITY);
+    let mut selector = WindSelector::new(w.priority.clone(), f64::INFINITY);
     let rest: Vec<DVec3> = tips.tips.iter().map(|t| t.rest).collect();
     if let Some(e) = configured_fan_wind(w, &rest, end_s) {
         selector.update(e);
     }
-    if w.priority().contains(&WindSource::Pca) {
+    if w.priority.contains(&WindSource::Pca) {
         let mut pca = SwayPca::new(f64::INFINITY, w.pca_min_sway_mm / 1000.0);
         for tip in &tips.tips {
             for (frame, p) in tip.trace.measurements() {

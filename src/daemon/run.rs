@@ -14,6 +14,7 @@
 //! `Arc<TreeSnapshot>`; a slow viewer never slows the pipeline. Shutdown is one
 //! flag: every thread finishes its item, flushes and exits.
 
+use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Condvar, Mutex};
@@ -29,7 +30,7 @@ use super::triggers::{compare_tips, Reason, TriggerConfig, Triggers};
 use super::window::{FrameWindow, WindowRecording};
 use crate::app::files::write_atomic;
 use crate::app::open::{self as replay, ReplayOptions};
-use crate::config::Config;
+use crate::config::{Config, DaemonSource, TransportSetting};
 use crate::daemon::wind_log::WindLog;
 use crate::error::{Error, Result};
 use crate::format::log::{LogHeader, LogWriter};
@@ -150,7 +151,7 @@ pub fn run_with_reload(
         status: status.clone(),
         shutdown: shutdown.clone(),
         wind: Mutex::new(WindSelector::new(
-            config.wind.priority(),
+            config.wind.priority.clone(),
             config.wind.max_age_s,
         )),
         wind_log: Mutex::new(wind_log),
@@ -165,10 +166,10 @@ pub fn run_with_reload(
         let s = shared.clone();
         rt.spawn(async move { reload_on_hangup(s, reload).await });
     }
-    if !d.osc_control.is_empty() {
+    if let Some(addr) = d.osc_control {
         let socket = rt
-            .block_on(tokio::net::UdpSocket::bind(&d.osc_control))
-            .map_err(|e| Error::Runtime(format!("OSC control on {}: {e}", d.osc_control)))?;
+            .block_on(tokio::net::UdpSocket::bind(addr))
+            .map_err(|e| Error::Runtime(format!("OSC control on {addr}: {e}")))?;
         let allow = crate::source::allow::AllowList::parse("osc.allow", &shared.config.osc.allow)?;
         let s = shared.clone();
         let stop = stop_rx.clone();
@@ -176,10 +177,10 @@ pub fn run_with_reload(
     }
 
     // HTTP first: a busy port is an error the user must see at once.
-    if !d.http.is_empty() {
+    if let Some(addr) = d.http {
         let listener = rt
-            .block_on(tokio::net::TcpListener::bind(&d.http))
-            .map_err(|e| Error::Runtime(format!("HTTP on {}: {e}", d.http)))?;
+            .block_on(tokio::net::TcpListener::bind(addr))
+            .map_err(|e| Error::Runtime(format!("HTTP on {addr}: {e}")))?;
         let st = status.clone();
         let st2 = status.clone();
         let rb = rebuild.clone();
@@ -196,7 +197,7 @@ pub fn run_with_reload(
                 tracing::error!("HTTP server: {e}");
             }
         });
-        tracing::info!("HTTP on http://{}", d.http);
+        tracing::info!("HTTP on http://{addr}");
     }
 
     let (sink, rx) = frame_channel(d.channel_frames as usize);
@@ -337,8 +338,8 @@ fn start_source(
             *g = s;
         }
     };
-    match d.source.as_str() {
-        "replay" => {
+    match d.source {
+        DaemonSource::Replay => {
             let path = PathBuf::from(&d.replay_file);
             let opts = ReplayOptions::from_config(c);
             let first = replay::open_with(&path, &opts)?;
@@ -360,18 +361,18 @@ fn start_source(
             })))
         }
         kind => {
-            let source: Arc<dyn LiveSource> = if kind == "natnet" {
+            let source: Arc<dyn LiveSource> = if kind == DaemonSource::Natnet {
                 use crate::source::natnet::{client::NatNetOptions, live::NatNetSource, Transport};
                 let mut opts = NatNetOptions::from_config(&c.natnet);
                 opts.set_server(&d.natnet_server, "daemon.natnet_server")?;
-                opts.transport = match d.natnet_transport.as_str() {
-                    "unicast" => Some(Transport::Unicast),
-                    "multicast" => Some(Transport::Multicast),
-                    _ => None,
+                opts.transport = match d.natnet_transport {
+                    TransportSetting::Unicast => Some(Transport::Unicast),
+                    TransportSetting::Multicast => Some(Transport::Multicast),
+                    TransportSetting::Auto => None,
                 };
                 Arc::new(NatNetSource(opts))
             } else {
-                let opts = crate::source::osc::OscOptions::from_config(&c.osc)?;
+                let opts = crate::source::osc::OscOptions::from_settings(&c.osc)?;
                 Arc::new(crate::source::osc::OscSource(opts))
             };
             set_source(source.describe());
@@ -449,11 +450,11 @@ fn new_wind(shared: &Shared, e: WindEstimate) {
 
 /// A sender to `daemon.osc_targets` (validated by the config), or `None`
 /// when there are none.
-fn osc_sender(targets: &[String]) -> Result<Option<OscSender>> {
+fn osc_sender(targets: &[SocketAddr]) -> Result<Option<OscSender>> {
     if targets.is_empty() {
         return Ok(None);
     }
-    OscSender::new(targets.iter().filter_map(|t| t.parse().ok()).collect()).map(Some)
+    OscSender::new(targets.to_vec()).map(Some)
 }
 
 /// Per frame: record, window, live tips, PCA; hands the window to analysis.
@@ -729,7 +730,7 @@ fn recon_loop(shared: &Arc<Shared>, tips_tx: Sender<Vec<(usize, DVec3)>>) {
             Ok(g) => g.clone(),
             Err(_) => return,
         };
-        let outputs = match build_model(&build.tips, build.wind, &config) {
+        let outputs = match build_model(&build.tips, build.wind, &config.reconstruct) {
             Ok(o) => o,
             Err(e) => {
                 tracing::error!("reconstruction: {e}");

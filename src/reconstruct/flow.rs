@@ -24,10 +24,10 @@
 use glam::DVec3;
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
 
-use crate::config::ReconstructConfig;
 use crate::error::{Error, Result};
 use crate::model::tree::{Kind, Node, Tree};
 use crate::reconstruct::trunk::{Bounds, Trunk};
+use crate::reconstruct::ReconstructSettings;
 
 /// A particle still flowing: where it is and the tree node it last left.
 #[derive(Debug, Clone, Copy)]
@@ -42,7 +42,7 @@ pub fn run(
     tips: &[(DVec3, Kind)],
     trunk: &Trunk,
     wind: DVec3,
-    cfg: &ReconstructConfig,
+    cfg: &ReconstructSettings,
 ) -> Result<Tree> {
     let mut nodes: Vec<Node> = trunk
         .nodes
@@ -156,7 +156,7 @@ struct Forces<'a> {
     attractor: DVec3,
     shape_magnitude: f64,
     wind: DVec3,
-    cfg: &'a ReconstructConfig,
+    cfg: &'a ReconstructSettings,
 }
 
 impl Forces<'_> {

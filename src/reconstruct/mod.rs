@@ -9,12 +9,14 @@ pub mod hull;
 pub mod leaves;
 pub mod mesh;
 pub mod radii;
+pub mod settings;
 pub mod trunk;
 pub mod volume;
 
+pub use settings::{ReconstructSettings, VolumeKind};
+
 use glam::DVec3;
 
-use crate::config::ReconstructConfig;
 use crate::error::{Error, Result};
 use crate::rng::Rng;
 
@@ -32,7 +34,7 @@ const VOLUME_STREAM: u64 = 2;
 pub fn reconstruct(
     tips: &[CapturedTip],
     wind: DVec3,
-    cfg: &ReconstructConfig,
+    cfg: &ReconstructSettings,
     seed: u64,
 ) -> Result<Tree> {
     Ok(reconstruct_with_volume(tips, wind, cfg, seed)?.0)
@@ -43,7 +45,7 @@ pub fn reconstruct(
 pub fn reconstruct_with_volume(
     tips: &[CapturedTip],
     wind: DVec3,
-    cfg: &ReconstructConfig,
+    cfg: &ReconstructSettings,
     seed: u64,
 ) -> Result<(Tree, volume::Volume)> {
     cfg.validate()?;

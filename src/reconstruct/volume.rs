@@ -5,10 +5,10 @@
 
 use glam::DVec3;
 
-use crate::config::{ReconstructConfig, VolumeKind};
 use crate::error::{Error, Result};
 use crate::reconstruct::hull::Hull;
 use crate::reconstruct::trunk::Bounds;
+use crate::reconstruct::{ReconstructSettings, VolumeKind};
 use crate::rng::Rng;
 
 /// One box of the vertical stack.
@@ -78,7 +78,7 @@ pub fn proportional(total: usize, weights: &[usize]) -> Vec<usize> {
 /// so that captured + random = `total_tips`.
 pub fn random_tips(
     captured: &[DVec3],
-    cfg: &ReconstructConfig,
+    cfg: &ReconstructSettings,
     rng: &mut Rng,
 ) -> Result<(Volume, Vec<DVec3>)> {
     let count = cfg.total_tips.saturating_sub(captured.len());
@@ -188,7 +188,7 @@ mod tests {
                 )
             })
             .collect();
-        let cfg = ReconstructConfig::default();
+        let cfg = ReconstructSettings::default();
         let (vol, tips) = random_tips(&captured, &cfg, &mut rng).unwrap();
         assert_eq!(tips.len(), cfg.total_tips - 30);
         let Volume::Boxes(boxes) = vol else { panic!() };

@@ -20,16 +20,16 @@
 
 use serde_json::{json, Value};
 
-use crate::config::ReconstructConfig;
 use crate::error::{Error, Result};
 use crate::model::tree::{Kind, Tree};
+use crate::reconstruct::ReconstructSettings;
 
 /// Version of the tree.json layout.
 pub const VERSION: u32 = 1;
 
 /// Encodes `tree` (reconstructed with `cfg`) as tree.json text: one key per
 /// line, each array on a single line so the file stays small and diffable.
-pub fn to_json(tree: &Tree, cfg: &ReconstructConfig) -> Result<String> {
+pub fn to_json(tree: &Tree, cfg: &ReconstructSettings) -> Result<String> {
     let parameters =
         serde_json::to_value(cfg).map_err(|e| Error::Runtime(format!("tree.json: {e}")))?;
     let fields: Vec<(&str, Value)> = vec![
@@ -120,7 +120,7 @@ mod tests {
             steps: 3,
             wind: DVec3::new(0.0, 0.0, 2.0),
         };
-        let cfg = ReconstructConfig::default();
+        let cfg = ReconstructSettings::default();
         let text = to_json(&tree, &cfg).unwrap();
         let v: Value = serde_json::from_str(&text).unwrap();
         assert_eq!(v["seed"], json!(cfg.seed));

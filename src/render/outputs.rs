@@ -7,11 +7,10 @@ use std::path::PathBuf;
 use glam::DVec3;
 use serde::Serialize;
 
-use crate::config::Config;
 use crate::error::Result;
 use crate::model::tips::CapturedTip;
 use crate::model::tree::{Kind, Tree};
-use crate::reconstruct::{leaves, mesh, reconstruct};
+use crate::reconstruct::{leaves, mesh, reconstruct, ReconstructSettings};
 
 /// What a reconstruction produced, for the CLI and the daemon to print.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -51,18 +50,25 @@ pub struct Outputs {
     pub report: Report,
 }
 
-/// Reconstructs with `config.reconstruct` (and its seed) and encodes the
+/// Reconstructs with `cfg` (and its seed) and encodes the
 /// three outputs, without touching the disk.
-pub fn build_outputs(tips: &[CapturedTip], wind: DVec3, config: &Config) -> Result<Outputs> {
-    let mut outputs = build_model(tips, wind, config)?;
+pub fn build_outputs(
+    tips: &[CapturedTip],
+    wind: DVec3,
+    cfg: &ReconstructSettings,
+) -> Result<Outputs> {
+    let mut outputs = build_model(tips, wind, cfg)?;
     outputs.png = super::picture::tree_png(&outputs.tree)?;
     Ok(outputs)
 }
 
 /// Like [`build_outputs`] without the picture (`png` left empty): the daemon
 /// publishes the tree to its viewers first and draws the picture after.
-pub fn build_model(tips: &[CapturedTip], wind: DVec3, config: &Config) -> Result<Outputs> {
-    let cfg = &config.reconstruct;
+pub fn build_model(
+    tips: &[CapturedTip],
+    wind: DVec3,
+    cfg: &ReconstructSettings,
+) -> Result<Outputs> {
     let tree = reconstruct(tips, wind, cfg, cfg.seed)?;
     let branch_mesh = mesh::branches(&tree, cfg.sides)?;
     let leaf_mesh = if cfg.leaves {

@@ -28,7 +28,7 @@ use glam::DVec3;
 use serde::{Deserialize, Serialize};
 
 // The same range rule and message as every config key.
-use crate::config::check_range as check;
+use crate::error::check_range as check;
 use crate::error::{Error, Result};
 use crate::model::frame::MarkerFrame;
 use crate::rng::Rng;

@@ -18,7 +18,10 @@ pub mod assign;
 pub mod gaps;
 pub mod noise;
 pub mod rest;
+pub mod settings;
 pub mod tracker;
+
+pub use settings::TrackingSettings;
 
 use std::fmt;
 
@@ -30,7 +33,6 @@ pub use noise::DroppedTrace;
 pub use rest::{RestSource, RestWindow};
 pub use tracker::{TrackStats, Tracked, Tracker};
 
-use crate::config::TrackingConfig;
 use crate::error::Result;
 use crate::model::recording::Recording;
 use crate::model::tips::{Tip, Tips};
@@ -126,7 +128,7 @@ impl fmt::Display for Summary {
 
 /// Runs the whole marker stage over a recording: reads, tracks, joins,
 /// drops noise, fills gaps, finds the rest phase and averages.
-pub fn process(recording: &mut dyn Recording, cfg: &TrackingConfig) -> Result<(Tips, Summary)> {
+pub fn process(recording: &mut dyn Recording, cfg: &TrackingSettings) -> Result<(Tips, Summary)> {
     let frame_rate = recording.info().frame_rate;
     let source = recording.info().source.clone();
     let mut tracker = Tracker::new(cfg, Some(frame_rate));
@@ -143,7 +145,7 @@ pub fn process(recording: &mut dyn Recording, cfg: &TrackingConfig) -> Result<(T
 /// Steps 2–6 on the tracker's output.
 pub fn clean(
     tracked: Tracked,
-    cfg: &TrackingConfig,
+    cfg: &TrackingSettings,
     source: &str,
     frame_rate: f64,
 ) -> (Tips, Summary) {

@@ -10,6 +10,9 @@ use crate::model::wind::{WindEstimate, WindSource};
 
 pub mod fan;
 pub mod pca;
+pub mod settings;
+
+pub use settings::WindSettings;
 
 /// Keeps the latest estimate per source and picks by priority.
 #[derive(Debug, Clone)]

@@ -156,7 +156,7 @@ fn with_source(
 }
 
 fn options() -> OscOptions {
-    let mut opts = OscOptions::from_config(&treemocap::config::Config::default().osc).unwrap();
+    let mut opts = OscOptions::from_settings(&treemocap::config::Config::default().osc).unwrap();
     opts.bind = "127.0.0.1:0".parse().unwrap();
     opts
 }
@@ -270,9 +270,9 @@ fn z_up_millimetre_senders_arrive_in_metres_y_up() {
         .collect();
     let file = write_frames(dir.path(), &sent);
     let mut config = treemocap::config::Config::default().osc;
-    config.up_axis = "z".into();
-    config.units = "mm".into();
-    let mut opts = OscOptions::from_config(&config).unwrap();
+    config.up_axis = treemocap::model::frame::UpAxis::Z;
+    config.units = treemocap::model::frame::LengthUnit::Mm;
+    let mut opts = OscOptions::from_settings(&config).unwrap();
     opts.bind = "127.0.0.1:0".parse().unwrap();
     let (got, _) = with_source(opts, |addr| {
         send(

@@ -50,14 +50,7 @@ impl FormatError {
     }
 }
 
-/// The vertical axis of a file's coordinates.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-pub enum UpAxis {
-    /// Y up, as inside treemocap and in Motive's default export.
-    Y,
-    /// Z up, the usual C3D convention (Vicon, Qualisys).
-    Z,
-}
+pub use crate::model::frame::UpAxis;
 
 /// The `c3d.up_axis` setting: which axis of a C3D file points up.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
