@@ -8,6 +8,7 @@ use std::path::Path;
 
 use serde::{Deserialize, Serialize};
 
+use crate::animate::AnimateSettings;
 use crate::error::{check_range, Error, Result};
 use crate::reconstruct::ReconstructSettings;
 use crate::source::osc::OscSettings;
@@ -31,6 +32,7 @@ pub struct Config {
     pub daemon: DaemonConfig,
     pub c3d: C3dConfig,
     pub reconstruct: ReconstructSettings,
+    pub animate: AnimateSettings,
 }
 
 /// Reading recorded sessions.
@@ -328,6 +330,7 @@ impl Config {
         }
         self.tracking.validate()?;
         self.reconstruct.validate()?;
+        self.animate.validate()?;
         Ok(())
     }
 }

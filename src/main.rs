@@ -53,8 +53,9 @@ enum Command {
     },
     /// Run the whole job on a recorded session: track the markers, find the
     /// tips' rest positions, estimate the wind, reconstruct the tree. Writes
-    /// tips.json, tree.glb, tree.json and tree.png to --out (default:
-    /// output.dir of the config, "out").
+    /// tips.json, tree.glb (the tree swaying as captured: a skin and an
+    /// animation), tree.json and tree.png to --out (default: output.dir of
+    /// the config, "out").
     Replay {
         /// A Motive CSV export or a treemocap log (detected by content).
         file: PathBuf,
@@ -63,6 +64,9 @@ enum Command {
         /// Output folder (overrides output.dir).
         #[arg(long, value_name = "DIR")]
         out: Option<PathBuf>,
+        /// Write the still tree.glb (no skin, no animation).
+        #[arg(long)]
+        still: bool,
     },
     /// Find the branch tips in a recording: track the markers, fill gaps,
     /// drop noise, average each marker over the still phase. Prints a table
@@ -159,7 +163,8 @@ enum Command {
         now: bool,
     },
     /// Re-run the particle flow on saved tips (tips.json) and write
-    /// tree.glb, tree.json and tree.png.
+    /// tree.glb, tree.json and tree.png. When the tips file carries the tips'
+    /// trajectories (`tips --json --traces`), tree.glb is animated with them.
     Reconstruct {
         /// A tips.json written by `treemocap replay` (or by hand).
         tips: PathBuf,
@@ -168,6 +173,9 @@ enum Command {
         /// Output folder (default: output.dir from the config).
         #[arg(long, value_name = "DIR")]
         out: Option<PathBuf>,
+        /// Write the still tree.glb even when the tips have trajectories.
+        #[arg(long)]
+        still: bool,
     },
     /// Make a synthetic capture session of a simulated tree: a Motive 1.23
     /// CSV of unlabeled markers plus NAME.truth.json beside it (the true tree,
@@ -303,10 +311,15 @@ fn run(command: Command) -> Result<()> {
             let reload: treemocap::daemon::run::Reload = Box::new(move || args.load());
             treemocap::daemon::run::run_with_reload(config, &out, shutdown, true, Some(reload))
         }
-        Command::Replay { file, config, out } => {
+        Command::Replay {
+            file,
+            config,
+            out,
+            still,
+        } => {
             let config = config.load()?;
             let out = out.unwrap_or_else(|| PathBuf::from(&config.output.dir));
-            let report = treemocap::app::replay::run(&file, &config, &out)?;
+            let report = treemocap::app::replay::run_with(&file, &config, still, &out)?;
             print!("{report}");
             Ok(())
         }
@@ -443,10 +456,15 @@ fn run(command: Command) -> Result<()> {
             print!("{summary}");
             Ok(())
         }
-        Command::Reconstruct { tips, config, out } => {
+        Command::Reconstruct {
+            tips,
+            config,
+            out,
+            still,
+        } => {
             let config = config.load()?;
             let out = out.unwrap_or_else(|| PathBuf::from(&config.output.dir));
-            let report = treemocap::app::reconstruct::command(&tips, &config, &out)?;
+            let report = treemocap::app::reconstruct::command(&tips, &config, still, &out)?;
             // A closed pipe (`| head`) is not an error worth a panic.
             use std::io::Write;
             let mut stdout = std::io::stdout().lock();
@@ -461,6 +479,9 @@ fn run(command: Command) -> Result<()> {
                 report.branch_triangles,
                 report.leaves
             );
+            if let Some(a) = &report.animation {
+                let _ = writeln!(stdout, "{a}");
+            }
             for f in &report.files {
                 let _ = writeln!(stdout, "wrote {}", f.display());
             }

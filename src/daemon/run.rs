@@ -36,7 +36,7 @@ use crate::error::{Error, Result};
 use crate::format::log::{LogHeader, LogWriter};
 use crate::model::tips::{CapturedTip, Tips};
 use crate::model::wind::WindEstimate;
-use crate::render::outputs::build_model;
+use crate::render::outputs::{build_model, Motion};
 use crate::serve::http;
 use crate::serve::osc::{tips_datagram, tree_datagrams, wind_datagram, OscSender};
 use crate::serve::snapshot::SnapshotNode;
@@ -730,13 +730,14 @@ fn recon_loop(shared: &Arc<Shared>, tips_tx: Sender<Vec<(usize, DVec3)>>) {
             Ok(g) => g.clone(),
             Err(_) => return,
         };
-        let outputs = match build_model(&build.tips, build.wind, &config.reconstruct) {
-            Ok(o) => o,
-            Err(e) => {
-                tracing::error!("reconstruction: {e}");
-                continue;
-            }
-        };
+        let outputs =
+            match build_model(&build.tips, build.wind, &config.reconstruct, Motion::Rigged) {
+                Ok(o) => o,
+                Err(e) => {
+                    tracing::error!("reconstruction: {e}");
+                    continue;
+                }
+            };
         let v = version.fetch_add(1, Ordering::Relaxed) + 1;
         let snapshot = Arc::new(TreeSnapshot {
             version: v,
@@ -757,7 +758,7 @@ fn recon_loop(shared: &Arc<Shared>, tips_tx: Sender<Vec<(usize, DVec3)>>) {
         }
         // A picture that cannot be drawn is reported, and no empty
         // tree.png is written in its place.
-        let png = crate::render::picture::tree_png(&outputs.tree)
+        let png = crate::render::picture::tree_png(&outputs.tree, None)
             .map_err(|e| tracing::error!("tree.png: {e}"))
             .ok();
         write_files(shared, &snapshot, png.as_deref(), v);

@@ -1,2 +1,3 @@
 pub mod crowns;
+pub mod gltf;
 pub mod natnet;
