@@ -166,6 +166,15 @@ impl Rig {
         self.captured.iter().map(|c| c.marker).collect()
     }
 
+    /// Every node's rest position, in node index order.
+    pub fn rest_positions(&self) -> Vec<DVec3> {
+        let mut out = vec![DVec3::ZERO; self.order.len()];
+        for (slot, &node) in self.order.iter().enumerate() {
+            out[node] = self.rest[slot];
+        }
+        out
+    }
+
     /// The tree nodes of the captured tips, in the same order as `markers`.
     pub fn captured_nodes(&self) -> Vec<usize> {
         self.captured.iter().map(|c| c.node).collect()

@@ -24,6 +24,9 @@ pub struct AnimateSettings {
     /// How many captured tips a random tip (or a captured tip whose marker
     /// is missing) borrows its motion from.
     pub neighbours: usize,
+    /// Most live pose messages per second the daemon sends (WebSocket and
+    /// OSC); 0 = none.
+    pub live_rate_hz: f64,
 }
 
 impl Default for AnimateSettings {
@@ -34,6 +37,7 @@ impl Default for AnimateSettings {
             max_duration_s: 120.0,
             bend_power: 2.0,
             neighbours: 3,
+            live_rate_hz: 60.0,
         }
     }
 }
@@ -45,6 +49,7 @@ impl AnimateSettings {
         check_range("animate.max_duration_s", self.max_duration_s, 1.0, 3600.0)?;
         check_range("animate.bend_power", self.bend_power, 0.5, 4.0)?;
         check_range("animate.neighbours", self.neighbours as f64, 1.0, 16.0)?;
+        check_range("animate.live_rate_hz", self.live_rate_hz, 0.0, 1000.0)?;
         match self.window_s.as_slice() {
             [] => Ok(()),
             [a, b] if a.is_finite() && b.is_finite() && a < b => Ok(()),

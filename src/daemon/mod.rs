@@ -4,6 +4,7 @@
 //! `treemocap replay` runs too.
 
 pub mod follow;
+mod pose;
 pub mod run;
 pub mod status;
 pub mod triggers;

@@ -28,9 +28,11 @@ use super::follow::TipFollower;
 use super::status::Status;
 use super::triggers::{compare_tips, Reason, TriggerConfig, Triggers};
 use super::window::{FrameWindow, WindowRecording};
+use crate::animate::Rig;
 use crate::app::files::write_atomic;
 use crate::app::open::{self as replay, ReplayOptions};
 use crate::config::{Config, DaemonSource, TransportSetting};
+use crate::daemon::pose::LivePose;
 use crate::daemon::wind_log::WindLog;
 use crate::error::{Error, Result};
 use crate::format::log::{LogHeader, LogWriter};
@@ -39,6 +41,7 @@ use crate::model::wind::WindEstimate;
 use crate::render::outputs::{build_model, Motion};
 use crate::serve::http;
 use crate::serve::osc::{tips_datagram, tree_datagrams, wind_datagram, OscSender};
+use crate::serve::pose::{pose_datagrams, pose_message};
 use crate::serve::snapshot::SnapshotNode;
 use crate::serve::snapshot::TreeSnapshot;
 use crate::source::channel::{frame_channel, FrameReceiver, FrameSink};
@@ -479,6 +482,7 @@ fn pipeline_loop(
     let mut rate_known = false;
     let mut last_time: Option<f64> = None;
     let mut osc = osc_sender(&d.osc_targets)?;
+    let mut pose = LivePose::new(&c.animate);
     let mut recorder = if d.record {
         let path = shared.out.join("session.log.csv");
         let header = LogHeader {
@@ -568,6 +572,7 @@ fn pipeline_loop(
             if let Some(o) = osc.as_mut() {
                 o.send(&tips_datagram(frame.frame, now, &seen));
             }
+            send_pose(shared, osc.as_mut(), &mut pose, frame.frame, now, &seen);
             if now >= next_pca {
                 next_pca = now + c.wind.pca_window_s;
                 if let Some(e) = pca.estimate() {
@@ -598,6 +603,34 @@ fn pipeline_loop(
         }
     }
     Ok(())
+}
+
+/// The current tree swayed by this frame's live tips, to the WebSocket and
+/// OSC, when someone listens and a pose is due.
+fn send_pose(
+    shared: &Shared,
+    osc: Option<&mut OscSender>,
+    pose: &mut LivePose,
+    frame: i64,
+    now: f64,
+    seen: &[(usize, DVec3)],
+) {
+    let viewers = shared.live.receiver_count() > 0;
+    if !viewers && osc.is_none() {
+        return;
+    }
+    let tree = shared.tree_tx.borrow().clone();
+    let Some(p) = pose.update(tree.as_deref(), frame, now, seen) else {
+        return;
+    };
+    if viewers {
+        let _ = shared.live.send(pose_message(&p));
+    }
+    if let Some(o) = osc {
+        for d in pose_datagrams(&p) {
+            o.send(&d);
+        }
+    }
 }
 
 fn record_failed(status: &Status, e: &Error, logged: &mut bool) {
@@ -744,6 +777,7 @@ fn recon_loop(shared: &Arc<Shared>, tips_tx: Sender<Vec<(usize, DVec3)>>) {
             time_s: build.time_s,
             reason: build.reason.to_string(),
             nodes: SnapshotNode::of_tree(&outputs.tree),
+            rig: Rig::new(&outputs.tree, &config.animate).ok().map(Arc::new),
             glb: outputs.glb,
             tree_json: outputs.tree_json,
             tips_json: build.tips_json,

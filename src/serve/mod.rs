@@ -4,4 +4,5 @@
 
 pub mod http;
 pub mod osc;
+pub mod pose;
 pub mod snapshot;
