@@ -8,7 +8,7 @@
 //! | `GET /status` | JSON: sources, rates, markers, tips, drops, last tree, wind |
 //! | `GET /metrics` | the same counters in Prometheus text format |
 //! | `POST /rebuild` | ask for a new tree now (202 Accepted) |
-//! | `GET /live` | WebSocket: a JSON text message per frame of tips, and one per new tree |
+//! | `GET /live` | WebSocket: a JSON text message per frame of tips, one per new tree, and the tree's sway (`pose`, `super::pose`) |
 //!
 //! The server only reads shared state handed to it ([`HttpState`]); it never
 //! blocks the pipeline. A WebSocket client too slow for the frame rate skips
