@@ -11,6 +11,7 @@ use serde::{Deserialize, Serialize};
 use crate::animate::AnimateSettings;
 use crate::error::{check_range, Error, Result};
 use crate::reconstruct::ReconstructSettings;
+use crate::source::natnet::settings::NatNetSettings;
 use crate::source::osc::OscSettings;
 use crate::track::TrackingSettings;
 use crate::wind::WindSettings;
@@ -22,16 +23,27 @@ pub const DEFAULT_TOML: &str = include_str!("../config/default.toml");
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Config {
+    /// `[replay]`: reading recorded sessions.
     pub replay: ReplayConfig,
+    /// `[record]`: writing our log format.
     pub record: RecordConfig,
+    /// `[osc]`: the OSC source.
     pub osc: OscSettings,
+    /// `[output]`: where results are written.
     pub output: OutputConfig,
-    pub natnet: NatNetConfig,
+    /// `[natnet]`: the NatNet client.
+    pub natnet: NatNetSettings,
+    /// `[tracking]`: the marker stage.
     pub tracking: TrackingSettings,
+    /// `[wind]`: the wind sources and their priority.
     pub wind: WindSettings,
+    /// `[daemon]`: `treemocap run`.
     pub daemon: DaemonConfig,
+    /// `[c3d]`: reading C3D files.
     pub c3d: C3dConfig,
+    /// `[reconstruct]`: the particle flow (docs/particle-flow.md).
     pub reconstruct: ReconstructSettings,
+    /// `[animate]`: the captured motion on the tree (docs/animation.md).
     pub animate: AnimateSettings,
 }
 
@@ -62,29 +74,20 @@ pub struct OutputConfig {
     pub dir: String,
 }
 
-/// The NatNet client (`treemocap record --natnet`, the daemon).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct NatNetConfig {
-    /// Which markers of a frame are tracked (see `source::natnet::select`).
-    pub markers: crate::source::natnet::select::MarkerSelection,
-    /// Wait for the server's SERVERINFO before reporting it unreachable (s).
-    pub connect_timeout_s: f64,
-    /// Silence after which the client reconnects (s).
-    pub silence_timeout_s: f64,
-    /// Unicast keep-alive period (s).
-    pub keepalive_interval_s: f64,
-}
-
 /// `treemocap run`: sources, triggers and outputs of the daemon.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct DaemonConfig {
     /// Where frames come from.
     pub source: DaemonSource,
+    /// The recording played when `source = "replay"`.
     pub replay_file: String,
+    /// Playback speed of that recording; 0 plays as fast as possible.
     pub replay_speed: f64,
+    /// Start the recording again at its end, times continuing.
     pub replay_loop: bool,
+    /// NatNet server, `ADDRESS` or `ADDRESS:COMMAND_PORT`, when
+    /// `source = "natnet"`.
     pub natnet_server: String,
     /// How NatNet frames travel; `auto` takes what the server says.
     pub natnet_transport: TransportSetting,
@@ -92,21 +95,30 @@ pub struct DaemonConfig {
     pub window_s: f64,
     /// Seconds of capture time between analyses.
     pub analysis_interval_s: f64,
+    /// Still phase (s) needed before the first tree is built.
     pub rest_min_s: f64,
+    /// How long (s) the tips must differ from the last tree's before a new
+    /// tree is built, so a marker hidden for a moment does not trigger one.
     pub tip_change_s: f64,
+    /// Distance (mm) beyond which a tip counts as moved.
     pub moved_mm: f64,
+    /// Wind turn (degrees) that triggers a new tree.
     pub wind_turn_deg: f64,
     /// 0 disables the periodic rebuild.
     pub period_s: f64,
     /// Gate of the live tip follower (mm).
     pub follow_gate_mm: f64,
+    /// Frames queued between the sources and the pipeline; when full, the
+    /// oldest is dropped and counted, so a slow pipeline never blocks a socket.
     pub channel_frames: u32,
+    /// Record every frame to `OUT/session.log.csv`.
     pub record: bool,
     /// HTTP and WebSocket address; `""` in the config (None) turns it off.
     #[serde(with = "optional_addr")]
     pub http: Option<SocketAddr>,
     /// Where the tree, tips and wind are sent as OSC.
     pub osc_targets: Vec<SocketAddr>,
+    /// Keep every tree as `tree-0001.glb`, `tree-0001.json`, … as well.
     pub history: bool,
     /// UDP address for `/treemocap/rebuild`; `""` (None) turns it off.
     #[serde(with = "optional_addr")]
@@ -126,16 +138,7 @@ pub enum DaemonSource {
 }
 
 /// `daemon.natnet_transport`: how NatNet frames reach the client.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum TransportSetting {
-    /// What the server's SERVERINFO says.
-    Auto,
-    /// Frames sent to this client only.
-    Unicast,
-    /// Frames sent to the multicast group.
-    Multicast,
-}
+pub use crate::source::natnet::settings::TransportSetting;
 
 /// An address that the config may leave empty (`""`) to turn a listener off.
 mod optional_addr {
@@ -241,6 +244,20 @@ impl Config {
 
     /// Range checks, each naming the key and its allowed range.
     pub fn validate(&self) -> Result<()> {
+        self.validate_io()?;
+        validate_wind(&self.wind)?;
+        validate_daemon(&self.daemon)?;
+        if self.output.dir.is_empty() {
+            return Err(Error::config("output.dir", "must not be empty"));
+        }
+        self.tracking.validate()?;
+        self.reconstruct.validate()?;
+        self.animate.validate()?;
+        Ok(())
+    }
+
+    /// `[replay]`, `[record]`, `[osc]`, `[natnet]`.
+    fn validate_io(&self) -> Result<()> {
         check_range(
             "replay.time_tolerance_s",
             self.replay.time_tolerance_s,
@@ -261,78 +278,65 @@ impl Config {
         )?;
         check_range("osc.frame_rate", self.osc.frame_rate, 1.0, 10000.0)?;
         crate::source::osc::OscOptions::from_settings(&self.osc)?;
-        check_range(
-            "natnet.connect_timeout_s",
-            self.natnet.connect_timeout_s,
-            0.1,
-            60.0,
-        )?;
-        check_range(
-            "natnet.silence_timeout_s",
-            self.natnet.silence_timeout_s,
-            0.1,
-            60.0,
-        )?;
-        check_range(
-            "natnet.keepalive_interval_s",
-            self.natnet.keepalive_interval_s,
-            0.05,
-            10.0,
-        )?;
-        let w = &self.wind;
-        let mut seen = Vec::new();
-        for name in &w.priority {
-            if seen.contains(&name) {
-                return Err(Error::config(
-                    "wind.priority",
-                    format!("'{}' is repeated", name.name()),
-                ));
-            }
-            seen.push(name);
-        }
-        check_range("wind.max_age_s", w.max_age_s, 0.5, 600.0)?;
-        if !(w.fan_position.is_empty()
-            || (w.fan_position.len() == 3 && w.fan_position.iter().all(|v| v.is_finite())))
-        {
-            return Err(Error::config(
-                "wind.fan_position",
-                "must be [] or three numbers [x, y, z] in metres",
-            ));
-        }
-        check_range("wind.fan_speed_m_s", w.fan_speed_m_s, 0.0, 50.0)?;
-        check_range("wind.sensor_baud", w.sensor_baud as f64, 300.0, 921_600.0)?;
-        check_range("wind.sensor_heading_deg", w.sensor_heading_deg, 0.0, 360.0)?;
-        check_range("wind.pca_window_s", w.pca_window_s, 1.0, 120.0)?;
-        check_range("wind.pca_min_sway_mm", w.pca_min_sway_mm, 0.1, 100.0)?;
-        let d = &self.daemon;
-        check_range("daemon.replay_speed", d.replay_speed, 0.0, 100.0)?;
-        check_range("daemon.window_s", d.window_s, 5.0, 600.0)?;
-        check_range(
-            "daemon.analysis_interval_s",
-            d.analysis_interval_s,
-            0.1,
-            60.0,
-        )?;
-        check_range("daemon.rest_min_s", d.rest_min_s, 1.0, 600.0)?;
-        check_range("daemon.tip_change_s", d.tip_change_s, 0.0, 600.0)?;
-        check_range("daemon.moved_mm", d.moved_mm, 1.0, 1000.0)?;
-        check_range("daemon.wind_turn_deg", d.wind_turn_deg, 1.0, 180.0)?;
-        check_range("daemon.period_s", d.period_s, 0.0, 86_400.0)?;
-        check_range("daemon.follow_gate_mm", d.follow_gate_mm, 5.0, 500.0)?;
-        check_range(
-            "daemon.channel_frames",
-            d.channel_frames as f64,
-            16.0,
-            1_000_000.0,
-        )?;
-        if self.output.dir.is_empty() {
-            return Err(Error::config("output.dir", "must not be empty"));
-        }
-        self.tracking.validate()?;
-        self.reconstruct.validate()?;
-        self.animate.validate()?;
+        self.natnet.validate()?;
         Ok(())
     }
+}
+
+/// `[wind]`: no source twice in the priority, a fan position of three
+/// numbers or none, numbers in range.
+fn validate_wind(w: &WindSettings) -> Result<()> {
+    let mut seen = Vec::new();
+    for name in &w.priority {
+        if seen.contains(&name) {
+            return Err(Error::config(
+                "wind.priority",
+                format!("'{}' is repeated", name.name()),
+            ));
+        }
+        seen.push(name);
+    }
+    check_range("wind.max_age_s", w.max_age_s, 0.5, 600.0)?;
+    if !(w.fan_position.is_empty()
+        || (w.fan_position.len() == 3 && w.fan_position.iter().all(|v| v.is_finite())))
+    {
+        return Err(Error::config(
+            "wind.fan_position",
+            "must be [] or three numbers [x, y, z] in metres",
+        ));
+    }
+    check_range("wind.fan_speed_m_s", w.fan_speed_m_s, 0.0, 50.0)?;
+    check_range("wind.sensor_baud", w.sensor_baud as f64, 300.0, 921_600.0)?;
+    check_range("wind.sensor_heading_deg", w.sensor_heading_deg, 0.0, 360.0)?;
+    check_range("wind.pca_window_s", w.pca_window_s, 1.0, 120.0)?;
+    check_range("wind.pca_min_sway_mm", w.pca_min_sway_mm, 0.1, 100.0)?;
+    Ok(())
+}
+
+/// `[daemon]`: numbers in range (addresses and enums are checked when the
+/// table is read).
+fn validate_daemon(d: &DaemonConfig) -> Result<()> {
+    check_range("daemon.replay_speed", d.replay_speed, 0.0, 100.0)?;
+    check_range("daemon.window_s", d.window_s, 5.0, 600.0)?;
+    check_range(
+        "daemon.analysis_interval_s",
+        d.analysis_interval_s,
+        0.1,
+        60.0,
+    )?;
+    check_range("daemon.rest_min_s", d.rest_min_s, 1.0, 600.0)?;
+    check_range("daemon.tip_change_s", d.tip_change_s, 0.0, 600.0)?;
+    check_range("daemon.moved_mm", d.moved_mm, 1.0, 1000.0)?;
+    check_range("daemon.wind_turn_deg", d.wind_turn_deg, 1.0, 180.0)?;
+    check_range("daemon.period_s", d.period_s, 0.0, 86_400.0)?;
+    check_range("daemon.follow_gate_mm", d.follow_gate_mm, 5.0, 500.0)?;
+    check_range(
+        "daemon.channel_frames",
+        d.channel_frames as f64,
+        16.0,
+        1_000_000.0,
+    )?;
+    Ok(())
 }
 
 /// A value of the wrong type (`-5` for a count, `"x"` for a list) names its
@@ -501,7 +505,7 @@ mod tests {
 
     #[test]
     fn natnet_marker_selection_is_checked() {
-        use crate::source::natnet::select::MarkerSelection;
+        use crate::protocol::natnet::select::MarkerSelection;
         assert_eq!(Config::default().natnet.markers, MarkerSelection::Unlabeled);
         let c = Config::from_toml_str("[natnet]\nmarkers = \"all\"\n").unwrap();
         assert_eq!(c.natnet.markers, MarkerSelection::All);

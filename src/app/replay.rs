@@ -20,11 +20,14 @@ use crate::wind::{fan::configured_fan_wind, pca::SwayPca, WindSelector};
 
 /// What a replay found and wrote.
 pub struct ReplayReport {
+    /// The tips found, as written to tips.json.
     pub tips: Tips,
+    /// What the marker stage did, printed before the tree's line.
     pub summary: Summary,
     /// The wind used by the flow, with its source; `None` when no source
     /// gave one (the flow then runs without a wind force).
     pub wind: Option<WindEstimate>,
+    /// Counts of the reconstruction (tips, nodes, steps, forced joins).
     pub tree: Report,
     /// Every file written, tips.json first.
     pub files: Vec<PathBuf>,
@@ -109,15 +112,7 @@ impl fmt::Display for ReplayReport {
             )?,
             None => writeln!(f, "wind: none (the tree did not sway; no fan configured)")?,
         }
-        let r = &self.tree;
-        writeln!(
-            f,
-            "tree: {} captured + {} random tips, {} nodes, {} flow steps, {} forced joins, {} triangles, {} leaves",
-            r.captured_tips, r.random_tips, r.nodes, r.steps, r.forced_joins, r.branch_triangles, r.leaves
-        )?;
-        if let Some(a) = &r.animation {
-            writeln!(f, "{a}")?;
-        }
+        writeln!(f, "{}", self.tree.counts())?;
         for file in &self.files {
             writeln!(f, "wrote {}", file.display())?;
         }

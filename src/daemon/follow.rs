@@ -14,6 +14,8 @@ pub struct TipFollower {
 }
 
 impl TipFollower {
+    /// A follower with no tips yet; `gate_m` is `daemon.follow_gate_mm` in
+    /// metres.
     pub fn new(gate_m: f64) -> Self {
         TipFollower {
             tips: Vec::new(),
@@ -26,6 +28,7 @@ impl TipFollower {
         self.tips = tips.iter().map(|&(m, p)| (m, p, p)).collect();
     }
 
+    /// True before the first tree: there is nothing to follow.
     pub fn is_empty(&self) -> bool {
         self.tips.is_empty()
     }

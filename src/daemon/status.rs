@@ -12,8 +12,12 @@ use crate::model::wind::WindEstimate;
 /// Shared counters of a running daemon.
 #[derive(Debug, Default)]
 pub struct Status {
+    /// What the frames come from, as a user would name it
+    /// (`natnet 192.168.1.10:1510`, `replay FILE at 1×`).
     pub source: Mutex<String>,
+    /// Frames the pipeline has taken in.
     pub frames: AtomicU64,
+    /// Marker samples in those frames.
     pub samples: AtomicU64,
     /// Markers in the latest frame.
     pub markers: AtomicU64,
@@ -23,24 +27,32 @@ pub struct Status {
     pub tips: AtomicU64,
     /// Frames the bounded channel dropped (pipeline too slow).
     pub dropped: AtomicU64,
+    /// Runs of the marker stage on the window.
     pub analyses: AtomicU64,
+    /// Trees built and published.
     pub trees: AtomicU64,
     /// Frame time in f64 bits, so it fits an atomic.
     pub last_frame_time_bits: AtomicU64,
+    /// The source's number of the latest frame.
     pub last_frame: AtomicU64,
     /// Frames per second of the source as measured (f64 bits).
     pub frame_rate_bits: AtomicU64,
+    /// Version of the current tree (1, 2, …), as in the outputs.
     pub tree_version: AtomicU64,
+    /// The last tree's report (version, trigger, nodes, forced joins, times).
     pub last_tree: Mutex<Option<serde_json::Value>>,
+    /// The wind estimate currently used.
     pub wind: Mutex<Option<WindEstimate>>,
     /// The last error of an output (a disk refusing writes), cleared by the
     /// next success.
     pub output_error: Mutex<Option<String>>,
+    /// Why the source stopped or cannot start (nothing listening, a bad file).
     pub source_error: Mutex<Option<String>>,
     /// The last failed config reload (SIGHUP), cleared by a good one.
     pub config_error: Mutex<Option<String>>,
     /// Per-frame latency from arrival to tips published, in microseconds.
     pub latency_us_last: AtomicU64,
+    /// The largest of those latencies since the start (µs).
     pub latency_us_max: AtomicU64,
     /// Latency histogram: bucket k counts frames of k×10 to (k+1)×10 µs; the
     /// last bucket everything slower. Fixed size, so percentiles cost no
@@ -63,6 +75,8 @@ impl Default for LatencyHistogram {
 }
 
 impl LatencyHistogram {
+    /// Counts one frame's latency (µs); anything beyond 20 ms goes to the
+    /// last bucket.
     pub fn record(&self, us: u64) {
         let k = ((us / BUCKET_US) as usize).min(BUCKETS - 1);
         self.0[k].fetch_add(1, Ordering::Relaxed);
@@ -92,6 +106,7 @@ fn get(a: &AtomicU64) -> u64 {
 }
 
 impl Status {
+    /// Time of the latest frame (s): the daemon's session clock.
     pub fn frame_time(&self) -> f64 {
         f64::from_bits(get(&self.last_frame_time_bits))
     }

@@ -18,6 +18,7 @@ pub struct FrameWindow {
 }
 
 impl FrameWindow {
+    /// An empty window keeping `span_s` seconds of frames (`daemon.window_s`).
     pub fn new(span_s: f64) -> Self {
         FrameWindow {
             span_s,
@@ -51,14 +52,17 @@ impl FrameWindow {
         }
     }
 
+    /// Frames held.
     pub fn len(&self) -> usize {
         self.frames.len()
     }
 
+    /// True before the first frame and after a restart of the source.
     pub fn is_empty(&self) -> bool {
         self.frames.is_empty()
     }
 
+    /// Marker samples held: what the window costs in memory.
     pub fn samples(&self) -> usize {
         self.samples
     }

@@ -9,7 +9,7 @@
 use std::io::{self, BufRead};
 
 /// Reads rows one at a time into a reused buffer.
-pub struct RowReader<R> {
+pub(crate) struct RowReader<R> {
     reader: R,
     /// Line number of the last line read (1-based).
     lines_read: u64,
@@ -21,7 +21,7 @@ pub struct RowReader<R> {
 }
 
 impl<R: BufRead> RowReader<R> {
-    pub fn new(reader: R) -> Self {
+    pub(crate) fn new(reader: R) -> Self {
         RowReader {
             reader,
             lines_read: 0,
@@ -33,7 +33,7 @@ impl<R: BufRead> RowReader<R> {
     }
 
     /// Reads the next row; `Ok(false)` at the end of the input.
-    pub fn read(&mut self) -> io::Result<bool> {
+    pub(crate) fn read(&mut self) -> io::Result<bool> {
         self.data.clear();
         self.ends.clear();
         self.raw.clear();
@@ -99,17 +99,17 @@ impl<R: BufRead> RowReader<R> {
     }
 
     /// The line the current row starts on.
-    pub fn line(&self) -> u64 {
+    pub(crate) fn line(&self) -> u64 {
         self.row_line
     }
 
     /// Number of fields in the current row.
-    pub fn len(&self) -> usize {
+    pub(crate) fn len(&self) -> usize {
         self.ends.len()
     }
 
     /// Field `i` of the current row (empty if out of range).
-    pub fn get(&self, i: usize) -> &[u8] {
+    pub(crate) fn get(&self, i: usize) -> &[u8] {
         let Some(&end) = self.ends.get(i) else {
             return &[];
         };
@@ -118,12 +118,12 @@ impl<R: BufRead> RowReader<R> {
     }
 
     /// Field `i` as text (empty if out of range or not UTF-8).
-    pub fn text(&self, i: usize) -> &str {
+    pub(crate) fn text(&self, i: usize) -> &str {
         std::str::from_utf8(self.get(i)).unwrap_or("")
     }
 
     /// True when every field is empty (a blank line or Excel's `,,,,`).
-    pub fn is_blank(&self) -> bool {
+    pub(crate) fn is_blank(&self) -> bool {
         self.data.is_empty()
     }
 }

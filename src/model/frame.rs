@@ -16,6 +16,8 @@ pub struct Marker {
 }
 
 impl Marker {
+    /// A marker without a source ID (simulated, or from a source that has
+    /// none).
     pub fn new(position: DVec3) -> Self {
         Marker { position, id: None }
     }
@@ -37,6 +39,8 @@ pub struct MarkerFrame {
 }
 
 impl MarkerFrame {
+    /// A frame without a latency: files and OSC carry none (the NatNet
+    /// client fills `latency_s` itself).
     pub fn new(frame: i64, time_s: f64, markers: Vec<Marker>) -> Self {
         MarkerFrame {
             frame,

@@ -1,3 +1,5 @@
 //! Pure codecs: bytes in, values out (and back), no sockets, no clock.
 
+pub mod natnet;
+pub mod nmea;
 pub mod osc;

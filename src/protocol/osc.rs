@@ -94,6 +94,7 @@ impl ProblemKind {
 /// One rejected input, phrased for the log.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Problem {
+    /// Which counter it goes to (garbage, bad arguments, broken frame).
     pub kind: ProblemKind,
     /// The OSC address concerned (empty for garbage).
     pub address: String,
@@ -116,6 +117,7 @@ impl std::fmt::Display for Problem {
 pub struct Output {
     /// Finished frames, in order of completion.
     pub frames: Vec<MarkerFrame>,
+    /// Input rejected on the way; each one skips only its own message.
     pub problems: Vec<Problem>,
     /// Well-formed messages at addresses we do not use (rigid bodies, …).
     pub ignored: u64,
@@ -150,6 +152,7 @@ pub struct Assembler {
 }
 
 impl Assembler {
+    /// An assembler with no frame open, converting positions by `opts`.
     pub fn new(opts: DecodeOptions) -> Self {
         Assembler {
             opts,

@@ -9,8 +9,9 @@ use std::f64::consts::TAU;
 
 use glam::{DQuat, DVec3};
 
-use crate::error::{Error, Result};
+use crate::error::Result;
 use crate::model::tree::Tree;
+use crate::reconstruct::error::ReconstructError;
 
 /// Which skeleton nodes a vertex follows when the tree moves (the skin of
 /// the animated glTF): `nodes[0]` with `weight`, `nodes[1]` with the rest.
@@ -44,7 +45,7 @@ impl Bind {
 }
 
 fn node_index(n: usize) -> Result<u32> {
-    u32::try_from(n).map_err(|_| Error::Runtime("tree has more than 2^32 nodes".into()))
+    u32::try_from(n).map_err(|_| ReconstructError::TooLarge { what: "the tree" }.into())
 }
 
 /// A triangle mesh as glTF wants it: f32 positions and unit normals, u32
@@ -65,7 +66,7 @@ impl Mesh {
     /// Adds a vertex that follows `bind` and returns its index.
     pub fn vertex(&mut self, p: DVec3, n: DVec3, bind: Bind) -> Result<u32> {
         let i = u32::try_from(self.positions.len())
-            .map_err(|_| Error::Runtime("mesh has more than 2^32 vertices".into()))?;
+            .map_err(|_| ReconstructError::TooLarge { what: "the mesh" })?;
         self.binds.push(bind);
         self.positions.push(p.as_vec3().to_array());
         self.normals.push(

@@ -21,8 +21,9 @@ use json::accessor::{ComponentType, GenericComponentType, Type};
 use json::validation::{Checked::Valid, USize64};
 use serde_json::value::RawValue;
 
+use super::error::RenderError;
 use super::gltf::Builder;
-use crate::error::{Error, Result};
+use crate::error::Result;
 use crate::model::motion::{TipSource, TreeMotion};
 use crate::model::tree::{Kind, Tree};
 use crate::reconstruct::mesh::Bind;
@@ -45,7 +46,7 @@ impl Skin {
         let first = b.root.nodes.len();
         let joint = |i: usize| json::Index::<json::Node>::new((first + i) as u32);
         if u32::try_from(first + n).is_err() {
-            return Err(Error::Runtime("tree has too many nodes for glTF".into()));
+            return Err(RenderError::TooLarge("the tree has too many nodes for glTF").into());
         }
         let children = tree.children();
         let rest_local: Vec<[f32; 3]> = tree
@@ -125,10 +126,11 @@ impl Skin {
         for bind in binds {
             let [a, c] = bind.nodes.map(|j| j as usize);
             if a >= n || c >= n || a > usize::from(u16::MAX) || c > usize::from(u16::MAX) {
-                return Err(Error::Runtime(format!(
+                return Err(RenderError::Inconsistent(format!(
                     "a vertex follows node {} of a {n}-node tree (glTF skins take at most 65 536 joints)",
                     a.max(c)
-                )));
+                ))
+                .into());
             }
             // Unused slots: joint 0 with weight 0 (the validator wants
             // zero-weight slots to name joint 0).
@@ -177,9 +179,10 @@ impl Skin {
         let n = self.joints.len();
         let keys = motion.keys();
         if motion.nodes != n || motion.positions.len() != keys * n || keys == 0 {
-            return Err(Error::Runtime(
+            return Err(RenderError::Inconsistent(
                 "the motion does not belong to this tree".into(),
-            ));
+            )
+            .into());
         }
         let times: Vec<f32> = motion.times.iter().map(|&t| t as f32).collect();
         let bytes: Vec<u8> = times.iter().flat_map(|t| t.to_le_bytes()).collect();
@@ -296,7 +299,7 @@ fn runs(sources: &[TipSource], kind: TipSource) -> Vec<[usize; 2]> {
 }
 
 fn raw(v: &serde_json::Value) -> Result<Box<RawValue>> {
-    serde_json::value::to_raw_value(v).map_err(|e| Error::Runtime(format!("glTF extras: {e}")))
+    Ok(serde_json::value::to_raw_value(v).map_err(RenderError::Json)?)
 }
 
 /// An accessor of `count` elements at `offset` in `view`; `bounds` adds

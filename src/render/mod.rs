@@ -3,6 +3,7 @@
 //! caller's business (`app`, `daemon`, `serve`).
 
 mod animation;
+pub mod error;
 pub mod frames;
 pub mod gltf;
 pub mod json;

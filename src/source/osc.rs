@@ -116,14 +116,23 @@ pub struct OscStats {
 /// A copy of the counters at one instant.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize)]
 pub struct OscCounts {
+    /// Datagrams received from allowed senders.
     pub datagrams: u64,
+    /// Frames delivered.
     pub frames: u64,
+    /// Markers in those frames.
     pub markers: u64,
+    /// Datagrams from senders outside `osc.allow`, dropped unread.
     pub not_allowed: u64,
+    /// Datagrams that are not OSC.
     pub garbage: u64,
+    /// Messages with wrong type tags or arguments, skipped.
     pub bad_args: u64,
+    /// Frame brackets broken by a lost datagram.
     pub broken_frames: u64,
+    /// Well-formed messages at addresses we do not use.
     pub ignored: u64,
+    /// Frames dropped because the consumer fell behind.
     pub dropped: u64,
 }
 
@@ -140,6 +149,7 @@ impl OscCounts {
 }
 
 impl OscStats {
+    /// The counters now, for the progress line and `/status`.
     pub fn snapshot(&self) -> OscCounts {
         let get = |a: &AtomicU64| a.load(Ordering::Relaxed);
         OscCounts {

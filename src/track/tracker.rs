@@ -67,7 +67,9 @@ pub struct TrackStats {
 pub struct Tracked {
     /// Every trace, in order of appearance (`trace.id` = index).
     pub traces: Vec<Trace>,
+    /// Internal frame index → source frame number and time.
     pub timeline: Timeline,
+    /// What the tracker counted, including the bad input it skipped.
     pub stats: TrackStats,
 }
 

@@ -25,6 +25,8 @@ pub struct WindSelector {
 }
 
 impl WindSelector {
+    /// A selector with no estimate yet; `priority` is `wind.priority`,
+    /// `max_age_s` is `wind.max_age_s`.
     pub fn new(priority: Vec<WindSource>, max_age_s: f64) -> Self {
         WindSelector {
             priority,
@@ -33,6 +35,7 @@ impl WindSelector {
         }
     }
 
+    /// Replaces the latest estimate of the estimate's source.
     pub fn update(&mut self, estimate: WindEstimate) {
         self.latest.retain(|e| e.source != estimate.source);
         self.latest.push(estimate);

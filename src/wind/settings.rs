@@ -18,6 +18,7 @@ pub struct WindSettings {
     pub fan_speed_m_s: f64,
     /// Serial device of a wind sensor, empty for none.
     pub sensor_port: String,
+    /// Baud rate of the sensor's serial line (NMEA 0183 is 4800).
     pub sensor_baud: u32,
     /// Capture azimuth of the sensor's 0° mark (degrees).
     pub sensor_heading_deg: f64,

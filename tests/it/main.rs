@@ -14,6 +14,7 @@ mod motive_csv;
 mod natnet_bad_input;
 mod natnet_loopback;
 mod natnet_packet;
+mod natnet_pcap;
 mod natnet_peers;
 mod osc;
 mod outputs;

@@ -28,6 +28,7 @@ pub struct FrameDecoder {
 }
 
 impl FrameDecoder {
+    /// A decoder for the storage, processor, scale and up axis of `layout`.
     pub fn new(layout: &Layout) -> FrameDecoder {
         let to_metres = match layout.storage {
             Storage::Int16 { scale } => scale.abs() * layout.metres_per_unit,
