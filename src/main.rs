@@ -75,9 +75,25 @@ enum Command {
         /// Write the tips as JSON (tips.json, what reconstruction reads).
         #[arg(long, value_name = "OUT")]
         json: Option<PathBuf>,
+        /// With --json: include each tip's cleaned trajectory (one position
+        /// or null per frame, filled frames listed; see docs/tracking.md).
+        #[arg(long, requires = "json")]
+        traces: bool,
         /// Draw each marker's x, y, z over time, with gaps and fills, as PNG.
         #[arg(long, value_name = "OUT.png")]
         plot: Option<PathBuf>,
+    },
+    /// Write the cleaned, labelled tip trajectories (tip_01, … with their
+    /// marker ids; filled samples flagged) as C3D, CSV or TRC, chosen by the
+    /// extension of --out.
+    Export {
+        /// A Motive CSV export, a C3D file or a treemocap log.
+        session: PathBuf,
+        /// Output file: .c3d, .csv (pandas reads it as is) or .trc (OpenSim).
+        #[arg(long, value_name = "FILE")]
+        out: PathBuf,
+        #[command(flatten)]
+        config: ConfigArgs,
     },
     /// Describe a recording: format, rate, units, frames, markers, gaps.
     Inspect {
@@ -314,6 +330,7 @@ fn run(command: Command) -> Result<()> {
             file,
             config,
             json,
+            traces,
             plot,
         } => {
             let config = config.load()?;
@@ -321,9 +338,21 @@ fn run(command: Command) -> Result<()> {
                 &file,
                 &config,
                 json.as_deref(),
+                traces,
                 plot.as_deref(),
             )?;
             print!("{text}");
+            Ok(())
+        }
+        Command::Export {
+            session,
+            out,
+            config,
+        } => {
+            let config = config.load()?;
+            let summary = treemocap::app::export::export_command(&session, &out, &config)?;
+            println!("{summary}");
+            println!("wrote {} ({} tips)", out.display(), summary.tips);
             Ok(())
         }
         Command::Inspect { file, json } => {

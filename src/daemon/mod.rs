@@ -3,7 +3,6 @@
 //! triggers and shutdown; every stage it runs is the plain library code that
 //! `treemocap replay` runs too.
 
-pub mod follow;
 pub mod run;
 pub mod status;
 pub mod triggers;

@@ -24,7 +24,7 @@ use crossbeam_channel::{bounded, Receiver, Sender, TrySendError};
 use glam::DVec3;
 use tokio::sync::{broadcast, watch};
 
-use super::follow::TipFollower;
+use crate::track::live::LiveTips;
 use super::status::Status;
 use super::triggers::{compare_tips, Reason, TriggerConfig, Triggers};
 use super::window::{FrameWindow, WindowRecording};
@@ -469,7 +469,8 @@ fn pipeline_loop(
     let d = &c.daemon;
     let status = &shared.status;
     let mut window = FrameWindow::new(d.window_s);
-    let mut follower = TipFollower::new(d.follow_gate_mm / 1000.0);
+    // The tracker itself, frame by frame: live tips are the replay's tips.
+    let mut follower = LiveTips::new(&c.tracking, None, d.follow_gate_mm / 1000.0);
     let mut pca = SwayPca::new(c.wind.pca_window_s, c.wind.pca_min_sway_mm / 1000.0);
     let mut next_pca = f64::NEG_INFINITY;
     let mut next_analysis = f64::NEG_INFINITY;
@@ -555,9 +556,8 @@ fn pipeline_loop(
         }
 
         let now = frame.time_s;
-        let positions: Vec<DVec3> = frame.positions().collect();
+        let seen = follower.update(&frame);
         if !follower.is_empty() {
-            let seen = follower.update(&positions);
             status.tips_live.store(seen.len() as u64, Ordering::Relaxed);
             pca.push(now, follower.displacements(&seen));
             if shared.live.receiver_count() > 0 {
