@@ -24,7 +24,6 @@ use crossbeam_channel::{bounded, Receiver, Sender, TrySendError};
 use glam::DVec3;
 use tokio::sync::{broadcast, watch};
 
-use crate::track::live::LiveTips;
 use super::status::Status;
 use super::triggers::{compare_tips, Reason, TriggerConfig, Triggers};
 use super::window::{FrameWindow, WindowRecording};
@@ -44,6 +43,7 @@ use crate::serve::snapshot::TreeSnapshot;
 use crate::source::channel::{frame_channel, FrameReceiver, FrameSink};
 use crate::source::live::LiveSource;
 use crate::source::wind_sensor as serial;
+use crate::track::live::LiveTips;
 use crate::wind::pca::SwayPca;
 use crate::wind::{fan, WindSelector};
 

@@ -260,9 +260,18 @@ pub fn tips_json_with_traces(tips: &Tips) -> String {
             for (k, (entry, tip)) in list.iter_mut().zip(&tips.tips).enumerate() {
                 if let Some(e) = entry.as_object_mut() {
                     e.insert("label".into(), serde_json::json!(tip_label(k)));
-                    e.insert("marker_ids".into(), serde_json::json!(marker_ids(&tip.trace)));
-                    e.insert("trace".into(), serde_json::Value::Array(std::mem::take(&mut traces[k])));
-                    e.insert("filled".into(), serde_json::json!(std::mem::take(&mut filled[k])));
+                    e.insert(
+                        "marker_ids".into(),
+                        serde_json::json!(marker_ids(&tip.trace)),
+                    );
+                    e.insert(
+                        "trace".into(),
+                        serde_json::Value::Array(std::mem::take(&mut traces[k])),
+                    );
+                    e.insert(
+                        "filled".into(),
+                        serde_json::json!(std::mem::take(&mut filled[k])),
+                    );
                 }
             }
         }

@@ -17,6 +17,7 @@ pub mod capture;
 pub mod motion;
 pub mod motive_writer;
 pub mod score;
+pub mod stress;
 pub mod tree;
 pub mod truth;
 
@@ -196,7 +197,8 @@ impl SynthOptions {
         check("min_spacing_mm", self.min_spacing_mm, 0.0, 1000.0)?;
         match self.sway_hz[..] {
             [] => {}
-            [lo, hi] if lo.is_finite() && hi.is_finite() && 0.05 <= lo && lo < hi && hi <= 20.0 => {}
+            [lo, hi] if lo.is_finite() && hi.is_finite() && 0.05 <= lo && lo < hi && hi <= 20.0 => {
+            }
             _ => {
                 return Err(Error::config(
                     "sway_hz",

@@ -61,7 +61,11 @@ impl Score {
     /// (gaps, gaps we filled, our mean error, PCHIP's mean error on those
     /// same gaps) for gaps of `lo..=hi` frames; errors weighted by frames.
     pub fn fill_bin(&self, lo: i64, hi: i64) -> (usize, usize, f64, f64) {
-        let sel: Vec<&FillScore> = self.fills.iter().filter(|f| (lo..=hi).contains(&f.len)).collect();
+        let sel: Vec<&FillScore> = self
+            .fills
+            .iter()
+            .filter(|f| (lo..=hi).contains(&f.len))
+            .collect();
         let (mut ours, mut pchip, mut frames, mut filled) = (0.0, 0.0, 0.0, 0);
         for f in &sel {
             if let (Some(o), Some(p)) = (f.ours, f.pchip) {
@@ -90,7 +94,10 @@ impl Score {
 
 /// Which true tip (`Some`) or ghost (`None`) each measured sample of a
 /// trace came from, with its internal frame.
-fn owners<'a>(trace: &'a Trace, truth: &'a Truth) -> impl Iterator<Item = (i64, Option<usize>)> + 'a {
+fn owners<'a>(
+    trace: &'a Trace,
+    truth: &'a Truth,
+) -> impl Iterator<Item = (i64, Option<usize>)> + 'a {
     let mut runs = trace.sources().iter().peekable();
     let mut col = None;
     trace.measurements().map(move |(frame, _)| {
@@ -154,7 +161,12 @@ pub fn score(tips: &Tips, syn: &Synthetic) -> Score {
                 t.trace
                     .samples()
                     .filter(|x| x.kind == SampleKind::Filled)
-                    .map(|x| (tips.timeline.source_frame(x.frame).unwrap_or(-1), x.position))
+                    .map(|x| {
+                        (
+                            tips.timeline.source_frame(x.frame).unwrap_or(-1),
+                            x.position,
+                        )
+                    })
                     .collect()
             })
             .unwrap_or_default();
@@ -190,10 +202,9 @@ fn pchip_baseline(tips: &Tips, syn: &Synthetic) -> Vec<HashMap<i64, DVec3>> {
     let mut traces: Vec<Option<Trace>> = (0..n).map(|_| None).collect();
     for frame in &syn.frames {
         for m in &frame.markers {
-            let Some(k) = m
-                .id
-                .and_then(|c| syn.truth.columns.get(c as usize))
-                .and_then(|c| c.tip)
+            let Some(k) =
+                m.id.and_then(|c| syn.truth.columns.get(c as usize))
+                    .and_then(|c| c.tip)
             else {
                 continue;
             };
@@ -229,7 +240,9 @@ pub fn smallest_spacing(truth: &Truth) -> f64 {
     let step = (truth.frame_rate / 50.0).max(1.0) as usize;
     for f in (0..truth.frames).step_by(step) {
         let t = truth.time_of(f as i64);
-        let p: Vec<_> = (0..truth.tips.len()).map(|k| truth.position(k, t)).collect();
+        let p: Vec<_> = (0..truth.tips.len())
+            .map(|k| truth.position(k, t))
+            .collect();
         for i in 0..p.len() {
             for j in i + 1..p.len() {
                 best = best.min(p[i].distance(p[j]));

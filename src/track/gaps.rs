@@ -165,7 +165,9 @@ impl<'a> Stream<'a> {
     fn ensure(&mut self, upto: i64) {
         while self.base + (self.buf.len() as i64) <= upto {
             match self.it.next() {
-                Some(s) => self.buf.push_back((s.kind == SampleKind::Measured).then_some(s.position)),
+                Some(s) => self
+                    .buf
+                    .push_back((s.kind == SampleKind::Measured).then_some(s.position)),
                 None => break,
             }
         }
@@ -237,7 +239,13 @@ impl Model {
 
     /// The model's positions for frames `a+1 .. b` of a gap from `pa` at
     /// `a`, and its prediction for `b` (before the end correction).
-    fn predict(&self, ctx: &Context<'_, '_>, a: i64, b: i64, pa: DVec3) -> Option<(Vec<DVec3>, DVec3)> {
+    fn predict(
+        &self,
+        ctx: &Context<'_, '_>,
+        a: i64,
+        b: i64,
+        pa: DVec3,
+    ) -> Option<(Vec<DVec3>, DVec3)> {
         let q0: Vec<DVec3> = self
             .neighbours
             .iter()
@@ -258,7 +266,12 @@ impl Model {
 }
 
 /// Fills one gap; returns the fill (if any) and what happened.
-fn fill_one(ctx: &Context<'_, '_>, timeline: &Timeline, settings: GapSettings, one_s: i64) -> (Option<Fill>, GapStats) {
+fn fill_one(
+    ctx: &Context<'_, '_>,
+    timeline: &Timeline,
+    settings: GapSettings,
+    one_s: i64,
+) -> (Option<Fill>, GapStats) {
     let (a, b) = (ctx.a, ctx.b);
     let missing = (b - a - 1) as u64;
     let mut st = GapStats::default();
@@ -465,7 +478,8 @@ fn cross_validate(ctx: &Context<'_, '_>, model: &Model, h: i64) -> Option<Test> 
             s += 1;
         }
     }
-    let (mut model_err, mut pchip_err, mut end2, mut n, mut tests) = (0.0, 0.0, 0.0, 0usize, 0usize);
+    let (mut model_err, mut pchip_err, mut end2, mut n, mut tests) =
+        (0.0, 0.0, 0.0, 0usize, 0usize);
     for s in starts {
         let e = s + h;
         let (Some(ps), Some(pe)) = (ctx.host_at(s), ctx.host_at(e)) else {
@@ -478,7 +492,9 @@ fn cross_validate(ctx: &Context<'_, '_>, model: &Model, h: i64) -> Option<Test> 
         let miss = pe - end;
         for (k, p) in points.iter().enumerate() {
             let f = s + 1 + k as i64;
-            let Some(truth) = ctx.host_at(f) else { continue };
+            let Some(truth) = ctx.host_at(f) else {
+                continue;
+            };
             let corrected = *p + miss * ((k + 1) as f64 / h as f64);
             model_err += corrected.distance(truth);
             pchip_err += fill.at(f).distance(truth);
@@ -522,18 +538,30 @@ fn pchip_between(ctx: &Context<'_, '_>, a: i64, b: i64) -> Fill {
         }
         let (p0, p1) = (ctx.host_at(from)?, ctx.host_at(far)?);
         let span = (far - from).abs() as f64;
-        Some(if dir < 0 { ((p0 - p1) / span, span) } else { ((p1 - p0) / span, span) })
+        Some(if dir < 0 {
+            ((p0 - p1) / span, span)
+        } else {
+            ((p1 - p0) / span, span)
+        })
     };
     let h = (b - a) as f64;
     let secant = (pb - pa) / h;
     let (m0, m1) = match (side(a, -1), side(b, 1)) {
-        (Some((dl, hl)), Some((dr, hr))) => (pchip_slope(dl, hl, secant, h), pchip_slope(secant, h, dr, hr)),
+        (Some((dl, hl)), Some((dr, hr))) => (
+            pchip_slope(dl, hl, secant, h),
+            pchip_slope(secant, h, dr, hr),
+        ),
         _ => (secant, secant),
     };
     Fill {
         from: a,
         to: b,
-        curve: Curve::Hermite { p0: pa, m0, p1: pb, m1 },
+        curve: Curve::Hermite {
+            p0: pa,
+            m0,
+            p1: pb,
+            m1,
+        },
     }
 }
 
@@ -571,7 +599,11 @@ mod tests {
         }
     }
 
-    fn trace_of(id: usize, f: impl Fn(i64) -> DVec3, frames: impl IntoIterator<Item = i64>) -> Trace {
+    fn trace_of(
+        id: usize,
+        f: impl Fn(i64) -> DVec3,
+        frames: impl IntoIterator<Item = i64>,
+    ) -> Trace {
         let mut it = frames.into_iter();
         let first = it.next().unwrap();
         let mut t = Trace::new(id, first, f(first), None);
@@ -646,7 +678,11 @@ mod tests {
         for n in 330..600 {
             wrong.push(n, at(0.07)(n), None);
         }
-        let mut tr = [wrong, trace_of(1, at(0.2), 0..600), trace_of(2, at(-0.2), 0..600)];
+        let mut tr = [
+            wrong,
+            trace_of(1, at(0.2), 0..600),
+            trace_of(2, at(-0.2), 0..600),
+        ];
         let st = fill_gaps(&mut tr, &timeline(600), settings());
         assert_eq!((st.filled, st.rejected), (0, 1));
     }

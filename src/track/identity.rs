@@ -411,12 +411,15 @@ impl Identities {
             self.idents[i].neighbours = near
                 .iter()
                 .map(|&(_, j)| {
-                    old.iter().find(|n| n.id == j).copied().unwrap_or(Neighbour {
-                        id: j,
-                        mean: DVec3::ZERO,
-                        var: VAR0,
-                        seen: false,
-                    })
+                    old.iter()
+                        .find(|n| n.id == j)
+                        .copied()
+                        .unwrap_or(Neighbour {
+                            id: j,
+                            mean: DVec3::ZERO,
+                            var: VAR0,
+                            seen: false,
+                        })
                 })
                 .collect();
         }
@@ -513,8 +516,13 @@ impl Identities {
         let i = self.idents.len();
         let n = cand.samples.len().max(1) as f64;
         let mean = cand.samples.iter().map(|s| s.1).sum::<DVec3>() / n;
-        let spread =
-            (cand.samples.iter().map(|s| s.1.distance_squared(mean)).sum::<f64>() / n).sqrt();
+        let spread = (cand
+            .samples
+            .iter()
+            .map(|s| s.1.distance_squared(mean))
+            .sum::<f64>()
+            / n)
+            .sqrt();
         let last = *cand.samples.last().unwrap_or(&(self.frame, mean));
         let prev = cand.samples.iter().rev().nth(1).copied().unwrap_or(last);
         self.idents.push(Ident {

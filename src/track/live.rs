@@ -79,10 +79,12 @@ impl LiveTips {
     }
 
     /// Displacements from rest of the tips seen (for the sway PCA).
-    pub fn displacements<'a>(&'a self, seen: &'a [(usize, DVec3)]) -> impl Iterator<Item = DVec3> + 'a {
-        seen.iter().filter_map(|(m, p)| {
-            self.tips.iter().find(|t| t.0 == *m).map(|t| *p - t.1)
-        })
+    pub fn displacements<'a>(
+        &'a self,
+        seen: &'a [(usize, DVec3)],
+    ) -> impl Iterator<Item = DVec3> + 'a {
+        seen.iter()
+            .filter_map(|(m, p)| self.tips.iter().find(|t| t.0 == *m).map(|t| *p - t.1))
     }
 
     fn match_identity(&mut self, identity: usize) -> Option<usize> {

@@ -65,7 +65,12 @@ impl TrackingSettings {
         check_range("tracking.link_s", self.link_s, 0.0, 2.0)?;
         check_range("tracking.confirm_s", self.confirm_s, 0.05, 30.0)?;
         check_range("tracking.link_min_mm", self.link_min_mm, 0.1, 100.0)?;
-        check_range("tracking.link_max_mm", self.link_max_mm, self.link_min_mm, 500.0)?;
+        check_range(
+            "tracking.link_max_mm",
+            self.link_max_mm,
+            self.link_min_mm,
+            500.0,
+        )?;
         check_range("tracking.keep_lost_s", self.keep_lost_s, 0.0, 3600.0)?;
         check_range("tracking.max_pchip_s", self.max_pchip_s, 0.0, 10.0)?;
         match self.rest_window_s.as_slice() {

@@ -22,4 +22,5 @@ mod replay;
 mod sim;
 mod tracking_accuracy;
 mod tracking_fixtures;
+mod tracking_stress;
 mod wind_serial;

@@ -1,0 +1,63 @@
+//! Issue 14's targets on short stress sessions (the full sweep is
+//! `examples/track_stress.rs`): every stress alone and all combined give
+//! the exact tip count, no sample of another tip or of a ghost in any tip,
+//! one output tip per true tip, rest error < 0.5 mm, no fill bridging two
+//! markers, and fills from the neighbours at least as good as PCHIP with
+//! perfect identity.
+
+use treemocap::sim::{self, score, stress};
+use treemocap::track::{self, Tracker, TrackingSettings};
+
+fn check(name: &str, opts: &sim::SynthOptions) -> score::Score {
+    let syn = sim::generate(opts).unwrap();
+    let cfg = TrackingSettings::default();
+    let mut tracker = Tracker::new(&cfg, Some(opts.frame_rate));
+    for f in &syn.frames {
+        tracker.push(f);
+    }
+    let (tips, _) = track::clean(tracker.finish(), &cfg, "sim", opts.frame_rate);
+    let s = score::score(&tips, &syn);
+    println!(
+        "{name}: tips {}/{} wrong {} fragments {} missed {} rest max {:.3} mm bridged {}",
+        s.tips_found,
+        s.tips_placed,
+        s.wrong_samples,
+        s.fragments,
+        s.missed_tips,
+        s.rest_max() * 1000.0,
+        s.bridged
+    );
+    assert_eq!(s.tips_found, s.tips_placed, "{name}: tip count");
+    assert_eq!(s.wrong_samples, 0, "{name}: samples of another marker");
+    assert_eq!(
+        (s.fragments, s.missed_tips),
+        (0, 0),
+        "{name}: one tip per tip"
+    );
+    assert!(s.rest_max() < 0.0005, "{name}: rest error {}", s.rest_max());
+    assert_eq!(s.bridged, 0, "{name}: fills bridging two markers");
+    s
+}
+
+#[test]
+fn every_stress_holds_on_a_short_session() {
+    let base = stress::base(14, 30, 4.0, 8.0);
+    let mut total = score::Score::default();
+    for st in stress::all(&base) {
+        total.merge(&check(st.name, &st.options));
+    }
+    for (lo, hi) in score::fill_bins(240.0) {
+        let (gaps, filled, ours, pchip) = total.fill_bin(lo, hi);
+        println!(
+            "gaps {lo}-{hi} frames: {filled}/{gaps} filled, mean error {:.3} mm (PCHIP {:.3} mm)",
+            ours * 1000.0,
+            pchip * 1000.0
+        );
+        if filled >= 5 {
+            assert!(
+                ours <= pchip * 1.001 + 1e-6,
+                "{lo}-{hi}: {ours} vs PCHIP {pchip}"
+            );
+        }
+    }
+}
