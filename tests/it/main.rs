@@ -8,6 +8,7 @@ mod common;
 mod c3d;
 mod cli;
 mod daemon;
+mod export;
 mod log_format;
 mod motive_csv;
 mod natnet_bad_input;

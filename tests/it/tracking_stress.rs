@@ -61,3 +61,55 @@ fn every_stress_holds_on_a_short_session() {
         }
     }
 }
+
+#[test]
+fn rest_window_is_on_the_time_column_when_the_take_starts_late() {
+    // A take exported from frame 1000 on, its Time column starting at 0:
+    // `rest_window_s = [0, 1.8]` is the still phase on that clock.
+    let dir = tempfile::tempdir().unwrap();
+    let csv = dir.path().join("late.csv");
+    let opts = sim::SynthOptions {
+        seed: 5,
+        tips: 8,
+        still_s: 2.0,
+        wind_s: 2.0,
+        ..Default::default()
+    };
+    sim::write_session(&opts, &csv).unwrap();
+    let text = std::fs::read_to_string(&csv).unwrap();
+    let mut shifted = String::new();
+    let mut data = false;
+    for line in text.lines() {
+        if data {
+            let (frame, rest) = line.split_once(',').unwrap();
+            let f: i64 = frame.parse().unwrap();
+            shifted.push_str(&format!("{},{rest}\n", f + 1000));
+        } else {
+            shifted.push_str(line);
+            shifted.push('\n');
+            data = line.starts_with("Frame,Time");
+        }
+    }
+    std::fs::write(&csv, shifted).unwrap();
+    let truth: sim::Truth =
+        serde_json::from_str(&std::fs::read_to_string(sim::truth_path(&csv)).unwrap()).unwrap();
+    let mut config = treemocap::config::Config::default();
+    config.tracking.rest_window_s = vec![0.0, 1.8];
+    let mut rec = treemocap::app::open::open_recording(&csv, &config).unwrap();
+    let (tips, summary) = track::process(rec.as_mut(), &config.tracking).unwrap();
+    assert_eq!(summary.rest_source, track::RestSource::Config);
+    assert!(
+        summary.warnings.iter().all(|w| !w.contains("outside")),
+        "{:?}",
+        summary.warnings
+    );
+    assert_eq!(tips.tips.len(), 8);
+    for t in &tips.tips {
+        let best = truth
+            .tips
+            .iter()
+            .map(|k| k.rest.distance(t.rest))
+            .fold(f64::INFINITY, f64::min);
+        assert!(best < 0.0005, "rest error {best}");
+    }
+}
