@@ -7,7 +7,6 @@ use std::time::Duration;
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use glam::DVec3;
 use treemocap::format::log::{LogHeader, LogWriter};
-use treemocap::format::motive_csv::MotiveCsvReader;
 use treemocap::{Marker, MarkerFrame};
 
 const MARKERS: usize = 35;
@@ -69,7 +68,7 @@ fn read_motive_csv(c: &mut Criterion) {
     g.sample_size(20);
     g.bench_function("read_35_markers_4000_frames", |b| {
         b.iter(|| {
-            let reader = MotiveCsvReader::open(&path).unwrap();
+            let reader = treemocap::app::open::motive_csv(&path).unwrap();
             let n: usize = reader.map(|f| f.unwrap().markers.len()).sum();
             assert_eq!(n, samples);
         })

@@ -53,7 +53,31 @@ pub enum Error {
     /// A configuration key is unknown, mistyped or out of range (exit code 2).
     #[error("config {key}: {msg}")]
     Config { key: String, msg: String },
-    /// Anything else at run time (sockets, threads), already phrased for a user.
+    /// A stage could not do its work on inputs that passed their checks
+    /// (a reconstruction that breaks, an encoder at a format's limit); the
+    /// stage's own error type says what happened.
+    #[error("{stage}: {source}")]
+    Stage {
+        /// The stage, as the user knows it ("reconstruction", "tree.glb").
+        stage: &'static str,
+        /// The stage's error.
+        #[source]
+        source: Box<dyn std::error::Error + Send + Sync>,
+    },
+    /// A listener could not start: a port in use, an address this machine
+    /// does not have.
+    #[error("{what} on {addr}: {source}")]
+    Bind {
+        /// What was to listen ("HTTP", "OSC control").
+        what: &'static str,
+        /// Where.
+        addr: std::net::SocketAddr,
+        /// The operating system's reason.
+        #[source]
+        source: std::io::Error,
+    },
+    /// Anything else at run time (threads, the async runtime), already
+    /// phrased for a user.
     #[error("{0}")]
     Runtime(String),
 }

@@ -4,8 +4,10 @@
 pub mod export;
 pub mod files;
 pub mod inspect;
+pub mod live;
 pub mod open;
 pub mod reconstruct;
 pub mod record;
 pub mod replay;
+pub mod synth;
 pub mod tips;

@@ -97,12 +97,7 @@ impl fmt::Display for ReplayReport {
             )?,
             None => writeln!(f, "wind: none (the tree did not sway; no fan configured)")?,
         }
-        let r = &self.tree;
-        writeln!(
-            f,
-            "tree: {} captured + {} random tips, {} nodes, {} flow steps, {} forced joins, {} triangles, {} leaves",
-            r.captured_tips, r.random_tips, r.nodes, r.steps, r.forced_joins, r.branch_triangles, r.leaves
-        )?;
+        writeln!(f, "{}", self.tree.counts())?;
         for file in &self.files {
             writeln!(f, "wrote {}", file.display())?;
         }

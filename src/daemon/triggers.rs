@@ -108,11 +108,6 @@ impl Triggers {
         self.requested = true;
     }
 
-    /// True once a tree was built.
-    pub fn has_tree(&self) -> bool {
-        self.built.is_some()
-    }
-
     /// Decides after an analysis at `now_s`: the tips' rest positions, the
     /// length of the still phase they were averaged over, and the wind.
     pub fn check(

@@ -194,8 +194,9 @@ struct Row {
 }
 
 impl LogReader {
-    pub fn open(path: &Path) -> Result<Self> {
-        let file = File::open(path).map_err(|e| Error::io(path, e))?;
+    /// Reads the header of an opened log (`path` names it in errors);
+    /// frames are read by iterating.
+    pub fn from_file(file: File, path: &Path) -> Result<Self> {
         let mut reader = BufReader::new(file);
         let mut line_no = 0;
         let mut source = String::new();

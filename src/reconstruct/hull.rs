@@ -14,23 +14,16 @@ use glam::DVec3;
 use crate::rng::Rng;
 
 /// Why a hull could not be built.
-#[derive(Debug, Clone, PartialEq, Eq)]
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
 pub enum HullError {
     /// Fewer than 4 points, or all points on one line or plane: the hull
     /// has no volume.
+    #[error("the convex hull has no volume: {0}")]
     Degenerate(&'static str),
     /// Rounding broke the face adjacency (should not happen; reported rather
     /// than returning a hull with holes).
+    #[error("the convex hull failed on rounding errors")]
     Numerical,
-}
-
-impl std::fmt::Display for HullError {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        match self {
-            HullError::Degenerate(why) => write!(f, "the convex hull has no volume: {why}"),
-            HullError::Numerical => write!(f, "the convex hull failed on rounding errors"),
-        }
-    }
 }
 
 /// A closed convex polyhedron made of triangles whose corners are input points.

@@ -6,7 +6,8 @@
 use glam::DVec3;
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
 
-use crate::error::{Error, Result};
+use crate::error::Result;
+use crate::reconstruct::error::ReconstructError;
 use crate::reconstruct::ReconstructSettings;
 use crate::rng::Rng;
 
@@ -71,7 +72,10 @@ impl Trunk {
         let index = ImmutableKdTree::<f64, 3>::builder()
             .with_serial_construction()
             .build_from_slice(&points)
-            .map_err(|e| Error::Runtime(format!("trunk index: {e}")))?;
+            .map_err(|e| ReconstructError::Index {
+                what: "trunk",
+                message: e.to_string(),
+            })?;
         let attractor = if cfg.attractor_node >= 0 {
             (cfg.attractor_node as usize).min(n - 1)
         } else {

@@ -5,7 +5,8 @@
 
 use glam::DVec3;
 
-use crate::error::{Error, Result};
+use crate::error::Result;
+use crate::reconstruct::error::ReconstructError;
 use crate::reconstruct::hull::Hull;
 use crate::reconstruct::trunk::Bounds;
 use crate::reconstruct::{ReconstructSettings, VolumeKind};
@@ -83,9 +84,7 @@ pub fn random_tips(
 ) -> Result<(Volume, Vec<DVec3>)> {
     let count = cfg.total_tips.saturating_sub(captured.len());
     let Some(bounds) = Bounds::of(captured.iter().copied()) else {
-        return Err(Error::Runtime(
-            "no captured tips to reconstruct from".into(),
-        ));
+        return Err(ReconstructError::NoTips.into());
     };
     match cfg.volume {
         VolumeKind::Boxes => {
@@ -105,11 +104,7 @@ pub fn random_tips(
         VolumeKind::Hull => {
             let hull = match Hull::build(captured) {
                 Ok(h) => h,
-                Err(e) if count > 0 => {
-                    return Err(Error::Runtime(format!(
-                        "reconstruct.volume = \"hull\": {e}; use volume = \"boxes\" for these tips"
-                    )))
-                }
+                Err(e) if count > 0 => return Err(ReconstructError::Hull(e).into()),
                 // Nothing to place: a flat set of tips is no obstacle.
                 Err(_) => return Ok((Volume::Boxes(Vec::new()), Vec::new())),
             };

@@ -97,3 +97,31 @@ pub fn build_model(
         report,
     })
 }
+
+impl Report {
+    /// The reconstruction's counts on one line, as `replay` and
+    /// `reconstruct` print them.
+    pub fn counts(&self) -> String {
+        format!(
+            "tree: {} captured + {} random tips, {} nodes, {} flow steps, {} forced joins, {} triangles, {} leaves",
+            self.captured_tips,
+            self.random_tips,
+            self.nodes,
+            self.steps,
+            self.forced_joins,
+            self.branch_triangles,
+            self.leaves
+        )
+    }
+}
+
+impl std::fmt::Display for Report {
+    /// The counts, then a line per file written.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        writeln!(f, "{}", self.counts())?;
+        for file in &self.files {
+            writeln!(f, "wrote {}", file.display())?;
+        }
+        Ok(())
+    }
+}

@@ -7,7 +7,8 @@
 //! Coordinates are pixels, x to the right and y down, as f64 so callers can
 //! map data without rounding; everything outside the canvas is clipped.
 
-use crate::error::{Error, Result};
+use crate::error::Result;
+use crate::render::error::RenderError;
 
 /// An sRGB colour.
 pub type Rgb = [u8; 3];
@@ -172,7 +173,7 @@ impl Canvas {
     /// Encodes the canvas as an 8-bit RGB PNG.
     pub fn encode_png(&self) -> Result<Vec<u8>> {
         let mut out = Vec::new();
-        let err = |e: png::EncodingError| Error::Runtime(format!("PNG encoding: {e}"));
+        let err = RenderError::from;
         let mut encoder = png::Encoder::new(&mut out, self.width, self.height);
         encoder.set_color(png::ColorType::Rgb);
         encoder.set_depth(png::BitDepth::Eight);

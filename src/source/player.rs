@@ -72,14 +72,14 @@ pub fn play(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::format::motive_csv::MotiveCsvReader;
+
     use crate::source::channel::frame_channel;
     use std::path::Path;
 
     fn open() -> Result<Box<dyn Recording>> {
         let p = Path::new(env!("CARGO_MANIFEST_DIR"))
             .join("tests/fixtures/motive/quirks/v1.23_centimeters_jumps.csv");
-        Ok(Box::new(MotiveCsvReader::open(&p)?))
+        Ok(Box::new(crate::app::open::motive_csv(&p)?))
     }
 
     #[test]

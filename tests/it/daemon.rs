@@ -409,7 +409,7 @@ fn a_killed_daemon_loses_at_most_the_last_second_of_its_recording() {
         .status()
         .unwrap();
     let _ = d.0.wait();
-    let mut rec = treemocap::format::log::LogReader::open(&out.join("session.log.csv")).unwrap();
+    let mut rec = treemocap::app::open::log(&out.join("session.log.csv")).unwrap();
     let kept = rec.by_ref().filter(|f| f.is_ok()).count() as u64;
     // 100 Hz: one second is 100 frames; allow a little for the status round trip.
     assert!(kept + 125 >= seen, "kept {kept} of at least {seen} frames");
@@ -678,7 +678,7 @@ fn a_burst_faster_than_the_pipeline_drops_oldest_frames_and_counts_them() {
         wind_s: 2.0,
         ..Default::default()
     };
-    treemocap::sim::write_session(&opts, &csv).unwrap();
+    treemocap::app::synth::write_session(&opts, &csv).unwrap();
     let total = 3600u64;
     let http_port = free_tcp();
     let _d = start_daemon(

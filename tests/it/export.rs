@@ -38,7 +38,7 @@ fn exported_trajectories_read_back_exactly_in_third_party_readers() {
         gap_fraction: 0.1,
         ..Default::default()
     };
-    treemocap::sim::write_session(&opts, &csv_in).unwrap();
+    treemocap::app::synth::write_session(&opts, &csv_in).unwrap();
     let json = dir.path().join("tips.json");
     let (c3d, csv, trc) = (
         dir.path().join("t.c3d"),

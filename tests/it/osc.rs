@@ -12,7 +12,6 @@ use std::sync::mpsc;
 use std::time::{Duration, Instant};
 
 use glam::DVec3;
-use treemocap::format::log::LogReader;
 use treemocap::format::Recording;
 use treemocap::rng::Rng;
 use treemocap::source::channel::frame_channel;
@@ -417,7 +416,7 @@ fn record_osc_writes_what_python_osc_sent() {
             .any(|l| l.contains("100 frames") && l.contains("bad_args 0")),
         "progress lines: {printed:#?}"
     );
-    let mut reader = LogReader::open(&out).unwrap();
+    let mut reader = treemocap::app::open::log(&out).unwrap();
     assert!(
         reader.info().source.contains("osc udp 127.0.0.1"),
         "{:?}",
@@ -472,7 +471,7 @@ fn killed_recorder_loses_at_most_the_last_second() {
     let _ = sender.kill();
     let _ = sender.wait();
 
-    let mut reader = LogReader::open(&out).unwrap();
+    let mut reader = treemocap::app::open::log(&out).unwrap();
     let got: Vec<MarkerFrame> = reader.by_ref().map(|f| f.unwrap()).collect();
     assert!(!got.is_empty(), "nothing reached the disk in 2.5 s");
     // Every frame read back is what was sent (the last one may be cut at a row).

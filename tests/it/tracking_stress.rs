@@ -75,7 +75,7 @@ fn rest_window_is_on_the_time_column_when_the_take_starts_late() {
         wind_s: 2.0,
         ..Default::default()
     };
-    sim::write_session(&opts, &csv).unwrap();
+    treemocap::app::synth::write_session(&opts, &csv).unwrap();
     let text = std::fs::read_to_string(&csv).unwrap();
     let mut shifted = String::new();
     let mut data = false;

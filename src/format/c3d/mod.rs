@@ -106,10 +106,9 @@ pub struct C3dReader<R = BufReader<File>> {
 }
 
 impl C3dReader<BufReader<File>> {
-    /// Opens `path`, reads its header and parameters, and positions at the
-    /// first frame.
-    pub fn open(path: &Path, options: &C3dOptions) -> Result<Self> {
-        let file = File::open(path).map_err(|e| Error::io(path, e))?;
+    /// Reads the header and parameters of an opened file (`path` names it in
+    /// errors) and positions at the first frame.
+    pub fn from_file(file: File, path: &Path, options: &C3dOptions) -> Result<Self> {
         let len = file.metadata().map_err(|e| Error::io(path, e))?.len();
         C3dReader::new(path, BufReader::with_capacity(1 << 18, file), len, options)
     }

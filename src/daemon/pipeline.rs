@@ -1,0 +1,275 @@
+//! The pipeline thread: every frame is counted, recorded, kept in the window,
+//! followed by the live tips (→ WebSocket, OSC, sway PCA), and handed to the
+//! analysis every `daemon.analysis_interval_s`. It owns its state and takes
+//! no lock on the way.
+
+use std::sync::atomic::Ordering;
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use crossbeam_channel::{select, Receiver, Sender, TrySendError};
+use glam::DVec3;
+
+use crate::track::live::LiveTips;
+use super::shared::{lock, Shared};
+use super::window::{FrameWindow, WindowRecording};
+use crate::error::{Error, Result};
+use crate::format::log::{LogHeader, LogWriter};
+use crate::model::frame::MarkerFrame;
+use crate::serve::http;
+use crate::serve::osc::{tips_datagram, wind_datagram, OscSender};
+use crate::source::channel::{FrameReceiver, FrameSink};
+use crate::wind::pca::SwayPca;
+
+/// How often the pipeline wakes with no frame: the recording's flush and a
+/// rebuild asked for while the source is quiet must not wait for a frame.
+const TICK: Duration = Duration::from_millis(50);
+
+/// A window of frames and the capture time it ends at, for the analysis.
+pub(crate) type AnalysisJob = (WindowRecording, f64);
+
+/// The pipeline's state.
+pub(crate) struct Pipeline {
+    shared: Arc<Shared>,
+    window: FrameWindow,
+    /// The tracker itself, frame by frame: live tips are the replay's tips.
+    follower: LiveTips,
+    pca: SwayPca,
+    next_pca: f64,
+    next_analysis: f64,
+    rate: RateEstimate,
+    osc: Option<OscSender>,
+    recorder: Option<LogWriter>,
+    record_error_logged: bool,
+    analysis_tx: Sender<AnalysisJob>,
+}
+
+/// A smoothed estimate of the source's frame rate. Until two frames have
+/// been seen it is unknown; 100 Hz is only the placeholder for a header.
+struct RateEstimate {
+    hz: f64,
+    known: bool,
+    last_time: Option<f64>,
+}
+
+impl RateEstimate {
+    fn update(&mut self, time_s: f64) -> Option<f64> {
+        let prev = self.last_time.replace(time_s)?;
+        let dt = time_s - prev;
+        if dt <= 0.0 {
+            return None;
+        }
+        self.hz = if self.known {
+            0.99 * self.hz + 0.01 / dt
+        } else {
+            1.0 / dt
+        };
+        self.known = true;
+        Some(self.hz)
+    }
+}
+
+impl Pipeline {
+    /// The pipeline's state from the settings; opens the recording when
+    /// `daemon.record` asks for one.
+    pub(crate) fn new(shared: Arc<Shared>, analysis_tx: Sender<AnalysisJob>) -> Result<Self> {
+        let c = &shared.config;
+        let d = &c.daemon;
+        let rate = RateEstimate {
+            hz: 100.0,
+            known: false,
+            last_time: None,
+        };
+        let recorder = if d.record {
+            let header = LogHeader {
+                source: lock(&shared.status.source).clone(),
+                frame_rate: rate.hz,
+            };
+            Some(LogWriter::create(
+                &shared.out.join("session.log.csv"),
+                &header,
+                Duration::from_secs_f64(c.record.flush_interval_s),
+            )?)
+        } else {
+            None
+        };
+        Ok(Pipeline {
+            window: FrameWindow::new(d.window_s),
+            follower: LiveTips::new(&c.tracking, None, d.follow_gate_mm / 1000.0),
+            pca: SwayPca::new(c.wind.pca_window_s, c.wind.pca_min_sway_mm / 1000.0),
+            next_pca: f64::NEG_INFINITY,
+            next_analysis: f64::NEG_INFINITY,
+            rate,
+            osc: super::osc_sender(&d.osc_targets)?,
+            recorder,
+            record_error_logged: false,
+            analysis_tx,
+            shared,
+        })
+    }
+
+    /// Runs until the shutdown signal or until every source has gone; the
+    /// recording is finished on the way out.
+    pub(crate) fn run(
+        mut self,
+        rx: FrameReceiver,
+        sink: &FrameSink,
+        tips_rx: Receiver<Vec<(usize, DVec3)>>,
+    ) {
+        let stop = self.shared.shutdown.gate();
+        let frames: &Receiver<MarkerFrame> = &rx;
+        loop {
+            select! {
+                recv(frames) -> frame => match frame {
+                    Ok(frame) => {
+                        if !self.on_frame(frame, sink) {
+                            break;
+                        }
+                    }
+                    Err(_) => break,
+                },
+                recv(tips_rx) -> tips => {
+                    if let Ok(tips) = tips {
+                        self.on_tips(&tips);
+                    }
+                }
+                recv(stop) -> _ => break,
+                default(TICK) => self.on_quiet(),
+            }
+            self.flush_recording();
+        }
+        if let Some(w) = self.recorder.take() {
+            if let Err(e) = w.finish() {
+                self.record_failed(&e);
+            }
+        }
+    }
+
+    /// The tips of a new tree: the live follower starts from them.
+    fn on_tips(&mut self, tips: &[(usize, DVec3)]) {
+        self.follower.set_tips(tips);
+        self.shared
+            .status
+            .tips
+            .store(tips.len() as u64, Ordering::Relaxed);
+    }
+
+    /// A quiet source (a finished replay, a paused rig) must not leave a
+    /// requested rebuild waiting for the next frame.
+    fn on_quiet(&mut self) {
+        if self.shared.rebuild.load(Ordering::Relaxed) && !self.window.is_empty() {
+            let snapshot = self
+                .window
+                .to_recording(self.rate.hz.round().max(1.0), "live");
+            let _ = self.analysis_tx.try_send((snapshot, self.window.now_s()));
+        }
+    }
+
+    fn flush_recording(&mut self) {
+        if let Some(w) = self.recorder.as_mut() {
+            if let Err(e) = w.tick() {
+                self.record_failed(&e);
+            }
+        }
+    }
+
+    /// One frame through the pipeline; false when the analysis has gone.
+    fn on_frame(&mut self, frame: MarkerFrame, sink: &FrameSink) -> bool {
+        let arrived = Instant::now();
+        self.count(&frame, sink);
+        if let Some(w) = self.recorder.as_mut() {
+            if let Err(e) = w.write_frame(&frame) {
+                self.record_failed(&e);
+            }
+        }
+        let now = frame.time_s;
+        let seen = self.follower.update(&frame);
+        if !self.follower.is_empty() {
+            self.follow(&frame, &seen);
+        }
+        self.window.push(frame);
+        let alive = self.maybe_analyse(now);
+        let us = arrived.elapsed().as_micros() as u64;
+        let status = &self.shared.status;
+        status.latency_us_last.store(us, Ordering::Relaxed);
+        status.latency_us_max.fetch_max(us, Ordering::Relaxed);
+        status.latency_hist.record(us);
+        alive
+    }
+
+    fn count(&mut self, frame: &MarkerFrame, sink: &FrameSink) {
+        let status = &self.shared.status;
+        status.frames.fetch_add(1, Ordering::Relaxed);
+        let n = frame.markers.len() as u64;
+        status.samples.fetch_add(n, Ordering::Relaxed);
+        status.markers.store(n, Ordering::Relaxed);
+        status
+            .last_frame
+            .store(frame.frame as u64, Ordering::Relaxed);
+        status
+            .last_frame_time_bits
+            .store(frame.time_s.to_bits(), Ordering::Relaxed);
+        status.dropped.store(sink.dropped(), Ordering::Relaxed);
+        if let Some(hz) = self.rate.update(frame.time_s) {
+            status
+                .frame_rate_bits
+                .store(hz.to_bits(), Ordering::Relaxed);
+        }
+    }
+
+    /// The live tips of this frame → viewers, OSC, and the sway PCA.
+    fn follow(&mut self, frame: &MarkerFrame, seen: &[(usize, DVec3)]) {
+        let now = frame.time_s;
+        let shared = &self.shared;
+        shared
+            .status
+            .tips_live
+            .store(seen.len() as u64, Ordering::Relaxed);
+        self.pca.push(now, self.follower.displacements(seen));
+        if shared.live.receiver_count() > 0 {
+            let _ = shared
+                .live
+                .send(http::tips_message(frame.frame, now, seen));
+        }
+        if let Some(o) = self.osc.as_mut() {
+            o.send(&tips_datagram(frame.frame, now, seen));
+        }
+        if now >= self.next_pca {
+            self.next_pca = now + shared.config.wind.pca_window_s;
+            if let Some(e) = self.pca.estimate() {
+                shared.new_wind(e);
+                if let Some(o) = self.osc.as_mut() {
+                    o.send(&wind_datagram(&e));
+                }
+            }
+        }
+    }
+
+    /// Hands the window to the analysis when one is due (or the clock went
+    /// back: a restarted source); false when the analysis has gone.
+    fn maybe_analyse(&mut self, now: f64) -> bool {
+        let interval = self.shared.config.daemon.analysis_interval_s;
+        if now < self.next_analysis && now >= self.next_analysis - 2.0 * interval {
+            return true;
+        }
+        let snapshot = self
+            .window
+            .to_recording(self.rate.hz.round().max(1.0), "live");
+        match self.analysis_tx.try_send((snapshot, now)) {
+            Ok(()) => self.next_analysis = now + interval,
+            Err(TrySendError::Full(_)) => {} // analysis still busy: next frame
+            Err(TrySendError::Disconnected(_)) => return false,
+        }
+        true
+    }
+
+    /// A recording that fails is said once in the log and stays on /status;
+    /// ingest goes on.
+    fn record_failed(&mut self, e: &Error) {
+        if !self.record_error_logged {
+            tracing::error!("recording: {e}");
+            self.record_error_logged = true;
+        }
+        self.shared.output_error(Some(format!("recording: {e}")));
+    }
+}
