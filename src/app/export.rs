@@ -14,8 +14,11 @@ use crate::track::{process, Summary};
 /// The formats `export` writes.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum ExportFormat {
+    /// `.c3d`: float32 millimetres, Z up, residuals flag fills.
     C3d,
+    /// `.csv`: one header row, metres, Y up.
     Csv,
+    /// `.trc`: OpenSim's marker format, millimetres, Y up.
     Trc,
 }
 

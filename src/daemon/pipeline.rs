@@ -10,7 +10,6 @@ use std::time::{Duration, Instant};
 use crossbeam_channel::{select, Receiver, Sender, TrySendError};
 use glam::DVec3;
 
-use crate::track::live::LiveTips;
 use super::shared::{lock, Shared};
 use super::window::{FrameWindow, WindowRecording};
 use crate::error::{Error, Result};
@@ -19,6 +18,7 @@ use crate::model::frame::MarkerFrame;
 use crate::serve::http;
 use crate::serve::osc::{tips_datagram, wind_datagram, OscSender};
 use crate::source::channel::{FrameReceiver, FrameSink};
+use crate::track::live::LiveTips;
 use crate::wind::pca::SwayPca;
 
 /// How often the pipeline wakes with no frame: the recording's flush and a
@@ -227,9 +227,7 @@ impl Pipeline {
             .store(seen.len() as u64, Ordering::Relaxed);
         self.pca.push(now, self.follower.displacements(seen));
         if shared.live.receiver_count() > 0 {
-            let _ = shared
-                .live
-                .send(http::tips_message(frame.frame, now, seen));
+            let _ = shared.live.send(http::tips_message(frame.frame, now, seen));
         }
         if let Some(o) = self.osc.as_mut() {
             o.send(&tips_datagram(frame.frame, now, seen));

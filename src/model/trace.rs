@@ -61,9 +61,13 @@ pub enum Curve {
     /// A cubic Hermite segment (PCHIP slopes): position and velocity (m
     /// per frame) at `from` and at `to`.
     Hermite {
+        /// Position at `from`.
         p0: DVec3,
+        /// Velocity at `from` (m per frame).
         m0: DVec3,
+        /// Position at `to`.
         p1: DVec3,
+        /// Velocity at `to` (m per frame).
         m1: DVec3,
     },
     /// Positions for the frames `from + 1 .. to`, predicted from the

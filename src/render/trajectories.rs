@@ -52,8 +52,11 @@ pub fn marker_ids(trace: &Trace) -> Vec<i64> {
 /// One sample of one tip as the writers see it.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Point {
+    /// A marker's position (m, Y up) and the source's id for it.
     Measured(DVec3, Option<i64>),
+    /// A filled position (m, Y up).
     Filled(DVec3),
+    /// No sample.
     Missing,
 }
 
@@ -74,6 +77,7 @@ struct Reader<'a> {
 }
 
 impl<'a> Frames<'a> {
+    /// Starts at the session's first frame.
     pub fn new(tips: &'a Tips) -> Self {
         let readers = tips
             .tips

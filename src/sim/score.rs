@@ -35,7 +35,9 @@ pub struct FillScore {
 /// What one session scored.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct Score {
+    /// Tips the marker stage reported.
     pub tips_found: usize,
+    /// Tips the simulator placed.
     pub tips_placed: usize,
     /// Measured samples inside an output tip that came from another tip's
     /// marker or from a ghost.

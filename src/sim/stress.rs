@@ -7,8 +7,11 @@ use super::SynthOptions;
 
 /// One named stress setting.
 pub struct Stress {
+    /// Short name (the table's first column).
     pub name: &'static str,
+    /// What it stresses, for a reader.
     pub what: &'static str,
+    /// The session's options.
     pub options: SynthOptions,
 }
 

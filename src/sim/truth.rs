@@ -65,9 +65,13 @@ pub struct TipTruth {
 pub struct GustTruth {
     /// Start of the rise (s on the take's clock).
     pub start_s: f64,
+    /// Seconds of the rise, the hold and the fall.
     pub rise_s: f64,
+    /// See `rise_s`.
     pub hold_s: f64,
+    /// See `rise_s`.
     pub fall_s: f64,
+    /// Extra strength at the hold, as a fraction of the steady wind.
     pub extra: f64,
 }
 

@@ -38,15 +38,18 @@ use crate::model::trace::{Curve, Fill, Sample, SampleKind, Timeline, Trace};
 pub struct GapStats {
     /// Gaps filled and the frames in them.
     pub filled: u64,
+    /// Frames in those gaps.
     pub filled_frames: u64,
     /// Of those, gaps filled from the neighbours.
     pub from_neighbours: u64,
     /// Gaps left open because they were longer than the fill limits.
     pub too_long: u64,
+    /// Frames in those gaps.
     pub too_long_frames: u64,
     /// Gaps left open because their far end does not continue the path the
     /// neighbours predict (two different markers on the two sides).
     pub rejected: u64,
+    /// Frames in those gaps.
     pub rejected_frames: u64,
 }
 

@@ -44,16 +44,16 @@ const VAR0: f64 = 0.05 * 0.05;
 #[derive(Debug, Clone, Copy)]
 pub(crate) struct IdentitySettings {
     /// Measurements of a new trace before it is first compared.
-    pub link_frames: usize,
+    pub(crate) link_frames: usize,
     /// Measurements after which an unclaimed trace is a marker of its own.
-    pub confirm_frames: usize,
+    pub(crate) confirm_frames: usize,
     /// Smallest and largest join radius (RMS distance to the predicted path).
-    pub link_min_m: f64,
-    pub link_max_m: f64,
+    pub(crate) link_min_m: f64,
+    pub(crate) link_max_m: f64,
     /// Frames a lost identity can still be joined.
-    pub keep_lost_frames: i64,
+    pub(crate) keep_lost_frames: i64,
     /// Weight of a new frame in the neighbour statistics (1 / frames).
-    pub alpha: f64,
+    pub(crate) alpha: f64,
 }
 
 /// A neighbour of an identity and how much their offset varies.
@@ -132,11 +132,11 @@ pub(crate) struct Identities {
     edges: Vec<Edge>,
     out: Vec<Option<usize>>,
     /// Pieces joined to an earlier piece.
-    pub joins: usize,
+    pub(crate) joins: usize,
 }
 
 impl Identities {
-    pub fn new(s: IdentitySettings) -> Self {
+    pub(crate) fn new(s: IdentitySettings) -> Self {
         Identities {
             s,
             idents: Vec::new(),
@@ -155,12 +155,12 @@ impl Identities {
     }
 
     /// New settings (the frame rate became known).
-    pub fn set_settings(&mut self, s: IdentitySettings) {
+    pub(crate) fn set_settings(&mut self, s: IdentitySettings) {
         self.s = s;
     }
 
     /// Starts frame `t`.
-    pub fn begin(&mut self, t: i64) {
+    pub(crate) fn begin(&mut self, t: i64) {
         self.frame = t;
         for &i in &self.active {
             self.cur[i] = None;
@@ -168,7 +168,7 @@ impl Identities {
     }
 
     /// A new trace began with `p` in this frame.
-    pub fn started(&mut self, trace: usize, p: DVec3) {
+    pub(crate) fn started(&mut self, trace: usize, p: DVec3) {
         self.owner.insert(trace, Owner::Candidate);
         self.candidates.insert(
             trace,
@@ -180,7 +180,7 @@ impl Identities {
     }
 
     /// Trace `trace` was measured at `p` in this frame.
-    pub fn measured(&mut self, trace: usize, p: DVec3) {
+    pub(crate) fn measured(&mut self, trace: usize, p: DVec3) {
         match self.owner.get(&trace) {
             Some(Owner::Ident(i)) => {
                 let i = *i;
@@ -200,7 +200,7 @@ impl Identities {
     }
 
     /// Trace `trace` ended (too long without a marker, or a restart).
-    pub fn ended(&mut self, trace: usize) {
+    pub(crate) fn ended(&mut self, trace: usize) {
         match self.owner.remove(&trace) {
             Some(Owner::Ident(i)) => {
                 if self.idents[i].gap.is_none() {
@@ -222,7 +222,7 @@ impl Identities {
 
     /// Ends every trace and forgets the lost identities (a source restart:
     /// nothing may be joined across it).
-    pub fn restart(&mut self) {
+    pub(crate) fn restart(&mut self) {
         let mut traces: Vec<usize> = self.owner.keys().copied().collect();
         traces.sort_unstable();
         for t in traces {
@@ -236,7 +236,7 @@ impl Identities {
     }
 
     /// Finishes the frame: gaps, predictions, statistics, joins.
-    pub fn end(&mut self) {
+    pub(crate) fn end(&mut self) {
         let t = self.frame;
         self.note_gaps();
         self.predict(t);
@@ -261,18 +261,18 @@ impl Identities {
 
     /// At the end of the session: pending candidates get a last chance to
     /// be joined; returns the pieces of every identity.
-    pub fn finish(&mut self) -> Vec<Vec<usize>> {
+    pub(crate) fn finish(&mut self) -> Vec<Vec<usize>> {
         self.evaluate(true);
         self.idents.iter().map(|i| i.pieces.clone()).collect()
     }
 
     /// Mean and spread of identity `i`'s first measurements.
-    pub fn first_position(&self, i: usize) -> Option<(DVec3, f64)> {
+    pub(crate) fn first_position(&self, i: usize) -> Option<(DVec3, f64)> {
         self.idents.get(i).map(|id| id.first)
     }
 
     /// Identities measured in this frame, with their position.
-    pub fn current(&self) -> impl Iterator<Item = (usize, DVec3)> + '_ {
+    pub(crate) fn current(&self) -> impl Iterator<Item = (usize, DVec3)> + '_ {
         self.cur
             .iter()
             .enumerate()

@@ -57,9 +57,10 @@ pub struct Summary {
     pub traces: usize,
     /// Traces never confirmed as a marker (ghost reflections, flickers).
     pub ghosts: usize,
-    /// Pieces joined to an earlier piece of the same marker: on line from
-    /// the neighbours' motion, then by rest position.
+    /// Pieces joined to an earlier piece of the same marker on line, from
+    /// the neighbours' motion.
     pub joined_on_line: usize,
+    /// Pieces joined afterwards by rest position.
     pub joined_by_rest: usize,
     /// Long fragments without a rest position put into a gap of the marker
     /// whose neighbourhood they occupy.

@@ -37,19 +37,19 @@ pub(crate) struct Motion {
 #[derive(Debug, Clone, Copy)]
 pub(crate) struct MotionParams {
     /// Measurement noise variance per axis (m²).
-    pub r: f64,
+    pub(crate) r: f64,
     /// Prior variance of a new trace's velocity and acceleration.
-    pub v0: f64,
-    pub a0: f64,
+    pub(crate) v0: f64,
+    pub(crate) a0: f64,
     /// Range and start of the process noise.
-    pub q_min: f64,
-    pub q_max: f64,
-    pub q0: f64,
+    pub(crate) q_min: f64,
+    pub(crate) q_max: f64,
+    pub(crate) q0: f64,
 }
 
 impl MotionParams {
     /// `noise_m`: measurement noise σ; `dt`: frame interval (s).
-    pub fn new(noise_m: f64, dt: f64) -> Self {
+    pub(crate) fn new(noise_m: f64, dt: f64) -> Self {
         // A tip moves at most a few m/s and a few g; jerk from 0.05 m/s³
         // (a still tree's wobble) to 5 000 m/s³ (a twig snapping back).
         let per_frame = |jerk: f64| (jerk * dt.powi(3)).powi(2);
@@ -66,7 +66,7 @@ impl MotionParams {
 
 impl Motion {
     /// A new trace first seen at `p` in frame `t`.
-    pub fn new(p: DVec3, t: i64, m: &MotionParams) -> Self {
+    pub(crate) fn new(p: DVec3, t: i64, m: &MotionParams) -> Self {
         Motion {
             p,
             v: DVec3::ZERO,
@@ -78,13 +78,13 @@ impl Motion {
     }
 
     /// Frame of the last update.
-    pub fn t(&self) -> i64 {
+    pub(crate) fn t(&self) -> i64 {
         self.t
     }
 
     /// Predicted position at frame `t` and its variance per axis,
     /// measurement noise included (the innovation variance S).
-    pub fn predict(&self, t: i64, m: &MotionParams) -> (DVec3, f64) {
+    pub(crate) fn predict(&self, t: i64, m: &MotionParams) -> (DVec3, f64) {
         let k = (t - self.t).max(0) as f64;
         let p = self.p + self.v * k + self.a * (0.5 * k * k);
         let c = &self.cov;
@@ -101,7 +101,7 @@ impl Motion {
     }
 
     /// Takes the measurement `z` at frame `t` (after `t − self.t` frames).
-    pub fn update(&mut self, z: DVec3, t: i64, m: &MotionParams) {
+    pub(crate) fn update(&mut self, z: DVec3, t: i64, m: &MotionParams) {
         let k = (t - self.t).max(1) as f64;
         // Predict the state and the covariance: P' = F P Fᵀ + Q.
         let f = [[1.0, k, 0.5 * k * k], [0.0, 1.0, k], [0.0, 0.0, 1.0]];
