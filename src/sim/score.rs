@@ -149,6 +149,16 @@ pub fn score(tips: &Tips, syn: &Synthetic) -> Score {
         };
         claimed[k] += 1;
         if claimed[k] > 1 {
+            if std::env::var_os("TRACK_DEBUG").is_some() {
+                eprintln!(
+                    "fragment of true tip {k}: frames {}..{} measured {} rest {:?} (true {:?})",
+                    tip.trace.first_frame(),
+                    tip.trace.last_frame(),
+                    tip.trace.measured(),
+                    tip.rest,
+                    truth.tips[k].rest
+                );
+            }
             s.fragments += 1;
             continue;
         }

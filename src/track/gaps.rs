@@ -97,14 +97,16 @@ pub fn fill_gaps(traces: &mut [Trace], timeline: &Timeline, settings: GapSetting
     let one_s = timeline
         .frame_interval()
         .map_or(100, |dt| (1.0 / dt).round().max(1.0) as i64);
-    let max_len = ((settings.max_fill_s.max(settings.max_pchip_s) * one_s as f64) as i64).max(1);
+    let last = traces.iter().map(|t| t.last_frame()).max().unwrap_or(0);
+    let first = traces.iter().map(|t| t.first_frame()).min().unwrap_or(0);
+    // No gap is longer than the session.
+    let max_len = ((settings.max_fill_s.max(settings.max_pchip_s) * one_s as f64).min(1e12) as i64)
+        .clamp(1, (last - first).max(1));
     let reach = one_s.max(3 * max_len) + LAG + 2;
     let mut fills: Vec<(usize, Fill)> = Vec::new();
     let mut stats = GapStats::default();
     {
         let mut streams: Vec<Stream<'_>> = traces.iter().map(Stream::new).collect();
-        let last = traces.iter().map(|t| t.last_frame()).max().unwrap_or(0);
-        let first = traces.iter().map(|t| t.first_frame()).min().unwrap_or(0);
         let mut pending: Vec<(usize, i64, i64)> = Vec::new();
         let mut frontier = first;
         while frontier <= last + reach {

@@ -37,6 +37,9 @@ use super::assign::{Assigner, Edge};
 
 /// Neighbours kept per identity.
 const NEIGHBOURS: usize = 8;
+/// Error of the neighbours' prediction per metre they moved since the gap
+/// began (a tip swings further or less far than its neighbours).
+const MOVED_ERROR: f64 = 0.3;
 /// Variance a new neighbour pair starts with (m²): (50 mm)², unknown.
 const VAR0: f64 = 0.05 * 0.05;
 
@@ -78,6 +81,9 @@ struct Gap {
     /// Predicted positions for the frames of the gap (the most recent).
     preds: VecDeque<(i64, DVec3)>,
     last_pred: DVec3,
+    /// Largest predicted displacement since the gap began (m): the
+    /// neighbours' model errs in proportion to how far they moved.
+    moved: f64,
     /// The trace has ended: the identity waits for a candidate.
     ended: bool,
 }
@@ -325,6 +331,7 @@ impl Identities {
             spread,
             preds: VecDeque::new(),
             last_pred: p0,
+            moved: 0.0,
             ended: false,
         });
     }
@@ -350,6 +357,7 @@ impl Identities {
             };
             if let Some(g) = self.idents[i].gap.as_mut() {
                 g.last_pred = pred;
+                g.moved = g.moved.max(pred.distance(g.p0));
                 g.preds.push_back((t, pred));
                 if g.preds.len() > cap {
                     g.preds.pop_front();
@@ -559,7 +567,7 @@ fn path_cost(samples: &[(i64, DVec3)], g: &Gap, s: &IdentitySettings) -> Option<
         return None;
     }
     let rms = (sum / n as f64).sqrt();
-    let radius = (s.link_min_m + 3.0 * g.spread).min(s.link_max_m);
+    let radius = (s.link_min_m + 3.0 * g.spread + MOVED_ERROR * g.moved).min(s.link_max_m);
     let cost = rms / radius;
     (cost <= 1.0).then_some(cost)
 }

@@ -31,6 +31,9 @@ pub(crate) struct Motion {
     t: i64,
     /// Spectral density of the white jerk (m²/frame⁵), adapted on line.
     q: f64,
+    /// Average squared innovation per axis (m²): the spread actually seen,
+    /// a floor under the predicted one (real noise may exceed `noise_mm`).
+    iv: f64,
 }
 
 /// Fixed parameters of the filters, from the tracker's settings and rate.
@@ -74,6 +77,7 @@ impl Motion {
             cov: [[m.r, 0.0, 0.0], [0.0, m.v0, 0.0], [0.0, 0.0, m.a0]],
             t,
             q: m.q0,
+            iv: m.r,
         }
     }
 
@@ -97,7 +101,7 @@ impl Motion {
             }
         }
         s += self.q * k.powi(5) / 20.0;
-        (p, s + m.r)
+        (p, (s + m.r).max(self.iv))
     }
 
     /// Takes the measurement `z` at frame `t` (after `t − self.t` frames).
@@ -147,6 +151,7 @@ impl Motion {
         // Normalised innovation (mean 1 when the model fits): scale the
         // process noise towards the motion actually seen.
         let nis = y.length_squared() / (3.0 * s);
+        self.iv = 0.95 * self.iv + 0.05 * y.length_squared() / 3.0;
         self.q = (self.q * (0.15 * (nis.min(9.0) - 1.0)).exp()).clamp(m.q_min, m.q_max);
     }
 }

@@ -27,6 +27,9 @@ fn check(name: &str, opts: &sim::SynthOptions) -> score::Score {
         s.rest_max() * 1000.0,
         s.bridged
     );
+    if std::env::var_os("TRACK_SWEEP").is_some() {
+        return s;
+    }
     assert_eq!(s.tips_found, s.tips_placed, "{name}: tip count");
     assert_eq!(s.wrong_samples, 0, "{name}: samples of another marker");
     assert_eq!(
