@@ -34,6 +34,17 @@ impl<R: BufRead> RowReader<R> {
 
     /// Reads the next row; `Ok(false)` at the end of the input.
     pub fn read(&mut self) -> io::Result<bool> {
+        if !self.read_line()? {
+            return Ok(false);
+        }
+        self.split()?;
+        Ok(true)
+    }
+
+    /// Reads the next line without splitting it into fields (see [`Self::line_bytes`]);
+    /// `Ok(false)` at the end of the input. Data rows are read this way and
+    /// scanned in place; [`Self::split`] makes fields of the line when needed.
+    pub fn read_line(&mut self) -> io::Result<bool> {
         self.data.clear();
         self.ends.clear();
         self.raw.clear();
@@ -42,6 +53,25 @@ impl<R: BufRead> RowReader<R> {
         }
         self.lines_read += 1;
         self.row_line = self.lines_read;
+        Ok(true)
+    }
+
+    /// The line just read by [`Self::read_line`], without its line end.
+    pub fn line_bytes(&self) -> &[u8] {
+        &self.raw[..trim_eol(&self.raw)]
+    }
+
+    /// The line just read with its line end: word-at-a-time readers may look
+    /// a few bytes past a field's end.
+    pub fn line_buffer(&self) -> &[u8] {
+        &self.raw
+    }
+
+    /// Splits the line just read into fields; a quoted field running over
+    /// the line end pulls in the following lines.
+    pub fn split(&mut self) -> io::Result<()> {
+        self.data.clear();
+        self.ends.clear();
         let line_end = trim_eol(&self.raw);
         if !self.raw[..line_end].contains(&b'"') {
             // Every data row of an export: no quotes, so fields are the
@@ -50,7 +80,7 @@ impl<R: BufRead> RowReader<R> {
                 self.data.extend_from_slice(field);
                 self.ends.push(self.data.len());
             }
-            return Ok(true);
+            return Ok(());
         }
         let mut in_quotes = false;
         let mut field_start = true;
@@ -95,7 +125,7 @@ impl<R: BufRead> RowReader<R> {
             self.lines_read += 1;
         }
         self.ends.push(self.data.len());
-        Ok(true)
+        Ok(())
     }
 
     /// The line the current row starts on.
@@ -117,14 +147,22 @@ impl<R: BufRead> RowReader<R> {
         &self.data[start..end]
     }
 
+    /// Where field `i` lies in [`Self::data_buffer`] (empty if out of range).
+    pub fn field_range(&self, i: usize) -> (usize, usize) {
+        let Some(&end) = self.ends.get(i) else {
+            return (0, 0);
+        };
+        (if i == 0 { 0 } else { self.ends[i - 1] }, end)
+    }
+
+    /// The fields of the current row, one after another (see [`Self::field_range`]).
+    pub fn data_buffer(&self) -> &[u8] {
+        &self.data
+    }
+
     /// Field `i` as text (empty if out of range or not UTF-8).
     pub fn text(&self, i: usize) -> &str {
         std::str::from_utf8(self.get(i)).unwrap_or("")
-    }
-
-    /// True when every field is empty (a blank line or Excel's `,,,,`).
-    pub fn is_blank(&self) -> bool {
-        self.data.is_empty()
     }
 }
 
