@@ -4,6 +4,8 @@
 //! `treemocap replay` runs too.
 
 pub mod follow;
+pub mod handoff;
+pub mod rest_estimate;
 pub mod run;
 pub mod status;
 pub mod triggers;

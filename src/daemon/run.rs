@@ -19,14 +19,16 @@ use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Condvar, Mutex};
 use std::time::{Duration, Instant};
 
-use crossbeam_channel::{bounded, Receiver, Sender, TrySendError};
+use crossbeam_channel::{bounded, Receiver, Sender};
 use glam::DVec3;
 use tokio::sync::{broadcast, watch};
 
 use super::follow::TipFollower;
+use super::handoff::{track_snapshot, AnalysisHandoff, Job};
+use super::rest_estimate::{BestRest, RestEstimate};
 use super::status::Status;
-use super::triggers::{compare_tips, Reason, TriggerConfig, Triggers};
-use super::window::{FrameWindow, WindowRecording};
+use super::triggers::{Reason, TriggerConfig, Triggers};
+use super::window::FrameWindow;
 use crate::app::files::write_atomic;
 use crate::app::open::{self as replay, ReplayOptions};
 use crate::config::Config;
@@ -206,21 +208,21 @@ pub fn run_with_reload(
     if !shared.config.wind.sensor_port.is_empty() {
         threads.push(start_serial(&shared));
     }
-    let (analysis_tx, analysis_rx) = bounded::<(WindowRecording, f64)>(1);
+    let handoff = Arc::new(AnalysisHandoff::default());
     let (tips_tx, tips_rx) = bounded::<Vec<(usize, DVec3)>>(4);
     {
         let s = shared.clone();
-        threads.push(spawn("treemocap-analysis", move || {
-            analysis_loop(&s, analysis_rx)
-        }));
+        let h = handoff.clone();
+        threads.push(spawn("treemocap-analysis", move || analysis_loop(&s, &h)));
     }
     {
         let s = shared.clone();
         threads.push(spawn("treemocap-recon", move || recon_loop(&s, tips_tx)));
     }
-    let result = pipeline_loop(&shared, rx, &sink, analysis_tx, tips_rx);
+    let result = pipeline_loop(&shared, rx, &sink, &handoff, tips_rx);
     shutdown.store(true, Ordering::Relaxed);
     shared.slot.ready.notify_all();
+    handoff.wake();
     for t in threads {
         let _ = t.join();
     }
@@ -339,7 +341,7 @@ fn start_source(
     };
     match d.source.as_str() {
         "replay" => {
-            let path = PathBuf::from(&d.replay_file);
+            let path = replay::locate(Path::new(&d.replay_file), "daemon.replay_file")?;
             let opts = ReplayOptions::from_config(c);
             let first = replay::open_with(&path, &opts)?;
             set_source(format!("replay {} at {}×", path.display(), d.replay_speed));
@@ -461,7 +463,7 @@ fn pipeline_loop(
     shared: &Arc<Shared>,
     rx: FrameReceiver,
     sink: &FrameSink,
-    analysis_tx: Sender<(WindowRecording, f64)>,
+    handoff: &AnalysisHandoff,
     tips_rx: Receiver<Vec<(usize, DVec3)>>,
 ) -> Result<()> {
     let c = &shared.config;
@@ -503,20 +505,19 @@ fn pipeline_loop(
             follower.set_tips(&tips);
             status.tips.store(tips.len() as u64, Ordering::Relaxed);
         }
-        let frame = match rx.recv_timeout(Duration::from_millis(50)) {
+        let (frame, arrived) = match rx.recv_timeout_arrived(Duration::from_millis(50)) {
             Ok(f) => f,
             Err(crossbeam_channel::RecvTimeoutError::Timeout) => {
                 // A quiet source (a finished replay, a paused rig) must not
                 // leave a requested rebuild waiting for the next frame.
                 if shared.rebuild.load(Ordering::Relaxed) && !window.is_empty() {
-                    let snapshot = window.to_recording(frame_rate.round().max(1.0), "live");
-                    let _ = analysis_tx.try_send((snapshot, window.now_s()));
+                    offer_window(handoff, &mut window, frame_rate);
                 }
                 continue;
             }
             Err(crossbeam_channel::RecvTimeoutError::Disconnected) => break,
         };
-        let arrived = Instant::now();
+        status.record_backlog(rx.len(), arrived.elapsed());
         status.frames.fetch_add(1, Ordering::Relaxed);
         status
             .samples
@@ -577,14 +578,12 @@ fn pipeline_loop(
                 }
             }
         }
-        window.push(frame);
-        if now >= next_analysis || now < next_analysis - 2.0 * d.analysis_interval_s {
-            let snapshot = window.to_recording(frame_rate.round().max(1.0), "live");
-            match analysis_tx.try_send((snapshot, now)) {
-                Ok(()) => next_analysis = now + d.analysis_interval_s,
-                Err(TrySendError::Full(_)) => {} // analysis still busy: next frame
-                Err(TrySendError::Disconnected(_)) => break,
-            }
+        window.push(&frame);
+        drop(frame);
+        let due = now >= next_analysis || now < next_analysis - 2.0 * d.analysis_interval_s;
+        // Analysis still busy: asked again next frame (two atomic loads).
+        if due && offer_window(handoff, &mut window, frame_rate) {
+            next_analysis = now + d.analysis_interval_s;
         }
         let us = arrived.elapsed().as_micros() as u64;
         status.latency_us_last.store(us, Ordering::Relaxed);
@@ -599,6 +598,19 @@ fn pipeline_loop(
     Ok(())
 }
 
+/// Hands a snapshot of the window to the analysis if it is free; true if it
+/// was handed over. No frame is copied either way.
+fn offer_window(handoff: &AnalysisHandoff, window: &mut FrameWindow, frame_rate: f64) -> bool {
+    if !handoff.wants() {
+        return false;
+    }
+    handoff.offer(Job {
+        snapshot: window.snapshot(),
+        frame_rate: frame_rate.round().max(1.0),
+    });
+    true
+}
+
 fn record_failed(status: &Status, e: &Error, logged: &mut bool) {
     if !*logged {
         tracing::error!("recording: {e}");
@@ -610,7 +622,7 @@ fn record_failed(status: &Status, e: &Error, logged: &mut bool) {
 }
 
 /// Tracks the window, finds tips and decides whether a new tree is due.
-fn analysis_loop(shared: &Arc<Shared>, rx: Receiver<(WindowRecording, f64)>) {
+fn analysis_loop(shared: &Arc<Shared>, handoff: &AnalysisHandoff) {
     let c = &shared.config;
     let d = &c.daemon;
     let mut triggers = Triggers::new(TriggerConfig {
@@ -620,42 +632,33 @@ fn analysis_loop(shared: &Arc<Shared>, rx: Receiver<(WindowRecording, f64)>) {
         wind_turn_deg: d.wind_turn_deg,
         period_s: d.period_s,
     });
-    // What the last tree was built from, reused when a rebuild finds nothing
-    // changed so that the tree does not jump.
-    let mut last_build: Option<Tips> = None;
+    // The best rest positions seen so far, from a still phase; every tree is
+    // built from them (issue 17: they improve while the still phase goes on,
+    // and a rebuild uses the latest).
+    let mut best = BestRest::new(d.moved_mm / 1000.0);
     let mut fan_set = false;
     while !shared.shutdown.load(Ordering::Relaxed) {
-        let Ok((mut rec, now)) = rx.recv_timeout(Duration::from_millis(100)) else {
+        let Some(job) = handoff.take(Duration::from_millis(100)) else {
             continue;
         };
-        let (tips, summary) = match crate::track::process(&mut rec, &c.tracking) {
-            Ok(t) => t,
-            Err(e) => {
-                tracing::warn!("analysis: {e}");
-                continue;
-            }
-        };
+        let now = job.snapshot.now_s;
+        let (tips, summary) = track_snapshot(&job, &c.tracking);
+        drop(job);
+        handoff.done();
         shared.status.analyses.fetch_add(1, Ordering::Relaxed);
         // Rest positions come only from a still phase. In a window of
         // continuous wind the tracker falls back to the mean of the sway,
-        // which is bent downwind: that is not a tip moving, so the last
-        // tree's tips stand and only wind, request and period can fire.
-        let still = summary.rest_source != crate::track::RestSource::WholeRecording;
-        let rest: Vec<DVec3> = if still {
-            tips.tips.iter().map(|t| t.rest).collect()
-        } else {
-            triggers
-                .built_tips()
-                .map(<[DVec3]>::to_vec)
-                .unwrap_or_default()
+        // which is bent downwind: that is not a tip moving, so the best
+        // rest positions stand and only wind, request and period can fire.
+        if summary.rest_source != crate::track::RestSource::WholeRecording && !tips.tips.is_empty()
+        {
+            offer_rest(&mut best, tips);
+        }
+        let Some(rest) = best.get() else {
+            continue;
         };
-        let rest_len = if still {
-            tips.rest_window_s[1] - tips.rest_window_s[0]
-        } else {
-            0.0
-        };
-        if !fan_set && still && !rest.is_empty() {
-            if let Some(e) = fan::configured_fan_wind(&c.wind, &rest, now) {
+        if !fan_set {
+            if let Some(e) = fan::configured_fan_wind(&c.wind, &rest.positions, now) {
                 new_wind(shared, e);
             }
             fan_set = true;
@@ -664,25 +667,19 @@ fn analysis_loop(shared: &Arc<Shared>, rx: Receiver<(WindowRecording, f64)>) {
         if shared.rebuild.swap(false, Ordering::Relaxed) {
             triggers.request();
         }
-        let Some(reason) = triggers.check(now, &rest, rest_len, wind.map(|w| w.direction)) else {
+        let Some(reason) = triggers.check(
+            now,
+            &rest.positions,
+            rest.len_s(),
+            wind.map(|w| w.direction),
+        ) else {
             continue;
         };
-        let same_tips = last_build.as_ref().is_some_and(|b| {
-            let old: Vec<DVec3> = b.tips.iter().map(|t| t.rest).collect();
-            compare_tips(&old, &rest, d.moved_mm / 1000.0) == (0, 0, 0)
-        });
-        // Unchanged tips (or no still phase to take new ones from): the last
-        // tree's tips exactly, with the wind of now.
-        let mut built = match last_build.take() {
-            Some(b) if same_tips || !still => b,
-            _ => tips,
-        };
+        let mut built = rest.payload.clone();
         built.wind = wind;
         let captured = built.captured();
-        let positions: Vec<DVec3> = captured.iter().map(|t: &CapturedTip| t.position).collect();
-        triggers.built(now, &positions, wind.map(|w| w.direction));
+        triggers.built(now, &rest.positions, wind.map(|w| w.direction));
         let tips_json = built.to_json();
-        last_build = Some(built);
         let wv = wind.map_or(DVec3::ZERO, |w| w.flow_vector());
         tracing::info!("new tree: {reason}");
         if let Ok(mut p) = shared.slot.pending.lock() {
@@ -697,6 +694,20 @@ fn analysis_loop(shared: &Arc<Shared>, rx: Receiver<(WindowRecording, f64)>) {
         }
         shared.slot.ready.notify_one();
     }
+}
+
+/// Offers an analysis's rest positions to the best estimate, without the
+/// traces (they are the window's size; only the rest positions are kept).
+fn offer_rest(best: &mut BestRest<Tips>, mut tips: Tips) {
+    for t in &mut tips.tips {
+        t.trace = crate::model::trace::Trace::new(t.trace.id, 0, t.rest, None);
+    }
+    tips.timeline = Default::default();
+    best.offer(RestEstimate {
+        positions: tips.tips.iter().map(|t| t.rest).collect(),
+        window_s: tips.rest_window_s,
+        payload: tips,
+    });
 }
 
 /// Builds trees on request and hands them to every output.
