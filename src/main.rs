@@ -56,7 +56,7 @@ enum Command {
     /// tips.json, tree.glb, tree.json and tree.png to --out (default:
     /// output.dir of the config, "out").
     Replay {
-        /// A Motive CSV export or a treemocap log (detected by content).
+        /// A Motive CSV export, a C3D file or a treemocap log (detected by content).
         file: PathBuf,
         #[command(flatten)]
         config: ConfigArgs,
@@ -68,7 +68,7 @@ enum Command {
     /// drop noise, average each marker over the still phase. Prints a table
     /// of tips and a summary.
     Tips {
-        /// A Motive CSV export or a treemocap log (detected by content).
+        /// A Motive CSV export, a C3D file or a treemocap log (detected by content).
         file: PathBuf,
         #[command(flatten)]
         config: ConfigArgs,
@@ -81,7 +81,7 @@ enum Command {
     },
     /// Describe a recording: format, rate, units, frames, markers, gaps.
     Inspect {
-        /// A Motive CSV export or a treemocap log (detected by content).
+        /// A Motive CSV export, a C3D file or a treemocap log (detected by content).
         file: PathBuf,
         /// Print one JSON object instead of the table.
         #[arg(long)]
@@ -120,7 +120,7 @@ enum Command {
     /// Stream a recording as a NatNet server (a stand-in for Motive), so any
     /// NatNet client can be tested without a rig.
     Serve {
-        /// A Motive CSV export or a treemocap log (detected by content).
+        /// A Motive CSV export, a C3D file or a treemocap log (detected by content).
         file: PathBuf,
         /// NatNet bitstream version to stream (2.5 … 4.x); unicast clients
         /// may switch theirs with a `Bitstream,X.Y` request.
