@@ -3,11 +3,11 @@
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use std::hint::black_box;
-use treemocap::rng::Rng;
-use treemocap::source::natnet::packet::{
+use treemocap::protocol::natnet::select::{to_marker_frame, FrameContext, MarkerSelection, UpAxis};
+use treemocap::protocol::natnet::{
     decode, encode, FrameOfData, LabeledMarker, Packet, Version, MARKER_UNLABELED,
 };
-use treemocap::source::natnet::select::{to_marker_frame, MarkerSelection};
+use treemocap::rng::Rng;
 
 fn frame(markers: usize) -> Vec<u8> {
     let mut r = Rng::new(5);
@@ -36,6 +36,12 @@ fn frame(markers: usize) -> Vec<u8> {
 
 fn bench(c: &mut Criterion) {
     let v = Version::new(3, 1);
+    let cx = FrameContext {
+        version: v,
+        selection: MarkerSelection::Unlabeled,
+        up: UpAxis::Y,
+        clock_frequency: 1_000_000,
+    };
     for n in [70, 1000] {
         let bytes = frame(n);
         c.bench_function(&format!("natnet_decode_3.1_{n}_markers"), |b| {
@@ -45,9 +51,7 @@ fn bench(c: &mut Criterion) {
             &format!("natnet_decode_to_marker_frame_3.1_{n}_markers"),
             |b| {
                 b.iter(|| match decode(black_box(&bytes), v).unwrap() {
-                    Packet::FrameOfData(f) => {
-                        to_marker_frame(&f, v, MarkerSelection::Unlabeled, 1_000_000, 0.0)
-                    }
+                    Packet::FrameOfData(f) => to_marker_frame(&f, &cx, 0.0),
                     _ => unreachable!(),
                 })
             },

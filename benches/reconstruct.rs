@@ -8,14 +8,14 @@ use std::time::Duration;
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
 use glam::DVec3;
-use treemocap::config::ReconstructConfig;
 use treemocap::model::tips::CapturedTip;
+use treemocap::reconstruct::ReconstructSettings;
 use treemocap::reconstruct::{mesh, reconstruct};
 
 #[path = "../tests/it/common/crowns.rs"]
 mod crowns;
 
-fn flow_radii_mesh(tips: &[CapturedTip], cfg: &ReconstructConfig) -> usize {
+fn flow_radii_mesh(tips: &[CapturedTip], cfg: &ReconstructSettings) -> usize {
     let tree = reconstruct(tips, DVec3::new(2.0, 0.0, 0.0), cfg, cfg.seed).expect("reconstruct");
     let m = mesh::branches(&tree, cfg.sides).expect("mesh");
     tree.nodes.len() + m.indices.len()
@@ -25,7 +25,7 @@ fn targets(c: &mut Criterion) {
     let mut group = c.benchmark_group("flow_radii_mesh");
     for (captured, total) in [(35usize, 500usize), (70, 5000)] {
         let tips = crowns::crown_tips(crowns::Shape::Pine, captured, 1);
-        let cfg = ReconstructConfig {
+        let cfg = ReconstructSettings {
             total_tips: total,
             ..Default::default()
         };
@@ -55,7 +55,7 @@ fn growth_group(c: &mut Criterion, name: &str, totals: &[usize], merge_distance:
         .measurement_time(Duration::from_secs(8));
     let tips = crowns::crown_tips(crowns::Shape::Maple, 70, 2);
     for &total in totals {
-        let mut cfg = ReconstructConfig {
+        let mut cfg = ReconstructSettings {
             total_tips: total,
             ..Default::default()
         };
@@ -93,7 +93,7 @@ fn growth_few_merges(c: &mut Criterion) {
 /// against the growth figure above (target ≤ 20 % of it, issue 15).
 fn picture(c: &mut Criterion) {
     let tips = crowns::crown_tips(crowns::Shape::Maple, 70, 2);
-    let cfg = ReconstructConfig {
+    let cfg = ReconstructSettings {
         total_tips: 50_000,
         ..Default::default()
     };

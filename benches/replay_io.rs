@@ -10,7 +10,6 @@ use std::time::Duration;
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use glam::DVec3;
 use treemocap::format::log::{LogHeader, LogWriter};
-use treemocap::format::motive_csv::MotiveCsvReader;
 use treemocap::{Marker, MarkerFrame};
 
 const MARKERS: usize = 35;
@@ -72,7 +71,7 @@ fn read_motive_csv(c: &mut Criterion) {
     g.sample_size(20);
     g.bench_function("read_35_markers_4000_frames", |b| {
         b.iter(|| {
-            let reader = MotiveCsvReader::open(&path).unwrap();
+            let reader = treemocap::app::open::motive_csv(&path).unwrap();
             let n: usize = reader.map(|f| f.unwrap().markers.len()).sum();
             assert_eq!(n, samples);
         })
@@ -144,7 +143,7 @@ fn read_wide_motive_csv(c: &mut Criterion) {
         g.throughput(Throughput::Bytes(std::fs::metadata(&path).unwrap().len()));
         g.bench_function(name, |b| {
             b.iter(|| {
-                let reader = MotiveCsvReader::open(&path).unwrap();
+                let reader = treemocap::app::open::motive_csv(&path).unwrap();
                 let n: usize = reader.map(|f| f.unwrap().markers.len()).sum();
                 assert_eq!(n, samples);
             })

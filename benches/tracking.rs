@@ -7,9 +7,10 @@ use std::path::Path;
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use glam::DVec3;
-use treemocap::config::{Config, TrackingConfig};
+use treemocap::config::Config;
 use treemocap::rng::Rng;
 use treemocap::track::Tracker;
+use treemocap::track::TrackingSettings;
 use treemocap::{Marker, MarkerFrame};
 
 /// Marker rest positions on a jittered grid 100 mm apart, and per-marker
@@ -36,7 +37,7 @@ fn markers(n: usize, seed: u64) -> (Vec<DVec3>, Vec<f64>) {
 
 fn bench_per_frame(c: &mut Criterion, n: usize, name: &str) {
     let (rest, phase) = markers(n, n as u64);
-    let cfg = TrackingConfig::default();
+    let cfg = TrackingSettings::default();
     let mut rng = Rng::new(9);
     // 1000 precomputed frames of sway + noise, in shuffled marker order.
     let frames: Vec<Vec<Marker>> = (0..1000)

@@ -10,8 +10,6 @@
 #[path = "common/hour_session.rs"]
 mod hour_session;
 
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use treemocap::config::Config;
@@ -56,11 +54,14 @@ fn main() {
     )
     .unwrap();
     let out = dir.path().join("out");
-    let stop = Arc::new(AtomicBool::new(false));
+    let rt = tokio::runtime::Runtime::new().unwrap();
+    let stop = treemocap::shutdown::Shutdown::new();
     let flag = stop.clone();
+    let handle_rt = rt.handle().clone();
     let out2 = out.clone();
     let t0 = Instant::now();
-    let daemon = std::thread::spawn(move || treemocap::daemon::run(config, &out2, flag, false));
+    let daemon =
+        std::thread::spawn(move || treemocap::daemon::run(config, &out2, &handle_rt, &flag, None));
     let mut samples: Vec<(f64, u64, f64)> = Vec::new();
     loop {
         std::thread::sleep(Duration::from_secs(1));
@@ -80,7 +81,7 @@ fn main() {
             break;
         }
     }
-    stop.store(true, Ordering::Relaxed);
+    stop.trigger();
     daemon.join().unwrap().unwrap();
     // Growth after the window (60 s of capture) has filled: from the sample
     // nearest 10 % of the session to the end.

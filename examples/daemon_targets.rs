@@ -5,16 +5,14 @@
 //!
 //! `cargo run --release --example daemon_targets`
 
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use treemocap::config::Config;
-use treemocap::sim::{self, CrownShape, SynthOptions};
+use treemocap::sim::{CrownShape, SynthOptions};
 
 fn session(dir: &std::path::Path, name: &str, opts: SynthOptions) -> std::path::PathBuf {
     let path = dir.join(format!("{name}.csv"));
-    sim::write_session(&opts, &path).expect("synthetic session");
+    treemocap::app::synth::write_session(&opts, &path).expect("synthetic session");
     path
 }
 
@@ -26,10 +24,14 @@ fn run(file: &std::path::Path, sets: &[&str], seconds: f64) -> serde_json::Value
     all.extend(sets.iter().map(|s| s.to_string()));
     let config = Config::load(None, &all).expect("config");
     let out = tempfile::tempdir().unwrap();
-    let stop = Arc::new(AtomicBool::new(false));
+    let rt = tokio::runtime::Runtime::new().unwrap();
+    let stop = treemocap::shutdown::Shutdown::new();
     let flag = stop.clone();
+    let handle_rt = rt.handle().clone();
     let out_path = out.path().to_path_buf();
-    let handle = std::thread::spawn(move || treemocap::daemon::run(config, &out_path, flag, false));
+    let handle = std::thread::spawn(move || {
+        treemocap::daemon::run(config, &out_path, &handle_rt, &flag, None)
+    });
     let t0 = Instant::now();
     let mut last = serde_json::Value::Null;
     while t0.elapsed() < Duration::from_secs_f64(seconds) {
@@ -43,7 +45,7 @@ fn run(file: &std::path::Path, sets: &[&str], seconds: f64) -> serde_json::Value
             }
         }
     }
-    stop.store(true, Ordering::Relaxed);
+    stop.trigger();
     handle.join().unwrap().unwrap();
     last
 }

@@ -12,11 +12,12 @@ use std::time::{Duration, Instant};
 use glam::DVec3;
 use treemocap::format::{Format, Recording, RecordingInfo};
 use treemocap::model::frame::{Marker, MarkerFrame};
+use treemocap::protocol::natnet::Version;
 use treemocap::rng::Rng;
+use treemocap::serve::natnet::{self as server, ServeOptions, ServerStats};
 use treemocap::source::channel::frame_channel;
-use treemocap::source::natnet::client::{self, NatNetOptions};
-use treemocap::source::natnet::packet::Version;
-use treemocap::source::natnet::server::{self, ServeOptions, ServerStats};
+use treemocap::source::natnet::client::{self, NatNetStatus};
+use treemocap::source::natnet::settings::NatNetSettings;
 
 /// Frames generated on the fly (60 000 × 1000 markers would not fit a file).
 struct Synthetic {
@@ -99,7 +100,7 @@ fn main() {
                     markers,
                 }))
             };
-            server::serve_with(open, &sopts, server_shutdown).await
+            server::serve(open, &sopts, server_shutdown).await
         });
         let port = loop {
             if let Some(a) = stats.command_addr.get() {
@@ -107,11 +108,12 @@ fn main() {
             }
             tokio::time::sleep(Duration::from_millis(5)).await;
         };
-        let copts = NatNetOptions { command_port: port, ..Default::default() };
-        let cstats = copts.stats.clone();
+        let copts = NatNetSettings { command_port: port, ..Default::default() };
+        let cstatus = Arc::new(NatNetStatus::default());
+        let cstatus2 = cstatus.clone();
         let (sink, rx) = frame_channel(4096);
         let (stop_client, client_shutdown) = tokio::sync::watch::channel(false);
-        let client = tokio::spawn(async move { client::run(&copts, sink.clone(), client_shutdown).await.map(|r| (r, sink.dropped())) });
+        let client = tokio::spawn(async move { client::run(&copts, &cstatus2, sink.clone(), client_shutdown).await.map(|r| (r, sink.dropped())) });
 
         // The "pipeline": counts frames and markers, checks the sequence.
         let consumer = std::thread::spawn(move || {
@@ -141,12 +143,12 @@ fn main() {
         println!("  server: {} frames played, {} datagrams sent, {:.2} s", sreport.frames, stats.datagrams.load(Ordering::Relaxed), sreport.elapsed_s);
         println!(
             "  client: {} frames, {} markers, {} missed frames, {} bad datagrams, {} dropped by the pipeline channel",
-            creport.frames, creport.markers, creport.missed_frames, creport.bad_packets, dropped
+            creport.counters.frames, creport.counters.markers, creport.counters.missed_frames, creport.counters.bad_packets(), dropped
         );
         println!("  pipeline: {n} frames, {m} markers, {gaps} sequence gaps");
         println!("  achieved rate: {:.1} frames/s over {elapsed:.1} s", n as f64 / elapsed);
         let lost = frames as u64 - n;
-        println!("  RESULT: {}", if lost == 0 && cstats.bad_packets() == 0 { "no frame lost".to_string() } else { format!("{lost} frames lost") });
+        println!("  RESULT: {}", if lost == 0 && cstatus.snapshot().counters.bad_packets() == 0 { "no frame lost".to_string() } else { format!("{lost} frames lost") });
         if lost != 0 {
             std::process::exit(1);
         }

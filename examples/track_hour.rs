@@ -9,13 +9,13 @@
 #[path = "common/hour_session.rs"]
 mod hour_session;
 
-use treemocap::config::TrackingConfig;
+use treemocap::track::TrackingSettings;
 use treemocap::track::{self, Tracker};
 
 fn main() {
     let (seconds, rate, n) = hour_session::args();
     let frames = (seconds * rate) as i64;
-    let cfg = TrackingConfig::default();
+    let cfg = TrackingSettings::default();
     let mut tracker = Tracker::new(&cfg, Some(rate));
     hour_session::for_each_frame(seconds, rate, n, |frame| tracker.push(frame));
     let trace_bytes: usize = tracker.traces().iter().map(|t| t.heap_bytes()).sum();

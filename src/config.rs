@@ -3,11 +3,17 @@
 //! key by key, so a key the defaults do not have is an error, and a user names
 //! only what they change.
 
+use std::net::SocketAddr;
 use std::path::Path;
 
 use serde::{Deserialize, Serialize};
 
-use crate::error::{Error, Result};
+use crate::error::{check_range, Error, Result};
+use crate::reconstruct::ReconstructSettings;
+use crate::source::natnet::settings::NatNetSettings;
+use crate::source::osc::OscSettings;
+use crate::track::TrackingSettings;
+use crate::wind::WindSettings;
 
 /// The shipped defaults, every key commented with its unit and range.
 pub const DEFAULT_TOML: &str = include_str!("../config/default.toml");
@@ -16,16 +22,26 @@ pub const DEFAULT_TOML: &str = include_str!("../config/default.toml");
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Config {
+    /// `[replay]`: reading recorded sessions.
     pub replay: ReplayConfig,
+    /// `[record]`: writing our log format.
     pub record: RecordConfig,
-    pub osc: OscConfig,
+    /// `[osc]`: the OSC source.
+    pub osc: OscSettings,
+    /// `[output]`: where results are written.
     pub output: OutputConfig,
-    pub natnet: NatNetConfig,
-    pub tracking: TrackingConfig,
-    pub wind: WindConfig,
+    /// `[natnet]`: the NatNet client.
+    pub natnet: NatNetSettings,
+    /// `[tracking]`: the marker stage.
+    pub tracking: TrackingSettings,
+    /// `[wind]`: the wind sources and their priority.
+    pub wind: WindSettings,
+    /// `[daemon]`: `treemocap run`.
     pub daemon: DaemonConfig,
+    /// `[c3d]`: reading C3D files.
     pub c3d: C3dConfig,
-    pub reconstruct: ReconstructConfig,
+    /// `[reconstruct]`: the particle flow (docs/particle-flow.md).
+    pub reconstruct: ReconstructSettings,
 }
 
 /// Reading recorded sessions.
@@ -47,25 +63,6 @@ pub struct RecordConfig {
     pub queue_frames: u64,
 }
 
-/// The OSC source (`source::osc`): where it listens, whom it accepts, and
-/// how the sender's positions convert to metres, Y up.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct OscConfig {
-    /// `address:port` to listen on; loopback unless the user widens it.
-    pub bind: String,
-    /// IP addresses or CIDR ranges accepted as senders.
-    pub allow: Vec<String>,
-    /// "y" or "z": the sender's up axis.
-    pub up_axis: String,
-    /// "m", "cm" or "mm": the sender's length unit.
-    pub units: String,
-    /// Also take `/othermarker` messages.
-    pub othermarkers: bool,
-    /// Nominal frame rate for recording headers (Hz).
-    pub frame_rate: f64,
-}
-
 /// Where results go.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -74,150 +71,99 @@ pub struct OutputConfig {
     pub dir: String,
 }
 
-/// The NatNet client (`treemocap record --natnet`, the daemon).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct NatNetConfig {
-    /// Which markers of a frame are tracked (see `source::natnet::select`).
-    pub markers: crate::source::natnet::select::MarkerSelection,
-    /// Wait for the server's SERVERINFO before reporting it unreachable (s).
-    pub connect_timeout_s: f64,
-    /// Silence after which the client reconnects (s).
-    pub silence_timeout_s: f64,
-    /// Unicast keep-alive period (s).
-    pub keepalive_interval_s: f64,
-}
-
-/// Marker processing: tracking, gap filling, noise removal, rest phase
-/// (spec/pipeline.md sections 2–4).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct TrackingConfig {
-    /// Gate radius around a trace's prediction (mm).
-    pub gate_mm: f64,
-    /// Frames a trace survives without a marker before it ends.
-    pub max_gap: u32,
-    /// Longest gap that is filled by interpolation (s).
-    pub max_fill_s: f64,
-    /// Largest plausible disagreement between a gap's far end and a linear
-    /// extrapolation across it (mm); beyond it the fill (or join) is refused.
-    pub max_jump_mm: f64,
-    /// Pieces whose rest positions are this close are one marker (mm).
-    pub merge_radius_mm: f64,
-    /// Traces measured in fewer than this fraction of frames are noise.
-    pub noise_fraction: f64,
-    /// Motion (standard deviation, mm) below which a marker counts as still.
-    pub rest_motion_mm: f64,
-    /// A fixed rest window `[start_s, end_s]`, or empty for automatic.
-    pub rest_window_s: Vec<f64>,
-    /// Markers of one frame closer than this are duplicates (mm).
-    pub duplicate_mm: f64,
-}
-
-impl Default for TrackingConfig {
-    fn default() -> Self {
-        Config::default().tracking
-    }
-}
-
-impl TrackingConfig {
-    /// Range checks, each naming the key and its allowed range.
-    pub fn validate(&self) -> Result<()> {
-        check_range("tracking.gate_mm", self.gate_mm, 1.0, 500.0)?;
-        check_range("tracking.max_gap", f64::from(self.max_gap), 0.0, 100_000.0)?;
-        check_range("tracking.max_fill_s", self.max_fill_s, 0.0, 10.0)?;
-        check_range("tracking.max_jump_mm", self.max_jump_mm, 1.0, 1000.0)?;
-        check_range("tracking.merge_radius_mm", self.merge_radius_mm, 0.0, 100.0)?;
-        check_range("tracking.noise_fraction", self.noise_fraction, 0.0, 1.0)?;
-        check_range("tracking.rest_motion_mm", self.rest_motion_mm, 0.01, 100.0)?;
-        check_range("tracking.duplicate_mm", self.duplicate_mm, 0.0, 10.0)?;
-        match self.rest_window_s.as_slice() {
-            [] => {}
-            [a, b] if a.is_finite() && b.is_finite() && *a >= 0.0 && a < b => {}
-            _ => {
-                return Err(Error::config(
-                    "tracking.rest_window_s",
-                    "must be [] (automatic) or [start_s, end_s] with 0 <= start_s < end_s",
-                ))
-            }
-        }
-        Ok(())
-    }
-}
-
-/// Where the wind estimate comes from (see `wind`).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct WindConfig {
-    /// Source names in order of trust: "sensor", "fan", "pca".
-    pub priority: Vec<String>,
-    /// Age after which a sensor or PCA estimate is ignored (s).
-    pub max_age_s: f64,
-    /// The fan's position (m, Y up), or empty for no fan.
-    pub fan_position: Vec<f64>,
-    /// The fan's wind speed at the tree (m/s), 0 when unknown.
-    pub fan_speed_m_s: f64,
-    /// Serial device of a wind sensor, empty for none.
-    pub sensor_port: String,
-    pub sensor_baud: u32,
-    /// Capture azimuth of the sensor's 0° mark (degrees).
-    pub sensor_heading_deg: f64,
-    /// PCA window (s).
-    pub pca_window_s: f64,
-    /// RMS sway below which PCA gives no estimate (mm).
-    pub pca_min_sway_mm: f64,
-}
-
-impl WindConfig {
-    /// The priority list as sources (validated by `Config::validate`).
-    pub fn priority(&self) -> Vec<crate::model::wind::WindSource> {
-        self.priority
-            .iter()
-            .filter_map(|n| crate::model::wind::WindSource::from_name(n))
-            .collect()
-    }
-
-    /// The fan's position, when one is configured.
-    pub fn fan(&self) -> Option<glam::DVec3> {
-        match self.fan_position[..] {
-            [x, y, z] => Some(glam::DVec3::new(x, y, z)),
-            _ => None,
-        }
-    }
-}
-
 /// `treemocap run`: sources, triggers and outputs of the daemon.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct DaemonConfig {
-    /// "replay", "natnet" or "osc".
-    pub source: String,
+    /// Where frames come from.
+    pub source: DaemonSource,
+    /// The recording played when `source = "replay"`.
     pub replay_file: String,
+    /// Playback speed of that recording; 0 plays as fast as possible.
     pub replay_speed: f64,
+    /// Start the recording again at its end, times continuing.
     pub replay_loop: bool,
+    /// NatNet server, `ADDRESS` or `ADDRESS:COMMAND_PORT`, when
+    /// `source = "natnet"`.
     pub natnet_server: String,
-    /// "auto", "unicast" or "multicast".
-    pub natnet_transport: String,
+    /// How NatNet frames travel; `auto` takes what the server says.
+    pub natnet_transport: TransportSetting,
     /// Seconds of frames kept for analysis.
     pub window_s: f64,
     /// Seconds of capture time between analyses.
     pub analysis_interval_s: f64,
+    /// Still phase (s) needed before the first tree is built.
     pub rest_min_s: f64,
+    /// How long (s) the tips must differ from the last tree's before a new
+    /// tree is built, so a marker hidden for a moment does not trigger one.
     pub tip_change_s: f64,
+    /// Distance (mm) beyond which a tip counts as moved.
     pub moved_mm: f64,
+    /// Wind turn (degrees) that triggers a new tree.
     pub wind_turn_deg: f64,
     /// 0 disables the periodic rebuild.
     pub period_s: f64,
     /// Gate of the live tip follower (mm).
     pub follow_gate_mm: f64,
+    /// Frames queued between the sources and the pipeline; when full, the
+    /// oldest is dropped and counted, so a slow pipeline never blocks a socket.
     pub channel_frames: u32,
+    /// Record every frame to `OUT/session.log.csv`.
     pub record: bool,
-    /// "" disables HTTP.
-    pub http: String,
-    pub osc_targets: Vec<String>,
+    /// HTTP and WebSocket address; `""` in the config (None) turns it off.
+    #[serde(with = "optional_addr")]
+    pub http: Option<SocketAddr>,
+    /// Where the tree, tips and wind are sent as OSC.
+    pub osc_targets: Vec<SocketAddr>,
+    /// Keep every tree as `tree-0001.glb`, `tree-0001.json`, … as well.
     pub history: bool,
-    /// UDP address for `/treemocap/rebuild`; "" disables.
-    pub osc_control: String,
+    /// UDP address for `/treemocap/rebuild`; `""` (None) turns it off.
+    #[serde(with = "optional_addr")]
+    pub osc_control: Option<SocketAddr>,
+}
+
+/// `daemon.source`: where `treemocap run` gets its frames.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum DaemonSource {
+    /// A recording played at its recorded speed (a stand-in for the rig).
+    Replay,
+    /// Motive over NatNet.
+    Natnet,
+    /// A NatNet→OSC bridge, or anything sending our OSC messages.
+    Osc,
+}
+
+/// `daemon.natnet_transport`: how NatNet frames reach the client.
+pub use crate::source::natnet::settings::TransportSetting;
+
+/// An address that the config may leave empty (`""`) to turn a listener off.
+mod optional_addr {
+    use std::net::SocketAddr;
+
+    use serde::{Deserialize, Deserializer, Serializer};
+
+    pub(super) fn serialize<S: Serializer>(
+        v: &Option<SocketAddr>,
+        s: S,
+    ) -> Result<S::Ok, S::Error> {
+        match v {
+            Some(a) => s.collect_str(a),
+            None => s.serialize_str(""),
+        }
+    }
+
+    pub(super) fn deserialize<'de, D: Deserializer<'de>>(
+        d: D,
+    ) -> Result<Option<SocketAddr>, D::Error> {
+        let text = String::deserialize(d)?;
+        if text.is_empty() {
+            return Ok(None);
+        }
+        text.parse().map(Some).map_err(|_| {
+            serde::de::Error::custom(format!("'{text}' is not ADDRESS:PORT (or \"\" for off)"))
+        })
+    }
 }
 
 /// Reading C3D files.
@@ -229,108 +175,13 @@ pub struct C3dConfig {
     pub up_axis: crate::format::c3d::UpAxisSetting,
 }
 
-/// Which crown volume the random tips are placed in (paper §5, Figure 10).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum VolumeKind {
-    /// A vertical stack of bounding boxes; looser, more random crowns.
-    Boxes,
-    /// The convex hull of the captured tips; follows the crown more closely.
-    Hull,
-}
-
-/// Particle-flow reconstruction (paper §5–6, spec §6–7). Every flow parameter
-/// of the paper is here so that a user can re-run the flow on saved tips.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct ReconstructConfig {
-    /// Seed for every random choice; same tips + config + seed = same bytes.
-    pub seed: u64,
-    /// Crown volume for the random tips.
-    pub volume: VolumeKind,
-    /// Boxes in the vertical stack (volume = boxes).
-    pub boxes: usize,
-    /// Captured + random tips: about the real tree's number of tips.
-    pub total_tips: usize,
-    /// Nodes on the synthetic trunk (paper: 9–10).
-    pub trunk_nodes: usize,
-    /// Trunk length as a multiple of the crown height (paper: about 1.2).
-    pub height_factor: f64,
-    /// Largest random x/z offset of a trunk node (m).
-    pub trunk_offset: f64,
-    /// Ground height (m): trunk base, zero of the mean particle height.
-    pub ground_height: f64,
-    /// Shape-format attractor as a trunk node index; -1 = the paper's choice.
-    pub attractor_node: i64,
-    /// β: step length factor, L = β |S_p − S_t|.
-    pub beta: f64,
-    /// α: shape-format magnitude factor on the mean particle height.
-    pub alpha: f64,
-    /// ω1: gravity weight (negative gives a willow).
-    pub gravity_weight: f64,
-    /// ω2: shape-format weight.
-    pub shape_weight: f64,
-    /// ω3: wind weight.
-    pub wind_weight: f64,
-    /// Particles closer than this merge into a junction (m).
-    pub merge_distance: f64,
-    /// Particles closer than this to a trunk node join the trunk (m).
-    pub trunk_distance: f64,
-    /// Steps before the remaining particles are joined to the trunk directly.
-    pub max_steps: usize,
-    /// Radius of a branch tip (m).
-    pub tip_radius: f64,
-    /// Pipe-model exponent γ.
-    pub gamma: f64,
-    /// Vertices per cylinder ring.
-    pub sides: usize,
-    /// Whether to add leaves.
-    pub leaves: bool,
-    /// Leaves begin at this fraction of a branch's length.
-    pub leaf_start: f64,
-    /// Leaves per metre of leafy branch.
-    pub leaf_density: f64,
-    /// Leaf length (m).
-    pub leaf_size: f64,
-}
-
-impl ReconstructConfig {
-    /// Range checks for the `[reconstruct]` section, each naming its key.
-    pub fn validate(&self) -> Result<()> {
-        let r = |key: &str, v: f64, lo: f64, hi: f64| {
-            check_range(&format!("reconstruct.{key}"), v, lo, hi)
-        };
-        r("boxes", self.boxes as f64, 1.0, 100.0)?;
-        r("total_tips", self.total_tips as f64, 1.0, 1_000_000.0)?;
-        r("trunk_nodes", self.trunk_nodes as f64, 2.0, 1000.0)?;
-        r("height_factor", self.height_factor, 0.1, 10.0)?;
-        r("trunk_offset", self.trunk_offset, 0.0, 1.0)?;
-        r("ground_height", self.ground_height, -100.0, 100.0)?;
-        r(
-            "attractor_node",
-            self.attractor_node as f64,
-            -1.0,
-            self.trunk_nodes as f64 - 1.0,
-        )?;
-        r("beta", self.beta, 0.01, 1.0)?;
-        r("alpha", self.alpha, 0.0, 1.0)?;
-        r("gravity_weight", self.gravity_weight, -10.0, 10.0)?;
-        r("shape_weight", self.shape_weight, 0.0, 10.0)?;
-        r("wind_weight", self.wind_weight, -10.0, 10.0)?;
-        r("merge_distance", self.merge_distance, 1e-6, 1.0)?;
-        r("trunk_distance", self.trunk_distance, 1e-6, 1.0)?;
-        r("max_steps", self.max_steps as f64, 1.0, 100_000.0)?;
-        r("tip_radius", self.tip_radius, 1e-5, 1.0)?;
-        r("gamma", self.gamma, 1.0, 4.0)?;
-        r("sides", self.sides as f64, 3.0, 64.0)?;
-        r("leaf_start", self.leaf_start, 0.0, 1.0)?;
-        r("leaf_density", self.leaf_density, 0.0, 10_000.0)?;
-        r("leaf_size", self.leaf_size, 0.001, 1.0)?;
-        Ok(())
+impl Default for TrackingSettings {
+    fn default() -> Self {
+        Config::default().tracking
     }
 }
 
-impl Default for ReconstructConfig {
+impl Default for ReconstructSettings {
     fn default() -> Self {
         Config::default().reconstruct
     }
@@ -390,6 +241,19 @@ impl Config {
 
     /// Range checks, each naming the key and its allowed range.
     pub fn validate(&self) -> Result<()> {
+        self.validate_io()?;
+        validate_wind(&self.wind)?;
+        validate_daemon(&self.daemon)?;
+        if self.output.dir.is_empty() {
+            return Err(Error::config("output.dir", "must not be empty"));
+        }
+        self.tracking.validate()?;
+        self.reconstruct.validate()?;
+        Ok(())
+    }
+
+    /// `[replay]`, `[record]`, `[osc]`, `[natnet]`.
+    fn validate_io(&self) -> Result<()> {
         check_range(
             "replay.time_tolerance_s",
             self.replay.time_tolerance_s,
@@ -409,118 +273,66 @@ impl Config {
             1e6,
         )?;
         check_range("osc.frame_rate", self.osc.frame_rate, 1.0, 10000.0)?;
-        crate::source::osc::OscOptions::from_config(&self.osc)?;
-        check_range(
-            "natnet.connect_timeout_s",
-            self.natnet.connect_timeout_s,
-            0.1,
-            60.0,
-        )?;
-        check_range(
-            "natnet.silence_timeout_s",
-            self.natnet.silence_timeout_s,
-            0.1,
-            60.0,
-        )?;
-        check_range(
-            "natnet.keepalive_interval_s",
-            self.natnet.keepalive_interval_s,
-            0.05,
-            10.0,
-        )?;
-        let w = &self.wind;
-        let mut seen = Vec::new();
-        for name in &w.priority {
-            if crate::model::wind::WindSource::from_name(name).is_none() || seen.contains(&name) {
-                return Err(Error::config(
-                    "wind.priority",
-                    format!(
-                        "'{name}' is unknown or repeated; allowed: \"sensor\", \"fan\", \"pca\""
-                    ),
-                ));
-            }
-            seen.push(name);
-        }
-        check_range("wind.max_age_s", w.max_age_s, 0.5, 600.0)?;
-        if !(w.fan_position.is_empty()
-            || (w.fan_position.len() == 3 && w.fan_position.iter().all(|v| v.is_finite())))
-        {
-            return Err(Error::config(
-                "wind.fan_position",
-                "must be [] or three numbers [x, y, z] in metres",
-            ));
-        }
-        check_range("wind.fan_speed_m_s", w.fan_speed_m_s, 0.0, 50.0)?;
-        check_range("wind.sensor_baud", w.sensor_baud as f64, 300.0, 921_600.0)?;
-        check_range("wind.sensor_heading_deg", w.sensor_heading_deg, 0.0, 360.0)?;
-        check_range("wind.pca_window_s", w.pca_window_s, 1.0, 120.0)?;
-        check_range("wind.pca_min_sway_mm", w.pca_min_sway_mm, 0.1, 100.0)?;
-        let d = &self.daemon;
-        if !matches!(d.source.as_str(), "replay" | "natnet" | "osc") {
-            return Err(Error::config(
-                "daemon.source",
-                format!("'{}': allowed \"replay\", \"natnet\", \"osc\"", d.source),
-            ));
-        }
-        if !matches!(
-            d.natnet_transport.as_str(),
-            "auto" | "unicast" | "multicast"
-        ) {
-            return Err(Error::config(
-                "daemon.natnet_transport",
-                format!(
-                    "'{}': allowed \"auto\", \"unicast\", \"multicast\"",
-                    d.natnet_transport
-                ),
-            ));
-        }
-        check_range("daemon.replay_speed", d.replay_speed, 0.0, 100.0)?;
-        check_range("daemon.window_s", d.window_s, 5.0, 600.0)?;
-        check_range(
-            "daemon.analysis_interval_s",
-            d.analysis_interval_s,
-            0.1,
-            60.0,
-        )?;
-        check_range("daemon.rest_min_s", d.rest_min_s, 1.0, 600.0)?;
-        check_range("daemon.tip_change_s", d.tip_change_s, 0.0, 600.0)?;
-        check_range("daemon.moved_mm", d.moved_mm, 1.0, 1000.0)?;
-        check_range("daemon.wind_turn_deg", d.wind_turn_deg, 1.0, 180.0)?;
-        check_range("daemon.period_s", d.period_s, 0.0, 86_400.0)?;
-        check_range("daemon.follow_gate_mm", d.follow_gate_mm, 5.0, 500.0)?;
-        check_range(
-            "daemon.channel_frames",
-            d.channel_frames as f64,
-            16.0,
-            1_000_000.0,
-        )?;
-        if !d.http.is_empty() && d.http.parse::<std::net::SocketAddr>().is_err() {
-            return Err(Error::config(
-                "daemon.http",
-                format!("'{}' is not ADDRESS:PORT", d.http),
-            ));
-        }
-        if !d.osc_control.is_empty() && d.osc_control.parse::<std::net::SocketAddr>().is_err() {
-            return Err(Error::config(
-                "daemon.osc_control",
-                format!("'{}' is not ADDRESS:PORT", d.osc_control),
-            ));
-        }
-        for t in &d.osc_targets {
-            if t.parse::<std::net::SocketAddr>().is_err() {
-                return Err(Error::config(
-                    "daemon.osc_targets",
-                    format!("'{t}' is not ADDRESS:PORT"),
-                ));
-            }
-        }
-        if self.output.dir.is_empty() {
-            return Err(Error::config("output.dir", "must not be empty"));
-        }
-        self.tracking.validate()?;
-        self.reconstruct.validate()?;
+        crate::source::osc::OscOptions::from_settings(&self.osc)?;
+        self.natnet.validate()?;
         Ok(())
     }
+}
+
+/// `[wind]`: no source twice in the priority, a fan position of three
+/// numbers or none, numbers in range.
+fn validate_wind(w: &WindSettings) -> Result<()> {
+    let mut seen = Vec::new();
+    for name in &w.priority {
+        if seen.contains(&name) {
+            return Err(Error::config(
+                "wind.priority",
+                format!("'{}' is repeated", name.name()),
+            ));
+        }
+        seen.push(name);
+    }
+    check_range("wind.max_age_s", w.max_age_s, 0.5, 600.0)?;
+    if !(w.fan_position.is_empty()
+        || (w.fan_position.len() == 3 && w.fan_position.iter().all(|v| v.is_finite())))
+    {
+        return Err(Error::config(
+            "wind.fan_position",
+            "must be [] or three numbers [x, y, z] in metres",
+        ));
+    }
+    check_range("wind.fan_speed_m_s", w.fan_speed_m_s, 0.0, 50.0)?;
+    check_range("wind.sensor_baud", w.sensor_baud as f64, 300.0, 921_600.0)?;
+    check_range("wind.sensor_heading_deg", w.sensor_heading_deg, 0.0, 360.0)?;
+    check_range("wind.pca_window_s", w.pca_window_s, 1.0, 120.0)?;
+    check_range("wind.pca_min_sway_mm", w.pca_min_sway_mm, 0.1, 100.0)?;
+    Ok(())
+}
+
+/// `[daemon]`: numbers in range (addresses and enums are checked when the
+/// table is read).
+fn validate_daemon(d: &DaemonConfig) -> Result<()> {
+    check_range("daemon.replay_speed", d.replay_speed, 0.0, 100.0)?;
+    check_range("daemon.window_s", d.window_s, 5.0, 600.0)?;
+    check_range(
+        "daemon.analysis_interval_s",
+        d.analysis_interval_s,
+        0.1,
+        60.0,
+    )?;
+    check_range("daemon.rest_min_s", d.rest_min_s, 1.0, 600.0)?;
+    check_range("daemon.tip_change_s", d.tip_change_s, 0.0, 600.0)?;
+    check_range("daemon.moved_mm", d.moved_mm, 1.0, 1000.0)?;
+    check_range("daemon.wind_turn_deg", d.wind_turn_deg, 1.0, 180.0)?;
+    check_range("daemon.period_s", d.period_s, 0.0, 86_400.0)?;
+    check_range("daemon.follow_gate_mm", d.follow_gate_mm, 5.0, 500.0)?;
+    check_range(
+        "daemon.channel_frames",
+        d.channel_frames as f64,
+        16.0,
+        1_000_000.0,
+    )?;
+    Ok(())
 }
 
 /// A value of the wrong type (`-5` for a count, `"x"` for a list) names its
@@ -552,18 +364,6 @@ fn type_error(table: &toml::Table, first: toml::de::Error) -> Error {
         .filter(|k| !k.is_empty())
         .unwrap_or_else(|| "<config>".into());
     Error::config(key, e.message().to_string())
-}
-
-/// Fails unless `lo <= value <= hi` (and the value is a number).
-pub fn check_range(key: &str, value: f64, lo: f64, hi: f64) -> Result<()> {
-    if value.is_finite() && value >= lo && value <= hi {
-        Ok(())
-    } else {
-        Err(Error::config(
-            key,
-            format!("{value} is out of range; allowed {lo} to {hi}"),
-        ))
-    }
 }
 
 /// Merges `over` into `base`; every key of `over` must exist in `base` with a
@@ -701,7 +501,7 @@ mod tests {
 
     #[test]
     fn natnet_marker_selection_is_checked() {
-        use crate::source::natnet::select::MarkerSelection;
+        use crate::protocol::natnet::select::MarkerSelection;
         assert_eq!(Config::default().natnet.markers, MarkerSelection::Unlabeled);
         let c = Config::from_toml_str("[natnet]\nmarkers = \"all\"\n").unwrap();
         assert_eq!(c.natnet.markers, MarkerSelection::All);
@@ -728,7 +528,7 @@ mod tests {
             Config::from_toml_str("[wind]\nfan_position = [-3, 1.2, 0]\npriority = [\"fan\"]\n")
                 .unwrap();
         assert_eq!(c.wind.fan(), Some(glam::DVec3::new(-3.0, 1.2, 0.0)));
-        assert_eq!(c.wind.priority(), vec![crate::model::wind::WindSource::Fan]);
+        assert_eq!(c.wind.priority, vec![crate::model::wind::WindSource::Fan]);
         let e = Config::from_toml_str("[wind]\nfan_position = [1, 2]\n").unwrap_err();
         assert!(e.to_string().contains("wind.fan_position"), "{e}");
         let e = Config::from_toml_str("[wind]\npriority = [\"fan\", \"moon\"]\n").unwrap_err();
@@ -745,7 +545,7 @@ mod tests {
             ],
         )
         .unwrap();
-        assert_eq!(c.reconstruct.volume, VolumeKind::Hull);
+        assert_eq!(c.reconstruct.volume, crate::reconstruct::VolumeKind::Hull);
         assert_eq!(c.reconstruct.gravity_weight, -0.2);
         let e = Config::load(None, &["reconstruct.beta=2".into()]).unwrap_err();
         assert!(e.to_string().contains("reconstruct.beta"), "{e}");

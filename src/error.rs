@@ -9,7 +9,12 @@ use std::path::PathBuf;
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub enum Location {
     /// 1-based line, optionally with a 1-based column (CSV field index).
-    Line { line: u64, column: Option<u64> },
+    Line {
+        /// Line as a text editor counts it, from 1.
+        line: u64,
+        /// Column (CSV field) from 1, when the problem is in one field.
+        column: Option<u64>,
+    },
     /// Byte offset from the start of the file or packet.
     Offset(u64),
     /// A named field (config key, packet field).
@@ -36,29 +41,69 @@ pub enum Error {
     /// The OS refused to read or write a file.
     #[error("{}: {source}", path.display())]
     Io {
+        /// The file or device the OS refused.
         path: PathBuf,
+        /// What the OS said.
         #[source]
         source: std::io::Error,
     },
     /// An input file is malformed at a known place.
     #[error("{}: {at}: {msg}", path.display())]
     Parse {
+        /// The malformed file.
         path: PathBuf,
+        /// Where in it: line, byte offset or field.
         at: Location,
+        /// What is wrong there, phrased for a user.
         msg: String,
     },
     /// The file is of a kind or version we recognise but do not read.
     #[error("{}: {msg}", path.display())]
-    Unsupported { path: PathBuf, msg: String },
+    Unsupported {
+        /// The file we will not read.
+        path: PathBuf,
+        /// Which kind or version it is and what we read instead.
+        msg: String,
+    },
     /// A configuration key is unknown, mistyped or out of range (exit code 2).
     #[error("config {key}: {msg}")]
-    Config { key: String, msg: String },
-    /// Anything else at run time (sockets, threads), already phrased for a user.
+    Config {
+        /// The dotted key (`section.key`) the user must fix.
+        key: String,
+        /// What is wrong with its value, with the allowed range if any.
+        msg: String,
+    },
+    /// A stage could not do its work on inputs that passed their checks
+    /// (a reconstruction that breaks, an encoder at a format's limit); the
+    /// stage's own error type says what happened.
+    #[error("{stage}: {source}")]
+    Stage {
+        /// The stage, as the user knows it ("reconstruction", "tree.glb").
+        stage: &'static str,
+        /// The stage's error.
+        #[source]
+        source: Box<dyn std::error::Error + Send + Sync>,
+    },
+    /// A listener could not start: a port in use, an address this machine
+    /// does not have.
+    #[error("{what} on {addr}: {source}")]
+    Bind {
+        /// What was to listen ("HTTP", "OSC control").
+        what: &'static str,
+        /// Where.
+        addr: std::net::SocketAddr,
+        /// The operating system's reason.
+        #[source]
+        source: std::io::Error,
+    },
+    /// Anything else at run time (threads, the async runtime), already
+    /// phrased for a user.
     #[error("{0}")]
     Runtime(String),
 }
 
 impl Error {
+    /// An I/O failure on `path`, so the message names the file.
     pub fn io(path: impl Into<PathBuf>, source: std::io::Error) -> Self {
         Error::Io {
             path: path.into(),
@@ -66,6 +111,7 @@ impl Error {
         }
     }
 
+    /// Malformed input in `path` at `at`.
     pub fn parse(path: impl Into<PathBuf>, at: Location, msg: impl Into<String>) -> Self {
         Error::Parse {
             path: path.into(),
@@ -74,6 +120,7 @@ impl Error {
         }
     }
 
+    /// Malformed input at a 1-based line (and column) of a text file.
     pub fn at_line(
         path: impl Into<PathBuf>,
         line: u64,
@@ -83,6 +130,7 @@ impl Error {
         Self::parse(path, Location::Line { line, column }, msg)
     }
 
+    /// A bad configuration value, named by its dotted key.
     pub fn config(key: impl Into<String>, msg: impl Into<String>) -> Self {
         Error::Config {
             key: key.into(),
@@ -99,4 +147,17 @@ impl Error {
     }
 }
 
+/// The library's result type: every fallible function returns [`Error`].
 pub type Result<T, E = Error> = std::result::Result<T, E>;
+
+/// Fails unless `lo <= value <= hi` (and the value is a number).
+pub fn check_range(key: &str, value: f64, lo: f64, hi: f64) -> Result<()> {
+    if value.is_finite() && value >= lo && value <= hi {
+        Ok(())
+    } else {
+        Err(Error::config(
+            key,
+            format!("{value} is out of range; allowed {lo} to {hi}"),
+        ))
+    }
+}

@@ -1,4 +1,5 @@
 //! treemocap: motion capture of tree branch tips in, 3D tree models out.
+#![warn(missing_docs, unreachable_pub)]
 //!
 //! The method is Long & Jones 2013. The modules are layers whose imports
 //! point one way (docs/architecture.md): `model` (plain data) ← `protocol`,
@@ -18,6 +19,7 @@ pub mod reconstruct;
 pub mod render;
 pub mod rng;
 pub mod serve;
+pub mod shutdown;
 pub mod sim;
 pub mod source;
 pub mod track;

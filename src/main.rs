@@ -6,6 +6,10 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
+use treemocap::app::record::RecordOptions;
+use treemocap::config::TransportSetting;
+use treemocap::protocol::natnet;
+use treemocap::shutdown::Shutdown;
 use treemocap::{Error, Result};
 
 /// Turns motion capture of tree branch tips into 3D tree models
@@ -89,75 +93,10 @@ enum Command {
     },
     /// Record a live source (OSC or NatNet) to a treemocap log until Ctrl-C
     /// or --seconds, printing frames, markers and losses once a second.
-    #[command(group(clap::ArgGroup::new("live").required(true).args(["osc", "natnet"])))]
-    Record {
-        /// Listen for OSC on ADDR:PORT (UDP; overrides osc.bind), e.g.
-        /// 127.0.0.1:9000. Senders must be in osc.allow (default: loopback).
-        #[arg(long, value_name = "ADDR:PORT")]
-        osc: Option<String>,
-        /// Receive from a NatNet server (Motive) at ADDRESS or
-        /// ADDRESS:COMMAND_PORT (default port 1510).
-        #[arg(long, value_name = "SERVER")]
-        natnet: Option<String>,
-        /// NatNet: frames sent to this client only (default: what the
-        /// server says it does).
-        #[arg(long, requires = "natnet", conflicts_with = "multicast")]
-        unicast: bool,
-        /// NatNet: frames multicast to the group.
-        #[arg(long, requires = "natnet")]
-        multicast: bool,
-        /// NatNet: ask the server for this bitstream version (e.g. 3.1).
-        #[arg(long, value_name = "X.Y", requires = "natnet")]
-        natnet_version: Option<String>,
-        /// The log file to write (truncated if it exists).
-        out: PathBuf,
-        /// Stop after N seconds (default: run until Ctrl-C).
-        #[arg(long, value_name = "N")]
-        seconds: Option<f64>,
-        #[command(flatten)]
-        config: ConfigArgs,
-    },
+    Record(RecordArgs),
     /// Stream a recording as a NatNet server (a stand-in for Motive), so any
     /// NatNet client can be tested without a rig.
-    Serve {
-        /// A Motive CSV export, a C3D file or a treemocap log (detected by content).
-        file: PathBuf,
-        /// NatNet bitstream version to stream (2.5 … 4.x); unicast clients
-        /// may switch theirs with a `Bitstream,X.Y` request.
-        #[arg(long, value_name = "X.Y", default_value = "3.1")]
-        natnet_version: treemocap::source::natnet::packet::Version,
-        /// Playback speed (2 = twice as fast as recorded).
-        #[arg(long, default_value_t = 1.0)]
-        speed: f64,
-        /// Start again at the end (frame numbers jump back, as in Motive).
-        #[arg(long = "loop")]
-        looping: bool,
-        /// Send frames to the multicast group (default: unicast to each
-        /// client that connects).
-        #[arg(long, conflicts_with = "unicast")]
-        multicast: bool,
-        /// Send frames to each client that connects (the default).
-        #[arg(long)]
-        unicast: bool,
-        /// Local address to listen on.
-        #[arg(long, default_value = "0.0.0.0")]
-        bind: std::net::Ipv4Addr,
-        /// Command port (clients send CONNECT here).
-        #[arg(long, default_value_t = 1510)]
-        command_port: u16,
-        /// Data port (frames are sent from / to it).
-        #[arg(long, default_value_t = 1511)]
-        data_port: u16,
-        /// Multicast group.
-        #[arg(long, default_value = "239.255.42.99")]
-        group: std::net::Ipv4Addr,
-        /// Address of the interface multicast frames leave by.
-        #[arg(long, default_value = "127.0.0.1")]
-        interface: std::net::Ipv4Addr,
-        /// Start streaming at once instead of when the first client connects.
-        #[arg(long)]
-        now: bool,
-    },
+    Serve(ServeArgs),
     /// Re-run the particle flow on saved tips (tips.json) and write
     /// tree.glb, tree.json and tree.png.
     Reconstruct {
@@ -169,6 +108,24 @@ enum Command {
         #[arg(long, value_name = "DIR")]
         out: Option<PathBuf>,
     },
+    /// Show a finished session in the live page, with a timeline to scrub:
+    /// a recording (the marker stage runs on it) or an output folder
+    /// (`replay --out`, or the daemon's out/ with its session.log.csv).
+    /// Serves until Ctrl-C.
+    View {
+        /// A recording (Motive CSV, C3D, treemocap log) or an output folder.
+        path: PathBuf,
+        /// For an output folder without session.log.csv: the recording its
+        /// tips came from, for the timeline.
+        #[arg(long, value_name = "FILE")]
+        recording: Option<PathBuf>,
+        /// Where to serve the page (0.0.0.0:8080 for the lab network; port 0
+        /// picks a free one).
+        #[arg(long, value_name = "ADDR:PORT", default_value = "127.0.0.1:8080")]
+        http: String,
+        #[command(flatten)]
+        config: ConfigArgs,
+    },
     /// Make a synthetic capture session of a simulated tree: a Motive 1.23
     /// CSV of unlabeled markers plus NAME.truth.json beside it (the true tree,
     /// rest positions, wind and every gap), for testing without a mocap lab.
@@ -176,6 +133,116 @@ enum Command {
     /// Example (how replays/maple-24.csv was made):
     /// treemocap synth --seed 24 --tips 24 --shape maple --out replays/maple-24.csv
     Synth(SynthArgs),
+}
+
+/// Options of `treemocap record`.
+#[derive(clap::Args, Debug)]
+#[command(group(clap::ArgGroup::new("live").required(true).args(["osc", "natnet"])))]
+struct RecordArgs {
+    /// Listen for OSC on ADDR:PORT (UDP; overrides osc.bind), e.g.
+    /// 127.0.0.1:9000. Senders must be in osc.allow (default: loopback).
+    #[arg(long, value_name = "ADDR:PORT")]
+    osc: Option<String>,
+    /// Receive from a NatNet server (Motive) at ADDRESS or
+    /// ADDRESS:COMMAND_PORT (default port 1510).
+    #[arg(long, value_name = "SERVER")]
+    natnet: Option<String>,
+    #[command(flatten)]
+    natnet_options: NatNetArgs,
+    /// The log file to write (truncated if it exists).
+    out: PathBuf,
+    /// Stop after N seconds (default: run until Ctrl-C).
+    #[arg(long, value_name = "N")]
+    seconds: Option<f64>,
+    #[command(flatten)]
+    config: ConfigArgs,
+}
+
+/// `record`'s NatNet options; each overrides its `[natnet]` key.
+#[derive(clap::Args, Debug)]
+struct NatNetArgs {
+    /// NatNet: frames sent to this client only (default: what the
+    /// server says it does).
+    #[arg(long, requires = "natnet", conflicts_with = "multicast")]
+    unicast: bool,
+    /// NatNet: frames multicast to the group.
+    #[arg(long, requires = "natnet")]
+    multicast: bool,
+    /// NatNet: ask the server for this bitstream version (e.g. 3.1).
+    #[arg(long, value_name = "X.Y", requires = "natnet")]
+    natnet_version: Option<String>,
+    /// NatNet: the network interface multicast is joined on, an address
+    /// or a name such as eth1 (overrides natnet.interface).
+    #[arg(long, value_name = "ADDRESS|NAME", requires = "natnet")]
+    interface: Option<String>,
+    /// NatNet: the multicast group (overrides natnet.multicast_group).
+    #[arg(long, value_name = "GROUP", requires = "natnet")]
+    group: Option<std::net::Ipv4Addr>,
+    /// NatNet: the server's command port (overrides natnet.command_port;
+    /// so does --natnet ADDRESS:PORT).
+    #[arg(long, value_name = "PORT", requires = "natnet")]
+    command_port: Option<u16>,
+    /// NatNet: the server's data port (overrides natnet.data_port).
+    #[arg(long, value_name = "PORT", requires = "natnet")]
+    data_port: Option<u16>,
+    /// NatNet: which axis of the stream points up: auto, y or z
+    /// (overrides natnet.up_axis).
+    #[arg(long, value_name = "AXIS", requires = "natnet")]
+    up_axis: Option<String>,
+}
+
+/// Options of `treemocap serve`.
+#[derive(clap::Args, Debug)]
+struct ServeArgs {
+    /// A Motive CSV export, a C3D file or a treemocap log (detected by content).
+    file: PathBuf,
+    /// NatNet bitstream version to stream (2.5 … 4.x); unicast clients
+    /// may switch theirs with a `Bitstream,X.Y` request.
+    #[arg(long, value_name = "X.Y", default_value_t = natnet::DEFAULT_SERVE_VERSION)]
+    natnet_version: natnet::Version,
+    /// Playback speed (2 = twice as fast as recorded).
+    #[arg(long, default_value_t = 1.0)]
+    speed: f64,
+    /// Start again at the end (frame numbers jump back, as in Motive).
+    #[arg(long = "loop")]
+    looping: bool,
+    /// Send frames to the multicast group (default: unicast to each
+    /// client that connects).
+    #[arg(long, conflicts_with = "unicast")]
+    multicast: bool,
+    /// Send frames to each client that connects (the default).
+    #[arg(long)]
+    unicast: bool,
+    /// Local address to listen on.
+    #[arg(long, default_value = "0.0.0.0")]
+    bind: std::net::Ipv4Addr,
+    /// Command port (clients send CONNECT here).
+    #[arg(long, default_value_t = natnet::DEFAULT_COMMAND_PORT)]
+    command_port: u16,
+    /// Data port (frames are sent from / to it).
+    #[arg(long, default_value_t = natnet::DEFAULT_DATA_PORT)]
+    data_port: u16,
+    /// Multicast group.
+    #[arg(long, default_value_t = natnet::DEFAULT_MULTICAST_GROUP)]
+    group: std::net::Ipv4Addr,
+    /// Address of the interface multicast frames leave by.
+    #[arg(long, default_value = "127.0.0.1")]
+    interface: std::net::Ipv4Addr,
+    /// Start streaming at once instead of when the first client connects.
+    #[arg(long)]
+    now: bool,
+    /// Stream Z up, as Motive's "Z up" option does (default: y).
+    #[arg(long, value_name = "AXIS", default_value = "y", value_parser = parse_up_axis)]
+    up_axis: natnet::select::UpAxis,
+}
+
+/// `y` or `z`.
+fn parse_up_axis(text: &str) -> std::result::Result<natnet::select::UpAxis, String> {
+    match text.to_ascii_lowercase().as_str() {
+        "y" => Ok(natnet::select::UpAxis::Y),
+        "z" => Ok(natnet::select::UpAxis::Z),
+        _ => Err(format!("'{text}' is not an up axis; use y or z")),
+    }
 }
 
 /// Options of `treemocap synth`; every one left out takes the default shown.
@@ -275,6 +342,20 @@ fn main() -> ExitCode {
     }
 }
 
+/// The process's one async runtime and one shutdown signal, with the one
+/// Ctrl-C/SIGTERM handler, for the commands that run until stopped.
+fn runtime() -> Result<(tokio::runtime::Runtime, Shutdown)> {
+    let rt = tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .thread_name("treemocap-io")
+        .enable_all()
+        .build()
+        .map_err(|e| Error::Runtime(format!("cannot start the async runtime: {e}")))?;
+    let shutdown = Shutdown::new();
+    shutdown.trigger_on_signals(rt.handle());
+    Ok((rt, shutdown))
+}
+
 fn init_logging(verbose: u8) {
     let default = match verbose {
         0 => "warn",
@@ -296,12 +377,25 @@ fn to_json(value: &impl serde::Serialize) -> Result<String> {
 
 fn run(command: Command) -> Result<()> {
     match command {
-        Command::Run { config: args, out } => {
-            let config = args.load()?;
-            let out = out.unwrap_or_else(|| PathBuf::from(&config.output.dir));
-            let shutdown = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
-            let reload: treemocap::daemon::run::Reload = Box::new(move || args.load());
-            treemocap::daemon::run::run_with_reload(config, &out, shutdown, true, Some(reload))
+        Command::Run { config, out } => run_daemon(config, out),
+        Command::View {
+            path,
+            recording,
+            http,
+            config,
+        } => {
+            let config = config.load()?;
+            let session = treemocap::app::view::load(&path, recording.as_deref(), &config)?;
+            let listener = std::net::TcpListener::bind(&http)
+                .map_err(|e| Error::Runtime(format!("view: HTTP on {http}: {e}")))?;
+            let frames = session.frames.len();
+            let (_stop, shutdown) = tokio::sync::watch::channel(false);
+            treemocap::app::view::serve(session, listener, shutdown, |url| {
+                println!(
+                    "{}: {frames} frames; the page is at {url} (Ctrl-C stops)",
+                    path.display()
+                );
+            })
         }
         Command::Replay { file, config, out } => {
             let config = config.load()?;
@@ -335,111 +429,10 @@ fn run(command: Command) -> Result<()> {
             }
             Ok(())
         }
-        Command::Record {
-            osc,
-            natnet,
-            unicast,
-            multicast,
-            natnet_version,
-            out,
-            seconds,
-            config,
-        } => {
-            use std::sync::Arc;
-            use treemocap::app::record::{self, RecordEvent, RecordOptions};
-            use treemocap::source::live::LiveSource;
-            let config = config.load()?;
-            if let Some(s) = seconds {
-                if !(s.is_finite() && s > 0.0) {
-                    return Err(Error::config(
-                        "--seconds",
-                        format!("{s}: must be a positive number"),
-                    ));
-                }
-            }
-            let source: Arc<dyn LiveSource> = match (osc, natnet) {
-                (Some(addr), _) => {
-                    let mut opts = treemocap::source::osc::OscOptions::from_config(&config.osc)?;
-                    opts.bind = addr.parse().map_err(|_| {
-                        Error::config(
-                            "--osc",
-                            format!("'{addr}' is not ADDR:PORT (e.g. 127.0.0.1:9000)"),
-                        )
-                    })?;
-                    Arc::new(treemocap::source::osc::OscSource(opts))
-                }
-                (None, Some(server)) => {
-                    use treemocap::source::natnet::{client::NatNetOptions, live::NatNetSource};
-                    let mut opts = NatNetOptions::from_config(&config.natnet);
-                    opts.set_server(&server, "--natnet")?;
-                    opts.transport = match (unicast, multicast) {
-                        (true, _) => Some(treemocap::source::natnet::Transport::Unicast),
-                        (_, true) => Some(treemocap::source::natnet::Transport::Multicast),
-                        _ => None,
-                    };
-                    if let Some(v) = natnet_version {
-                        opts.bitstream = Some(
-                            v.parse()
-                                .map_err(|e| Error::config("--natnet-version", e))?,
-                        );
-                    }
-                    Arc::new(NatNetSource(opts))
-                }
-                (None, None) => return Err(Error::config("record", "give --osc or --natnet")),
-            };
-            let opts = RecordOptions::from_config(out, seconds, &config);
-            println!("recording to {}", opts.out.display());
-            let summary = record::record_until_ctrl_c(source, &opts, |event| match event {
-                RecordEvent::Status(s) => println!("{s}"),
-                RecordEvent::Progress(p) => println!("{}", record::progress_line(&p)),
-            })?;
-            println!("{}", record::progress_line(&summary.progress));
-            println!("{}", summary.source);
-            println!("wrote {}", summary.out.display());
-            Ok(())
-        }
-        Command::Serve {
-            file,
-            natnet_version,
-            speed,
-            looping,
-            multicast,
-            unicast: _,
-            bind,
-            command_port,
-            data_port,
-            group,
-            interface,
-            now,
-        } => {
-            use treemocap::source::natnet::server;
-            let opts = server::ServeOptions {
-                version: natnet_version,
-                speed,
-                looping,
-                transport: if multicast {
-                    server::Transport::Multicast
-                } else {
-                    server::Transport::Unicast
-                },
-                bind,
-                command_port,
-                data_port,
-                multicast_group: group,
-                multicast_interface: interface,
-                wait_for_client: !now,
-                ..Default::default()
-            };
-            let report =
-                with_ctrl_c(|shutdown| async move { server::serve(&file, &opts, shutdown).await })?;
-            eprintln!(
-                "served {} frames ({} loops) to {} clients in {:.1} s",
-                report.frames, report.loops, report.clients, report.elapsed_s
-            );
-            Ok(())
-        }
+        Command::Record(args) => record(args),
+        Command::Serve(args) => serve(args),
         Command::Synth(args) => {
-            let summary = treemocap::sim::write_session(&args.options(), &args.out)?;
+            let summary = treemocap::app::synth::write_session(&args.options(), &args.out)?;
             print!("{summary}");
             Ok(())
         }
@@ -449,42 +442,112 @@ fn run(command: Command) -> Result<()> {
             let report = treemocap::app::reconstruct::command(&tips, &config, &out)?;
             // A closed pipe (`| head`) is not an error worth a panic.
             use std::io::Write;
-            let mut stdout = std::io::stdout().lock();
-            let _ = writeln!(
-                stdout,
-                "{} captured + {} random tips, {} nodes, {} steps, {} forced joins, {} triangles, {} leaves",
-                report.captured_tips,
-                report.random_tips,
-                report.nodes,
-                report.steps,
-                report.forced_joins,
-                report.branch_triangles,
-                report.leaves
-            );
-            for f in &report.files {
-                let _ = writeln!(stdout, "wrote {}", f.display());
-            }
+            let _ = write!(std::io::stdout().lock(), "{report}");
             Ok(())
         }
     }
 }
 
-/// Runs an async library call on a tokio runtime until it returns or Ctrl-C
-/// (which it sees as its shutdown signal turning true).
-fn with_ctrl_c<T, F, Fut>(f: F) -> Result<T>
-where
-    F: FnOnce(tokio::sync::watch::Receiver<bool>) -> Fut,
-    Fut: std::future::Future<Output = Result<T>>,
-{
-    let rt = tokio::runtime::Runtime::new()
-        .map_err(|e| Error::Runtime(format!("cannot start the async runtime: {e}")))?;
-    rt.block_on(async move {
-        let (tx, rx) = tokio::sync::watch::channel(false);
-        tokio::spawn(async move {
-            if tokio::signal::ctrl_c().await.is_ok() {
-                let _ = tx.send(true);
-            }
-        });
-        f(rx).await
-    })
+/// `treemocap run`: the daemon until Ctrl-C or SIGTERM; SIGHUP reloads.
+fn run_daemon(args: ConfigArgs, out: Option<PathBuf>) -> Result<()> {
+    let config = args.load()?;
+    let out = out.unwrap_or_else(|| PathBuf::from(&config.output.dir));
+    let (rt, shutdown) = runtime()?;
+    let reload: treemocap::daemon::Reload = Box::new(move || args.load());
+    let result =
+        treemocap::daemon::run_at_the_rig(config, &out, rt.handle(), &shutdown, Some(reload));
+    rt.shutdown_timeout(std::time::Duration::from_millis(500));
+    result
+}
+
+/// `treemocap record`: a live source into our log format.
+fn record(args: RecordArgs) -> Result<()> {
+    let config = args.config.load()?;
+    if let Some(s) = args.seconds {
+        if !(s.is_finite() && s > 0.0) {
+            return Err(Error::config(
+                "--seconds",
+                format!("{s}: must be a positive number"),
+            ));
+        }
+    }
+    let source = match (args.osc, args.natnet) {
+        (Some(addr), _) => {
+            let bind = addr.parse().map_err(|_| {
+                Error::config(
+                    "--osc",
+                    format!("'{addr}' is not ADDR:PORT (e.g. 127.0.0.1:9000)"),
+                )
+            })?;
+            treemocap::app::live::osc_source(&config, Some(bind))?
+        }
+        (None, Some(server)) => {
+            let settings = natnet_options(&args.natnet_options, config.natnet.clone())?;
+            treemocap::app::live::natnet_source(settings, &server, "--natnet")?
+        }
+        (None, None) => return Err(Error::config("record", "give --osc or --natnet")),
+    };
+    let opts = RecordOptions::from_config(args.out, args.seconds, &config);
+    let (rt, shutdown) = runtime()?;
+    treemocap::app::record::command(rt.handle(), &shutdown, source, &opts)?;
+    Ok(())
+}
+
+/// The `[natnet]` settings with `record`'s NatNet options applied.
+fn natnet_options(
+    args: &NatNetArgs,
+    mut s: treemocap::source::natnet::settings::NatNetSettings,
+) -> Result<treemocap::source::natnet::settings::NatNetSettings> {
+    s.transport = match (args.unicast, args.multicast) {
+        (true, _) => TransportSetting::Unicast,
+        (_, true) => TransportSetting::Multicast,
+        _ => TransportSetting::Auto,
+    };
+    if let Some(v) = &args.natnet_version {
+        s.bitstream = Some(
+            v.parse()
+                .map_err(|e| Error::config("--natnet-version", e))?,
+        );
+    }
+    if let Some(i) = &args.interface {
+        s.interface = i.parse().map_err(|e| Error::config("--interface", e))?;
+    }
+    if let Some(a) = &args.up_axis {
+        s.up_axis = a.parse().map_err(|e| Error::config("--up-axis", e))?;
+    }
+    s.multicast_group = args.group.or(s.multicast_group);
+    s.command_port = args.command_port.unwrap_or(s.command_port);
+    s.data_port = args.data_port.or(s.data_port);
+    Ok(s)
+}
+
+/// `treemocap serve`: a recording streamed as a NatNet server.
+fn serve(args: ServeArgs) -> Result<()> {
+    use treemocap::serve::natnet as server;
+    let opts = server::ServeOptions {
+        version: args.natnet_version,
+        speed: args.speed,
+        looping: args.looping,
+        transport: if args.multicast {
+            server::Transport::Multicast
+        } else {
+            server::Transport::Unicast
+        },
+        bind: args.bind,
+        command_port: args.command_port,
+        data_port: args.data_port,
+        multicast_group: args.group,
+        multicast_interface: args.interface,
+        wait_for_client: !args.now,
+        up_axis: args.up_axis,
+        ..Default::default()
+    };
+    let (rt, shutdown) = runtime()?;
+    let open = || treemocap::app::open::open(&args.file);
+    let report = rt.block_on(server::serve(open, &opts, shutdown.receiver()))?;
+    eprintln!(
+        "served {} frames ({} loops) to {} clients in {:.1} s",
+        report.frames, report.loops, report.clients, report.elapsed_s
+    );
+    Ok(())
 }

@@ -12,6 +12,8 @@ pub struct Rng {
 }
 
 impl Rng {
+    /// A generator whose whole stream is fixed by `seed`: the seed of the
+    /// config (`reconstruct.seed`) or of the simulator (`synth --seed`).
     pub fn new(seed: u64) -> Self {
         let mut x = seed;
         let mut next = || {
@@ -33,6 +35,7 @@ impl Rng {
         Rng::new(self.next_u64() ^ label.wrapping_mul(0xD6E8_FEB8_6659_FD93))
     }
 
+    /// The next 64 raw bits of the stream; every other draw is built on it.
     pub fn next_u64(&mut self) -> u64 {
         let result = self.s[1].wrapping_mul(5).rotate_left(7).wrapping_mul(9);
         let t = self.s[1] << 17;

@@ -5,8 +5,9 @@
 use std::io::Write;
 use std::path::Path;
 
+use treemocap::app::synth::write_session;
 use treemocap::format::motive_csv::MotiveCsvReader;
-use treemocap::sim::{self, CrownShape, SynthOptions};
+use treemocap::sim::{CrownShape, SynthOptions};
 
 use crate::util::{cat_seconds, mb_s, or_dash, peer_seconds, timed, Row, Scale};
 
@@ -59,7 +60,8 @@ fn write_dense(path: &Path, frames: usize, markers: usize, rate: f64) {
 /// Reads the whole export; (seconds, marker samples, columns).
 fn read_all(path: &Path) -> (f64, u64, usize) {
     let ((samples, columns), s) = timed(|| {
-        let r = MotiveCsvReader::open(path).expect("open");
+        let file = std::fs::File::open(path).expect("open");
+        let r = MotiveCsvReader::from_file(file, path, 0.002).expect("open");
         let columns = treemocap::format::Recording::channels(&r).len() * 3;
         let mut n = 0u64;
         for f in r {
@@ -122,7 +124,7 @@ pub fn reading(scale: &Scale) -> Vec<Row> {
         wind_s: if scale.quick { 60.0 } else { 150.0 },
         ..Default::default()
     };
-    sim::write_session(&opts, &sparse).expect("sparse session");
+    write_session(&opts, &sparse).expect("sparse session");
     vec![
         measure(
             &format!("dense, {minutes} min at 240 Hz × 70 markers"),

@@ -3,7 +3,6 @@
 //! over loopback to a daemon in this process, for the window plus five
 //! minutes; /status is read over HTTP as a user would.
 
-use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
@@ -12,7 +11,7 @@ use treemocap::config::Config;
 use treemocap::format::{Format, Recording, RecordingInfo};
 use treemocap::model::frame::{Marker, MarkerFrame};
 use treemocap::rng::Rng;
-use treemocap::source::natnet::server::{self, ServeOptions, ServerStats};
+use treemocap::serve::natnet::{self as server, ServeOptions, ServerStats};
 
 use crate::util::{get_json, rss_mb, Row, Scale};
 
@@ -120,7 +119,7 @@ fn run(scale: &Scale, seconds: f64, rate: f64, n: usize, http: &str) -> Run {
         let open = move || -> treemocap::Result<Box<dyn Recording>> {
             Ok(Box::new(Session::new(seconds, rate, n)))
         };
-        server::serve_with(open, &sopts, server_stop).await
+        server::serve(open, &sopts, server_stop).await
     });
     let port = loop {
         if let Some(a) = stats.command_addr.get() {
@@ -138,9 +137,11 @@ fn run(scale: &Scale, seconds: f64, rate: f64, n: usize, http: &str) -> Run {
         ],
     )
     .expect("config");
-    let stop = Arc::new(AtomicBool::new(false));
+    let stop = treemocap::shutdown::Shutdown::new();
     let (flag, out) = (stop.clone(), scale.path(&format!("daemon-{n}")));
-    let daemon = std::thread::spawn(move || treemocap::daemon::run(config, &out, flag, false));
+    let handle_rt = rt.handle().clone();
+    let daemon =
+        std::thread::spawn(move || treemocap::daemon::run(config, &out, &handle_rt, &flag, None));
     let t0 = Instant::now();
     let mut status = serde_json::Value::Null;
     let mut peak_rss_mb: f64 = 0.0;
@@ -155,7 +156,7 @@ fn run(scale: &Scale, seconds: f64, rate: f64, n: usize, http: &str) -> Run {
     if let Some(s) = get_json(http, "/status") {
         status = s;
     }
-    stop.store(true, Ordering::Relaxed);
+    stop.trigger();
     let _ = stop_server.send(true);
     daemon.join().expect("daemon thread").expect("daemon");
     let sent = rt

@@ -6,10 +6,10 @@ use std::time::Duration;
 
 use treemocap::format::c3d::encode::{encode, Sample, WriteSpec};
 use treemocap::format::log::{LogHeader, LogWriter};
-use treemocap::rng::Rng;
-use treemocap::source::natnet::packet::{
+use treemocap::protocol::natnet::{
     decode, encode as encode_packet, FrameOfData, LabeledMarker, Packet, Version, MARKER_UNLABELED,
 };
+use treemocap::rng::Rng;
 
 use crate::util::{or_dash, peer_seconds, timed, Row, Scale};
 

@@ -18,8 +18,9 @@ pub fn share(scale: &Scale) -> Vec<Row> {
     let tips = crowns::crown_tips(crowns::Shape::Maple, 70, 2);
     let mut config = Config::default();
     config.reconstruct.total_tips = total;
-    let (outputs, build_s) =
-        timed(|| build_model(&tips, DVec3::new(2.0, 0.0, 0.0), &config).expect("reconstruct"));
+    let (outputs, build_s) = timed(|| {
+        build_model(&tips, DVec3::new(2.0, 0.0, 0.0), &config.reconstruct).expect("reconstruct")
+    });
     let picture_s = best_of(3, || timed(|| tree_png(&outputs.tree).expect("png")).1);
     println!(
         "picture: {} nodes; reconstruction {build_s:.3} s, tree.png {picture_s:.3} s",

@@ -4,7 +4,7 @@
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
-use treemocap::source::natnet::packet::{decode, encode, SUPPORTED_VERSIONS};
+use treemocap::protocol::natnet::{decode, encode, SUPPORTED_VERSIONS};
 
 fuzz_target!(|data: &[u8]| {
     for &v in SUPPORTED_VERSIONS {

@@ -23,16 +23,25 @@ const JUMPS_LISTED: usize = 20;
 /// Everything `inspect` reports; serialised as-is by `--json`.
 #[derive(Debug, Clone, Serialize)]
 pub struct Inspection {
+    /// The path as given on the command line.
     pub file: String,
+    /// The format detected from the content.
     pub format: Format,
+    /// The format's own version ("1.23" for Motive CSV, "1" for our log).
     pub version: String,
+    /// Frames per second from the header.
     pub frame_rate: f64,
+    /// Length unit as the file writes it (converted to metres on reading).
     pub units: String,
+    /// Up axis of the file ("Y" or "Z"; turned to Y up on reading).
     pub up_axis: String,
     /// Take name or source description from the file's header.
     pub source: String,
+    /// Frames in the file (read to its end, whatever the header claims).
     pub frames: u64,
+    /// Number of the first frame; `None` for a file without frames.
     pub first_frame: Option<i64>,
+    /// Number of the last frame.
     pub last_frame: Option<i64>,
     /// Seconds from the first to the last frame.
     pub duration_s: f64,
@@ -42,6 +51,7 @@ pub struct Inspection {
     pub jump_list: Vec<(i64, i64)>,
     /// Jumps that went backwards (a restarted source).
     pub backwards: u64,
+    /// Markers per frame, to see occlusions and spurious reflections at a glance.
     pub markers_per_frame: MarkerCounts,
     /// Marker samples in all frames.
     pub samples: u64,
@@ -55,24 +65,32 @@ pub struct Inspection {
     pub short_columns: u64,
     /// Columns that are not tip candidates, by kind (rigid bodies, bones…).
     pub other_channels: BTreeMap<String, u64>,
+    /// What the reader warned about (a cut-off last row, Time column drift).
     pub warnings: Vec<String>,
 }
 
 /// Markers per frame.
 #[derive(Debug, Clone, Copy, Default, Serialize)]
 pub struct MarkerCounts {
+    /// Fewest markers in one frame.
     pub min: usize,
+    /// Markers in the median frame: close to the markers placed when
+    /// occlusions and reflections are rare.
     pub median: usize,
+    /// Most markers in one frame.
     pub max: usize,
 }
 
 /// One marker column of the file.
 #[derive(Debug, Clone, Serialize)]
 pub struct ColumnSummary {
+    /// The column's name in the file.
     pub name: String,
+    /// An unlabeled point-cloud marker rather than a labeled one.
     pub unlabeled: bool,
     /// Frames in which the marker had a position.
     pub present: u64,
+    /// Empty cells in the column's coordinates.
     pub gap_cells: u64,
 }
 
@@ -84,59 +102,109 @@ pub fn inspect(path: &Path) -> Result<Inspection> {
 
 /// Summarises an already opened recording, reading it to the end.
 pub fn inspect_recording(path: &Path, rec: &mut dyn Recording) -> Result<Inspection> {
-    let mut frames = 0u64;
-    let mut first = None;
-    let mut last: Option<i64> = None;
-    let mut jumps = 0;
-    let mut jump_list = Vec::new();
-    let mut backwards = 0;
-    let mut samples = 0u64;
-    // Histogram rather than a list: memory stays flat for any length.
-    let mut counts: BTreeMap<usize, u64> = BTreeMap::new();
-    let mut first_time = None;
-    let mut last_time = 0.0;
+    let mut tally = FrameTally::default();
     for frame in &mut *rec {
-        let frame = frame?;
-        frames += 1;
-        first.get_or_insert(frame.frame);
-        first_time.get_or_insert(frame.time_s);
-        last_time = frame.time_s;
-        if let Some(prev) = last {
+        tally.add(&frame?);
+    }
+    let (marker_columns, other_channels) = channel_summary(rec.channels());
+    let info = rec.info().clone();
+    let t = tally;
+    Ok(Inspection {
+        file: path.display().to_string(),
+        format: info.format,
+        version: info.version,
+        frame_rate: info.frame_rate,
+        units: info.units,
+        up_axis: info.up_axis,
+        source: info.source,
+        frames: t.frames,
+        first_frame: t.first,
+        last_frame: t.last,
+        duration_s: t.last_time - t.first_time.unwrap_or(t.last_time),
+        jumps: t.jumps,
+        backwards: t.backwards,
+        markers_per_frame: t.marker_counts(),
+        jump_list: t.jump_list,
+        samples: t.samples,
+        gap_cells: marker_columns.iter().map(|c| c.gap_cells).sum(),
+        empty_columns: marker_columns.iter().filter(|c| c.present == 0).count() as u64,
+        short_columns: marker_columns
+            .iter()
+            .filter(|c| c.present > 0 && c.present <= SHORT_COLUMN_FRAMES)
+            .count() as u64,
+        marker_columns,
+        other_channels,
+        warnings: rec.warnings().to_vec(),
+    })
+}
+
+/// What the frames of a recording add up to, counted in one pass.
+#[derive(Default)]
+struct FrameTally {
+    frames: u64,
+    first: Option<i64>,
+    last: Option<i64>,
+    jumps: u64,
+    jump_list: Vec<(i64, i64)>,
+    backwards: u64,
+    samples: u64,
+    /// Histogram of markers per frame rather than a list: memory stays flat
+    /// for any length.
+    counts: BTreeMap<usize, u64>,
+    first_time: Option<f64>,
+    last_time: f64,
+}
+
+impl FrameTally {
+    fn add(&mut self, frame: &crate::model::frame::MarkerFrame) {
+        self.frames += 1;
+        self.first.get_or_insert(frame.frame);
+        self.first_time.get_or_insert(frame.time_s);
+        self.last_time = frame.time_s;
+        if let Some(prev) = self.last {
             if frame.frame != prev + 1 {
-                jumps += 1;
+                self.jumps += 1;
                 if frame.frame <= prev {
-                    backwards += 1;
+                    self.backwards += 1;
                 }
-                if jump_list.len() < JUMPS_LISTED {
-                    jump_list.push((prev, frame.frame));
+                if self.jump_list.len() < JUMPS_LISTED {
+                    self.jump_list.push((prev, frame.frame));
                 }
             }
         }
-        last = Some(frame.frame);
-        samples += frame.markers.len() as u64;
-        *counts.entry(frame.markers.len()).or_default() += 1;
+        self.last = Some(frame.frame);
+        self.samples += frame.markers.len() as u64;
+        *self.counts.entry(frame.markers.len()).or_default() += 1;
     }
-    let markers_per_frame = if frames == 0 {
-        MarkerCounts::default()
-    } else {
+
+    fn marker_counts(&self) -> MarkerCounts {
+        if self.frames == 0 {
+            return MarkerCounts::default();
+        }
         let mut median = 0;
         let mut seen = 0;
-        for (&n, &c) in &counts {
+        for (&n, &c) in &self.counts {
             seen += c;
-            if seen * 2 >= frames {
+            if seen * 2 >= self.frames {
                 median = n;
                 break;
             }
         }
         MarkerCounts {
-            min: counts.keys().next().copied().unwrap_or(0),
+            min: self.counts.keys().next().copied().unwrap_or(0),
             median,
-            max: counts.keys().next_back().copied().unwrap_or(0),
+            max: self.counts.keys().next_back().copied().unwrap_or(0),
         }
-    };
+    }
+}
+
+/// The marker columns, and how many channels of every other kind.
+fn channel_summary(
+    channels: &[crate::model::recording::Channel],
+) -> (Vec<ColumnSummary>, BTreeMap<String, u64>) {
     let mut marker_columns = Vec::new();
     let mut other_channels = BTreeMap::new();
-    for ch in rec.channels() {
+    for ch in channels {
         if ch.kind.is_marker() {
             marker_columns.push(ColumnSummary {
                 name: ch.name.clone(),
@@ -152,34 +220,7 @@ pub fn inspect_recording(path: &Path, rec: &mut dyn Recording) -> Result<Inspect
             *other_channels.entry(kind).or_default() += 1;
         }
     }
-    let info = rec.info().clone();
-    Ok(Inspection {
-        file: path.display().to_string(),
-        format: info.format,
-        version: info.version,
-        frame_rate: info.frame_rate,
-        units: info.units,
-        up_axis: info.up_axis,
-        source: info.source,
-        frames,
-        first_frame: first,
-        last_frame: last,
-        duration_s: last_time - first_time.unwrap_or(last_time),
-        jumps,
-        jump_list,
-        backwards,
-        markers_per_frame,
-        samples,
-        gap_cells: marker_columns.iter().map(|c| c.gap_cells).sum(),
-        empty_columns: marker_columns.iter().filter(|c| c.present == 0).count() as u64,
-        short_columns: marker_columns
-            .iter()
-            .filter(|c| c.present > 0 && c.present <= SHORT_COLUMN_FRAMES)
-            .count() as u64,
-        marker_columns,
-        other_channels,
-        warnings: rec.warnings().to_vec(),
-    })
+    (marker_columns, other_channels)
 }
 
 /// How many marker columns the text report lists before pointing to --json.

@@ -3,8 +3,11 @@
 
 pub mod files;
 pub mod inspect;
+pub mod live;
 pub mod open;
 pub mod reconstruct;
 pub mod record;
 pub mod replay;
+pub mod synth;
 pub mod tips;
+pub mod view;

@@ -2,11 +2,15 @@
 //! file's first bytes (not its extension) and the matching reader from
 //! `format` streams its frames.
 
+use std::fs::File;
 use std::io::Read;
 use std::path::{Path, PathBuf};
 
 use crate::config::Config;
 use crate::error::{Error, Location, Result};
+use crate::format::c3d::{C3dOptions, C3dReader};
+use crate::format::log::LogReader;
+use crate::format::motive_csv::MotiveCsvReader;
 use crate::model::recording::{Format, Recording};
 
 /// Opens a recording with the settings of `config` that change how files
@@ -76,6 +80,7 @@ impl Default for ReplayOptions {
 }
 
 impl ReplayOptions {
+    /// The reading settings of `[replay]` and `[c3d]`.
     pub fn from_config(config: &crate::config::Config) -> Self {
         ReplayOptions {
             time_tolerance_s: config.replay.time_tolerance_s,
@@ -128,13 +133,32 @@ pub fn locate(path: &Path, setting: &str) -> Result<PathBuf> {
 /// Opens a recording of any supported format, detected by content.
 pub fn open_with(path: &Path, options: &ReplayOptions) -> Result<Box<dyn Recording>> {
     match detect(path)? {
-        Format::MotiveCsv => Ok(Box::new(
-            crate::format::motive_csv::MotiveCsvReader::open_with(path, options.time_tolerance_s)?,
-        )),
-        Format::Log => Ok(Box::new(crate::format::log::LogReader::open(path)?)),
-        Format::C3d => Ok(Box::new(crate::format::c3d::C3dReader::open(
-            path,
-            &options.c3d,
-        )?)),
+        Format::MotiveCsv => Ok(Box::new(motive_csv_with(path, options.time_tolerance_s)?)),
+        Format::Log => Ok(Box::new(log(path)?)),
+        Format::C3d => Ok(Box::new(c3d(path, &options.c3d)?)),
     }
+}
+
+fn open_file(path: &Path) -> Result<File> {
+    File::open(path).map_err(|e| Error::io(path, e))
+}
+
+/// A Motive CSV export with the default Time-column tolerance.
+pub fn motive_csv(path: &Path) -> Result<MotiveCsvReader> {
+    motive_csv_with(path, crate::format::motive_csv::DEFAULT_TIME_TOLERANCE_S)
+}
+
+/// A Motive CSV export with `replay.time_tolerance_s`.
+pub fn motive_csv_with(path: &Path, time_tolerance_s: f64) -> Result<MotiveCsvReader> {
+    MotiveCsvReader::from_file(open_file(path)?, path, time_tolerance_s)
+}
+
+/// A treemocap log.
+pub fn log(path: &Path) -> Result<LogReader> {
+    LogReader::from_file(open_file(path)?, path)
+}
+
+/// A C3D file.
+pub fn c3d(path: &Path, options: &C3dOptions) -> Result<C3dReader> {
+    C3dReader::from_file(open_file(path)?, path, options)
 }

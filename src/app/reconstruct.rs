@@ -36,7 +36,7 @@ pub fn run_and_write(
     config: &Config,
     out_dir: &Path,
 ) -> Result<Report> {
-    write_tree_files(&build_outputs(tips, wind, config)?, out_dir)
+    write_tree_files(&build_outputs(tips, wind, &config.reconstruct)?, out_dir)
 }
 
 /// The command: reads `tips_path`, reconstructs, writes into `out_dir`.

@@ -93,6 +93,7 @@ pub enum RecordEvent {
 /// What a finished recording did.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct RecordSummary {
+    /// The log file written.
     pub out: PathBuf,
     /// Final counts.
     pub progress: Progress,
@@ -331,30 +332,36 @@ fn write_loop(
     w.finish()
 }
 
-/// Runs [`record`] on its own runtime until Ctrl-C or `opts.seconds`: the
-/// `treemocap record` command.
-pub fn record_until_ctrl_c(
+/// The `treemocap record` command: builds the source from the settings
+/// (`--osc ADDR:PORT` or `--natnet SERVER`), records until the shutdown
+/// signal or `--seconds`, and prints what it did.
+pub fn command(
+    rt: &tokio::runtime::Handle,
+    shutdown: &crate::shutdown::Shutdown,
     source: Arc<dyn LiveSource>,
     opts: &RecordOptions,
-    on_event: impl FnMut(RecordEvent) + Send,
 ) -> Result<RecordSummary> {
-    let runtime = tokio::runtime::Builder::new_multi_thread()
-        .worker_threads(2)
-        .enable_all()
-        .build()
-        .map_err(|e| Error::Runtime(format!("cannot start the async runtime: {e}")))?;
-    runtime.block_on(async {
-        let (tx, rx) = watch::channel(false);
-        tokio::spawn(async move {
-            if tokio::signal::ctrl_c().await.is_ok() {
-                tracing::info!("record: Ctrl-C, stopping");
-                let _ = tx.send(true);
-            } else {
-                // No signal handling here: keep the sender alive so the
-                // recording runs to --seconds instead of stopping at once.
-                std::future::pending::<()>().await;
-            }
-        });
-        record(source, opts, rx, on_event).await
-    })
+    println!("recording to {}", opts.out.display());
+    let summary = rt.block_on(record(
+        source,
+        opts,
+        shutdown.receiver(),
+        |event| match event {
+            RecordEvent::Status(s) => println!("{s}"),
+            RecordEvent::Progress(p) => println!("{}", progress_line(&p)),
+        },
+    ))?;
+    println!("{}", progress_line(&summary.progress));
+    println!("{}", summary.source);
+    if summary.progress.frames == 0 {
+        // A header alone is no recording: leave nothing to be mistaken for one.
+        let _ = std::fs::remove_file(&summary.out);
+        return Err(Error::Runtime(format!(
+            "no frame came from {} in {:.1} s; nothing was recorded (NatNet multicast: check \
+             natnet.interface, the group and the data port; OSC: check the sender's address)",
+            summary.source.source, summary.progress.elapsed_s
+        )));
+    }
+    println!("wrote {}", summary.out.display());
+    Ok(summary)
 }

@@ -20,11 +20,14 @@ use crate::wind::{fan::configured_fan_wind, pca::SwayPca, WindSelector};
 
 /// What a replay found and wrote.
 pub struct ReplayReport {
+    /// The tips found, as written to tips.json.
     pub tips: Tips,
+    /// What the marker stage did, printed before the tree's line.
     pub summary: Summary,
     /// The wind used by the flow, with its source; `None` when no source
     /// gave one (the flow then runs without a wind force).
     pub wind: Option<WindEstimate>,
+    /// Counts of the reconstruction (tips, nodes, steps, forced joins).
     pub tree: Report,
     /// Every file written, tips.json first.
     pub files: Vec<PathBuf>,
@@ -60,12 +63,12 @@ pub fn run(file: &Path, config: &Config, out_dir: &Path) -> Result<ReplayReport>
 pub fn estimate_wind(tips: &Tips, config: &Config) -> Option<WindEstimate> {
     let w = &config.wind;
     let end_s = tips.timeline.time(tips.timeline.len() as i64 - 1);
-    let mut selector = WindSelector::new(w.priority(), f64::INFINITY);
+    let mut selector = WindSelector::new(w.priority.clone(), f64::INFINITY);
     let rest: Vec<DVec3> = tips.tips.iter().map(|t| t.rest).collect();
     if let Some(e) = configured_fan_wind(w, &rest, end_s) {
         selector.update(e);
     }
-    if w.priority().contains(&WindSource::Pca) {
+    if w.priority.contains(&WindSource::Pca) {
         let mut pca = SwayPca::new(f64::INFINITY, w.pca_min_sway_mm / 1000.0);
         for tip in &tips.tips {
             for (frame, p) in tip.trace.measurements() {
@@ -97,12 +100,7 @@ impl fmt::Display for ReplayReport {
             )?,
             None => writeln!(f, "wind: none (the tree did not sway; no fan configured)")?,
         }
-        let r = &self.tree;
-        writeln!(
-            f,
-            "tree: {} captured + {} random tips, {} nodes, {} flow steps, {} forced joins, {} triangles, {} leaves",
-            r.captured_tips, r.random_tips, r.nodes, r.steps, r.forced_joins, r.branch_triangles, r.leaves
-        )?;
+        writeln!(f, "{}", self.tree.counts())?;
         for file in &self.files {
             writeln!(f, "wrote {}", file.display())?;
         }

@@ -21,9 +21,14 @@ pub struct TipFollower {
     /// million distances per frame).
     cells: Vec<((i64, i64, i64), usize)>,
     pairs: Vec<(f64, usize, usize)>,
+    /// Per marker of the last frame: claimed by a tip (for the live view's
+    /// noise markers). Reused, so it costs no allocation per frame.
+    claimed: Vec<bool>,
 }
 
 impl TipFollower {
+    /// A follower with no tips yet; `gate_m` is `daemon.follow_gate_mm` in
+    /// metres.
     pub fn new(gate_m: f64) -> Self {
         TipFollower {
             gate_m,
@@ -37,6 +42,7 @@ impl TipFollower {
         self.by_marker = tips.iter().enumerate().map(|(i, t)| (t.0, i)).collect();
     }
 
+    /// True before the first tree: there is nothing to follow.
     pub fn is_empty(&self) -> bool {
         self.tips.is_empty()
     }
@@ -85,7 +91,9 @@ impl TipFollower {
         // the result does not depend on how the pairs were found).
         pairs.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)).then(a.2.cmp(&b.2)));
         let mut tip_taken = vec![false; self.tips.len()];
-        let mut marker_taken = vec![false; markers.len()];
+        let mut marker_taken = std::mem::take(&mut self.claimed);
+        marker_taken.clear();
+        marker_taken.resize(markers.len(), false);
         let mut seen = Vec::new();
         for &(_, ti, mi) in &pairs {
             if tip_taken[ti] || marker_taken[mi] {
@@ -98,8 +106,15 @@ impl TipFollower {
         }
         self.cells = cells;
         self.pairs = pairs;
+        self.claimed = marker_taken;
         seen.sort_by_key(|s| s.0);
         seen
+    }
+
+    /// Per marker of the last frame given to [`Self::update`]: whether a
+    /// tip took it.
+    pub fn claimed(&self) -> &[bool] {
+        &self.claimed
     }
 
     /// Displacements from rest of the tips seen (for the sway PCA).

@@ -12,8 +12,8 @@ use std::sync::{Condvar, Mutex};
 use std::time::Duration;
 
 use super::window::WindowSnapshot;
-use crate::config::TrackingConfig;
 use crate::model::tips::Tips;
+use crate::track::TrackingSettings;
 use crate::track::{self, Summary, Tracker};
 
 /// One analysis to run: the frames and the rate they came at.
@@ -27,7 +27,8 @@ pub struct Job {
 /// A one-slot, latest-wins hand-off with a busy flag.
 #[derive(Default)]
 pub struct AnalysisHandoff {
-    slot: Mutex<Option<Job>>,
+    /// The job waiting, and whether the pipeline has closed the hand-off.
+    slot: Mutex<(Option<Job>, bool)>,
     ready: Condvar,
     /// A job waits in the slot.
     pending: AtomicBool,
@@ -44,10 +45,33 @@ impl AnalysisHandoff {
     /// Offers a job, replacing one still waiting.
     pub fn offer(&self, job: Job) {
         if let Ok(mut slot) = self.slot.lock() {
-            *slot = Some(job);
+            slot.0 = Some(job);
             self.pending.store(true, Ordering::Release);
         }
         self.ready.notify_one();
+    }
+
+    /// The pipeline has stopped: [`Self::recv`] returns `None` once the
+    /// waiting job (if any) is taken.
+    pub fn close(&self) {
+        if let Ok(mut slot) = self.slot.lock() {
+            slot.1 = true;
+        }
+        self.ready.notify_all();
+    }
+
+    /// Waits for the next job; `None` once the hand-off is closed. The
+    /// analysis counts as busy until [`Self::done`].
+    pub fn recv(&self) -> Option<Job> {
+        let slot = self.slot.lock().ok()?;
+        let mut slot = self
+            .ready
+            .wait_while(slot, |s| s.0.is_none() && !s.1)
+            .ok()?;
+        let job = slot.0.take()?;
+        self.busy.store(true, Ordering::Release);
+        self.pending.store(false, Ordering::Release);
+        Some(job)
     }
 
     /// The next job, waiting at most `timeout`; the analysis counts as busy
@@ -56,9 +80,9 @@ impl AnalysisHandoff {
         let slot = self.slot.lock().ok()?;
         let (mut slot, _) = self
             .ready
-            .wait_timeout_while(slot, timeout, |s| s.is_none())
+            .wait_timeout_while(slot, timeout, |s| s.0.is_none() && !s.1)
             .ok()?;
-        let job = slot.take()?;
+        let job = slot.0.take()?;
         self.busy.store(true, Ordering::Release);
         self.pending.store(false, Ordering::Release);
         Some(job)
@@ -77,7 +101,7 @@ impl AnalysisHandoff {
 
 /// The marker stage on a snapshot: the same tracker and cleaning as
 /// `treemocap tips`, reading the shared chunks in place.
-pub fn track_snapshot(job: &Job, cfg: &TrackingConfig) -> (Tips, Summary) {
+pub fn track_snapshot(job: &Job, cfg: &TrackingSettings) -> (Tips, Summary) {
     let mut tracker = Tracker::new(cfg, Some(job.frame_rate));
     job.snapshot.for_each(|f| tracker.push(f));
     track::clean(tracker.finish(), cfg, "live", job.frame_rate)
@@ -109,5 +133,13 @@ mod tests {
         h.done();
         assert!(h.wants());
         assert!(h.take(Duration::from_millis(10)).is_none());
+        // Closing ends the analysis's loop once the last job is taken.
+        h.offer(Job {
+            snapshot: w.snapshot(),
+            frame_rate: 1.0,
+        });
+        h.close();
+        assert!(h.recv().is_some());
+        assert!(h.recv().is_none());
     }
 }

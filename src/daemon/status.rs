@@ -7,13 +7,18 @@ use std::sync::Mutex;
 
 use serde_json::json;
 
+use super::progress::Progress;
 use crate::model::wind::WindEstimate;
 
 /// Shared counters of a running daemon.
 #[derive(Debug, Default)]
 pub struct Status {
+    /// What the frames come from, as a user would name it
+    /// (`natnet 192.168.1.10:1510`, `replay FILE at 1×`).
     pub source: Mutex<String>,
+    /// Frames the pipeline has taken in.
     pub frames: AtomicU64,
+    /// Marker samples in those frames.
     pub samples: AtomicU64,
     /// Markers in the latest frame.
     pub markers: AtomicU64,
@@ -23,19 +28,26 @@ pub struct Status {
     pub tips: AtomicU64,
     /// Frames the bounded channel dropped (pipeline too slow).
     pub dropped: AtomicU64,
+    /// Runs of the marker stage on the window.
     pub analyses: AtomicU64,
+    /// Trees built and published.
     pub trees: AtomicU64,
     /// Frame time in f64 bits, so it fits an atomic.
     pub last_frame_time_bits: AtomicU64,
+    /// The source's number of the latest frame.
     pub last_frame: AtomicU64,
     /// Frames per second of the source as measured (f64 bits).
     pub frame_rate_bits: AtomicU64,
+    /// Version of the current tree (1, 2, …), as in the outputs.
     pub tree_version: AtomicU64,
+    /// The last tree's report (version, trigger, nodes, forced joins, times).
     pub last_tree: Mutex<Option<serde_json::Value>>,
+    /// The wind estimate currently used.
     pub wind: Mutex<Option<WindEstimate>>,
     /// The last error of an output (a disk refusing writes), cleared by the
     /// next success.
     pub output_error: Mutex<Option<String>>,
+    /// Why the source stopped or cannot start (nothing listening, a bad file).
     pub source_error: Mutex<Option<String>>,
     /// The last failed config reload (SIGHUP), cleared by a good one.
     pub config_error: Mutex<Option<String>>,
@@ -43,6 +55,7 @@ pub struct Status {
     /// by the source as it hands the decoded datagram over, so time queued
     /// in the channel counts) to its tips published.
     pub latency_us_last: AtomicU64,
+    /// The largest of those latencies since the start (µs).
     pub latency_us_max: AtomicU64,
     /// Latency histogram: bucket k counts frames of k×10 to (k+1)×10 µs; the
     /// last bucket everything slower. Fixed size, so percentiles cost no
@@ -55,7 +68,11 @@ pub struct Status {
     /// How long the frame just taken waited in the channel, and the longest
     /// wait seen (µs).
     pub queue_us_last: AtomicU64,
+    /// The longest wait seen (µs).
     pub queue_us_max: AtomicU64,
+    /// Source connection, still-phase progress and rejected input, for the
+    /// live page and the console.
+    pub progress: Progress,
 }
 
 /// Buckets of 10 µs up to 20 ms.
@@ -73,6 +90,8 @@ impl Default for LatencyHistogram {
 }
 
 impl LatencyHistogram {
+    /// Counts one frame's latency (µs); anything beyond 20 ms goes to the
+    /// last bucket.
     pub fn record(&self, us: u64) {
         let k = ((us / BUCKET_US) as usize).min(BUCKETS - 1);
         self.0[k].fetch_add(1, Ordering::Relaxed);
@@ -113,6 +132,7 @@ impl Status {
         self.queue_us_max.fetch_max(us, Ordering::Relaxed);
     }
 
+    /// Time of the latest frame (s): the daemon's session clock.
     pub fn frame_time(&self) -> f64 {
         f64::from_bits(get(&self.last_frame_time_bits))
     }
@@ -128,7 +148,7 @@ impl Status {
                 "time_s": w.time_s,
             })
         });
-        json!({
+        let mut doc = json!({
             "source": self.source.lock().map(|s| s.clone()).unwrap_or_default(),
             "source_error": self.source_error.lock().ok().and_then(|e| e.clone()),
             "config_error": self.config_error.lock().ok().and_then(|e| e.clone()),
@@ -159,7 +179,13 @@ impl Status {
                 "p99": self.latency_hist.quantile_us(0.99),
                 "max": get(&self.latency_us_max),
             },
-        })
+        });
+        if let (Some(doc), serde_json::Value::Object(more)) =
+            (doc.as_object_mut(), self.progress.to_json())
+        {
+            doc.extend(more);
+        }
+        doc
     }
 
     /// The `/metrics` text (Prometheus exposition format 0.0.4).

@@ -17,9 +17,13 @@ use crate::model::wind::angle_between_deg;
 /// Thresholds, from the `[daemon]` config.
 #[derive(Debug, Clone, Copy)]
 pub struct TriggerConfig {
+    /// Still phase (s) needed before the first tree.
     pub rest_min_s: f64,
+    /// How long (s) tips must differ from the last tree's before a rebuild.
     pub tip_change_s: f64,
+    /// Distance (m) beyond which a tip counts as moved.
     pub moved_m: f64,
+    /// Wind turn (degrees) that triggers a rebuild.
     pub wind_turn_deg: f64,
     /// 0 disables the periodic rebuild.
     pub period_s: f64,
@@ -29,21 +33,32 @@ pub struct TriggerConfig {
 #[derive(Debug, Clone, PartialEq, Serialize)]
 #[serde(tag = "trigger", rename_all = "snake_case")]
 pub enum Reason {
+    /// The first still phase of `rest_min_s` was seen.
     FirstTree,
+    /// The tips differed from the last tree's for `tip_change_s`.
     TipsChanged {
+        /// Tips with no old tip near them (a marker put on).
         added: usize,
+        /// Old tips with no tip near them (a marker fallen off or hidden).
         removed: usize,
+        /// Tips that moved beyond `moved_mm` (counted once, not as added
+        /// and removed).
         moved: usize,
     },
+    /// The wind turned by more than `wind_turn_deg`.
     WindTurned {
+        /// Angle between the last tree's wind and now (degrees).
         degrees: f64,
     },
     /// The last tree was built without a wind and one is known now (the
     /// sway became measurable, a sensor started): a tree bent by it.
     WindKnown {
+        /// Downwind azimuth of the wind now known (degrees).
         azimuth_deg: f64,
     },
+    /// `POST /rebuild`, `/treemocap/rebuild` over OSC, or SIGHUP.
     Requested,
+    /// `period_s` passed since the last tree.
     Period,
 }
 
@@ -103,6 +118,7 @@ pub struct Triggers {
 }
 
 impl Triggers {
+    /// Triggers with no tree built yet: the first still phase builds one.
     pub fn new(cfg: TriggerConfig) -> Self {
         Triggers {
             cfg,
@@ -115,11 +131,6 @@ impl Triggers {
     /// An explicit rebuild (HTTP, OSC, SIGHUP); fires at the next check.
     pub fn request(&mut self) {
         self.requested = true;
-    }
-
-    /// True once a tree was built.
-    pub fn has_tree(&self) -> bool {
-        self.built.is_some()
     }
 
     /// Decides after an analysis at `now_s`: the tips' rest positions, the

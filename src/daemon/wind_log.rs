@@ -18,6 +18,7 @@ pub struct WindLog {
 }
 
 impl WindLog {
+    /// Creates (truncates) `path` and writes the header line.
     pub fn create(path: &Path) -> Result<Self> {
         let file = File::create(path).map_err(|e| Error::io(path, e))?;
         let mut log = WindLog {
@@ -29,6 +30,8 @@ impl WindLog {
         Ok(log)
     }
 
+    /// Appends one estimate and flushes it, so the file is complete at any
+    /// moment.
     pub fn write(&mut self, e: &WindEstimate) -> Result<()> {
         let speed = e.speed_m_s.map(|s| format!("{s:.3}")).unwrap_or_default();
         writeln!(

@@ -88,6 +88,7 @@ pub struct WindowSnapshot {
     skip: usize,
     /// Frames and marker samples in the snapshot.
     pub frames: usize,
+    /// Marker samples in the snapshot.
     pub samples: usize,
     /// The window's epoch (restarts of the source) when it was taken.
     pub epoch: u64,
@@ -96,7 +97,7 @@ pub struct WindowSnapshot {
 }
 
 impl FrameWindow {
-    /// An empty window keeping `span_s` seconds.
+    /// An empty window keeping `span_s` seconds of frames (`daemon.window_s`).
     pub fn new(span_s: f64) -> Self {
         FrameWindow {
             span_s,

@@ -9,7 +9,7 @@
 use std::io::{self, BufRead};
 
 /// Reads rows one at a time into a reused buffer.
-pub struct RowReader<R> {
+pub(crate) struct RowReader<R> {
     reader: R,
     /// Line number of the last line read (1-based).
     lines_read: u64,
@@ -21,7 +21,7 @@ pub struct RowReader<R> {
 }
 
 impl<R: BufRead> RowReader<R> {
-    pub fn new(reader: R) -> Self {
+    pub(crate) fn new(reader: R) -> Self {
         RowReader {
             reader,
             lines_read: 0,
@@ -33,7 +33,7 @@ impl<R: BufRead> RowReader<R> {
     }
 
     /// Reads the next row; `Ok(false)` at the end of the input.
-    pub fn read(&mut self) -> io::Result<bool> {
+    pub(crate) fn read(&mut self) -> io::Result<bool> {
         if !self.read_line()? {
             return Ok(false);
         }
@@ -44,7 +44,7 @@ impl<R: BufRead> RowReader<R> {
     /// Reads the next line without splitting it into fields (see [`Self::line_bytes`]);
     /// `Ok(false)` at the end of the input. Data rows are read this way and
     /// scanned in place; [`Self::split`] makes fields of the line when needed.
-    pub fn read_line(&mut self) -> io::Result<bool> {
+    pub(crate) fn read_line(&mut self) -> io::Result<bool> {
         self.data.clear();
         self.ends.clear();
         self.raw.clear();
@@ -57,19 +57,19 @@ impl<R: BufRead> RowReader<R> {
     }
 
     /// The line just read by [`Self::read_line`], without its line end.
-    pub fn line_bytes(&self) -> &[u8] {
+    pub(crate) fn line_bytes(&self) -> &[u8] {
         &self.raw[..trim_eol(&self.raw)]
     }
 
     /// The line just read with its line end: word-at-a-time readers may look
     /// a few bytes past a field's end.
-    pub fn line_buffer(&self) -> &[u8] {
+    pub(crate) fn line_buffer(&self) -> &[u8] {
         &self.raw
     }
 
     /// Splits the line just read into fields; a quoted field running over
     /// the line end pulls in the following lines.
-    pub fn split(&mut self) -> io::Result<()> {
+    pub(crate) fn split(&mut self) -> io::Result<()> {
         self.data.clear();
         self.ends.clear();
         let line_end = trim_eol(&self.raw);
@@ -129,17 +129,17 @@ impl<R: BufRead> RowReader<R> {
     }
 
     /// The line the current row starts on.
-    pub fn line(&self) -> u64 {
+    pub(crate) fn line(&self) -> u64 {
         self.row_line
     }
 
     /// Number of fields in the current row.
-    pub fn len(&self) -> usize {
+    pub(crate) fn len(&self) -> usize {
         self.ends.len()
     }
 
     /// Field `i` of the current row (empty if out of range).
-    pub fn get(&self, i: usize) -> &[u8] {
+    pub(crate) fn get(&self, i: usize) -> &[u8] {
         let Some(&end) = self.ends.get(i) else {
             return &[];
         };
@@ -148,7 +148,7 @@ impl<R: BufRead> RowReader<R> {
     }
 
     /// Where field `i` lies in [`Self::data_buffer`] (empty if out of range).
-    pub fn field_range(&self, i: usize) -> (usize, usize) {
+    pub(crate) fn field_range(&self, i: usize) -> (usize, usize) {
         let Some(&end) = self.ends.get(i) else {
             return (0, 0);
         };
@@ -156,12 +156,12 @@ impl<R: BufRead> RowReader<R> {
     }
 
     /// The fields of the current row, one after another (see [`Self::field_range`]).
-    pub fn data_buffer(&self) -> &[u8] {
+    pub(crate) fn data_buffer(&self) -> &[u8] {
         &self.data
     }
 
     /// Field `i` as text (empty if out of range or not UTF-8).
-    pub fn text(&self, i: usize) -> &str {
+    pub(crate) fn text(&self, i: usize) -> &str {
         std::str::from_utf8(self.get(i)).unwrap_or("")
     }
 }

@@ -236,10 +236,11 @@ struct Row {
 }
 
 impl LogReader {
-    /// Opens a log of either format; the frame rate and source come from
-    /// the sidecar (format 2) or the `#` lines (format 1).
-    pub fn open(path: &Path) -> Result<Self> {
-        let file = File::open(path).map_err(|e| Error::io(path, e))?;
+    /// Reads the header of an opened log (`path` names it in errors; the
+    /// sidecar is looked for beside it); frames are read by iterating. The
+    /// frame rate and source come from the sidecar (format 2) or the `#`
+    /// lines (format 1).
+    pub fn from_file(file: File, path: &Path) -> Result<Self> {
         let mut reader = BufReader::new(file);
         let mut first = String::new();
         reader

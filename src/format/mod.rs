@@ -1,5 +1,5 @@
-//! Recorded sessions: Motive CSV exports, C3D files and our own recording
-//! format.
+//! Recorded sessions: Motive CSV exports, C3D files, Wireshark/tcpdump
+//! captures of NatNet and our own recording format.
 //!
 //! Each reader is a streaming [`Recording`]: frames are read one at a time,
 //! so memory does not grow with the length of the file. Which reader a file
@@ -12,3 +12,4 @@ mod cells;
 mod csv_rows;
 pub mod log;
 pub mod motive_csv;
+pub mod pcap;

@@ -27,7 +27,9 @@ use crate::error::{Error, Result};
 use crate::model::frame::{Marker, MarkerFrame};
 
 /// Default allowed disagreement of the Time column (s); see `config.replay`.
-const DEFAULT_TIME_TOLERANCE_S: f64 = 0.002;
+/// How far the Time column may disagree with frame / rate by default (s):
+/// Motive quantizes Time to 1 ms at high rates.
+pub const DEFAULT_TIME_TOLERANCE_S: f64 = 0.002;
 
 /// Where a channel's numbers are in a data row.
 #[derive(Debug, Clone)]
@@ -103,14 +105,10 @@ fn is_unlabeled(name: &str) -> bool {
 }
 
 impl MotiveCsvReader {
-    /// Opens a file and reads its header; data rows are read by iterating.
-    pub fn open(path: &Path) -> Result<Self> {
-        Self::open_with(path, DEFAULT_TIME_TOLERANCE_S)
-    }
-
-    /// Like `open`, with the Time-column tolerance from the config.
-    pub fn open_with(path: &Path, time_tolerance_s: f64) -> Result<Self> {
-        let file = File::open(path).map_err(|e| Error::io(path, e))?;
+    /// Reads the header of an opened export (`path` names it in errors);
+    /// data rows are read by iterating. `time_tolerance_s` is how far the
+    /// Time column may disagree with frame / rate before a warning.
+    pub fn from_file(file: File, path: &Path, time_tolerance_s: f64) -> Result<Self> {
         let mut buf = BufReader::with_capacity(1 << 16, file);
         // Skip a UTF-8 BOM ourselves: the CSV parser would keep it in the
         // first key and `Format Version` would not be found.

@@ -16,6 +16,8 @@ pub struct Marker {
 }
 
 impl Marker {
+    /// A marker without a source ID (simulated, or from a source that has
+    /// none).
     pub fn new(position: DVec3) -> Self {
         Marker { position, id: None }
     }
@@ -37,6 +39,8 @@ pub struct MarkerFrame {
 }
 
 impl MarkerFrame {
+    /// A frame without a latency: files and OSC carry none (the NatNet
+    /// client fills `latency_s` itself).
     pub fn new(frame: i64, time_s: f64, markers: Vec<Marker>) -> Self {
         MarkerFrame {
             frame,
@@ -49,5 +53,55 @@ impl MarkerFrame {
     /// Positions only, in source order.
     pub fn positions(&self) -> impl Iterator<Item = DVec3> + '_ {
         self.markers.iter().map(|m| m.position)
+    }
+}
+
+/// The vertical axis of a source's coordinates. Inside treemocap Y is up
+/// (as in Motive and the paper); a Z-up source is turned at its edge, here
+/// and nowhere else.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum UpAxis {
+    /// Y up, as inside treemocap and in Motive's default export.
+    #[serde(alias = "Y")]
+    Y,
+    /// Z up: the usual C3D convention (Vicon, Qualisys), a NatNet→OSC
+    /// bridge's `--yup2zup`, Blender, Unreal.
+    #[serde(alias = "Z")]
+    Z,
+}
+
+impl UpAxis {
+    /// A position in this axis convention as treemocap's Y up. Z up (x right,
+    /// y forward, z up) becomes (x, z, −y): a right-handed turn about +X, so
+    /// forward becomes −Z, as in Motive's Y-up frame.
+    pub fn to_y_up(self, p: DVec3) -> DVec3 {
+        match self {
+            UpAxis::Y => p,
+            UpAxis::Z => DVec3::new(p.x, p.z, -p.y),
+        }
+    }
+}
+
+/// The length unit a source sends positions in; frames are always metres.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum LengthUnit {
+    /// Metres (Motive's streaming unit).
+    M,
+    /// Centimetres.
+    Cm,
+    /// Millimetres (most C3D files, Motive CSV exports in mm).
+    Mm,
+}
+
+impl LengthUnit {
+    /// Metres per unit.
+    pub fn metres(self) -> f64 {
+        match self {
+            LengthUnit::M => 1.0,
+            LengthUnit::Cm => 0.01,
+            LengthUnit::Mm => 0.001,
+        }
     }
 }

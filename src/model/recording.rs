@@ -32,6 +32,7 @@ impl std::fmt::Display for Format {
 /// What a recording says about itself in its header.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct RecordingInfo {
+    /// Which reader read it (detected from the content, not the name).
     pub format: Format,
     /// The format's own version string ("1.23" for Motive, "1" for our log).
     pub version: String,
@@ -76,7 +77,10 @@ impl ChannelKind {
 /// One declared track of a file and what was seen of it while reading.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Channel {
+    /// The name the file gives it (`Unlabeled 1036`, `Tree:Tip3`, a C3D
+    /// point label), shown by `inspect`.
     pub name: String,
+    /// What the channel holds; only marker kinds feed tracking.
     pub kind: ChannelKind,
     /// Frames in which the channel had a complete value.
     pub present: u64,
@@ -86,6 +90,7 @@ pub struct Channel {
 
 /// A streaming reader of one recorded session.
 pub trait Recording: Iterator<Item = Result<MarkerFrame>> + Send {
+    /// What the header says: format, rate, units, source.
     fn info(&self) -> &RecordingInfo;
     /// The file's channels with counts of what has been read so far. A
     /// `Marker` whose `id` is `Some(i)` came from `channels()[i]`. Formats

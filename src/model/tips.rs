@@ -28,7 +28,8 @@ fn vec3<S: Serializer>(v: &DVec3, s: S) -> Result<S::Ok, S::Error> {
     [v.x, v.y, v.z].serialize(s)
 }
 
-/// One branch tip: a cleaned marker and its rest position (contract 2).
+/// One branch tip: a cleaned marker and its rest position (an entry of
+/// tips.json, docs/formats.md).
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Tip {
     /// Index of the marker, 0.., in order of first appearance.
@@ -59,6 +60,8 @@ pub struct Tips {
     pub frame_rate: f64,
     /// The rest window in seconds from the start of the recording.
     pub rest_window_s: [f64; 2],
+    /// One entry per marker that survived cleaning, in marker order: the
+    /// captured tips the tree grows from.
     pub tips: Vec<Tip>,
     /// The wind the flow used (`wind` in tips.json: direction, speed or
     /// null when only the direction is known, and its source).
@@ -224,7 +227,7 @@ mod tests {
       "wind":{"direction":[0,0,2],"speed":3.0}}"#;
 
     #[test]
-    fn reads_the_contract_format() {
+    fn reads_the_documented_format() {
         let t = parse_tips(GOOD, Path::new("tips.json")).unwrap();
         assert_eq!(t.tips.len(), 2);
         assert_eq!(t.tips[1].marker, 3);
@@ -266,7 +269,7 @@ mod tests {
     }
 
     #[test]
-    fn tips_json_has_contract_fields() {
+    fn tips_json_has_the_documented_fields() {
         let tips = Tips {
             version: 1,
             source: "test".into(),

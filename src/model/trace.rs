@@ -38,6 +38,7 @@ pub enum SampleKind {
 pub struct Sample {
     /// Internal frame index (monotonic over the session; see `Timeline`).
     pub frame: i64,
+    /// Whether the position was measured, filled or is missing.
     pub kind: SampleKind,
     /// Metres, Y up; NaN when `kind` is `Missing`.
     pub position: DVec3,
@@ -53,9 +54,12 @@ pub struct Fill {
     pub to: i64,
     /// Position and velocity (m per frame) at `from`.
     pub p0: DVec3,
+    /// Velocity (m per frame) at `from`: the Hermite tangent, limited so the
+    /// fill does not overshoot.
     pub m0: DVec3,
     /// Position and velocity (m per frame) at `to`.
     pub p1: DVec3,
+    /// Velocity (m per frame) at `to`, limited like `m0`.
     pub m1: DVec3,
 }
 
@@ -513,6 +517,7 @@ impl Timeline {
         self.times.len()
     }
 
+    /// True for a recording without frames (nothing to track).
     pub fn is_empty(&self) -> bool {
         self.times.is_empty()
     }

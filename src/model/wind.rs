@@ -13,12 +13,17 @@ pub const UNKNOWN_SPEED: f64 = 1.0;
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum WindSource {
+    /// A wind sensor on a serial port: direction and speed, measured.
     Sensor,
+    /// The fan's place in the config: the wind blows from it through the crown.
     Fan,
+    /// The principal axis of the tips' sway: direction only.
     Pca,
 }
 
 impl WindSource {
+    /// The name used in the config (`wind.priority`), wind.csv, tips.json
+    /// and `/status`.
     pub fn name(self) -> &'static str {
         match self {
             WindSource::Sensor => "sensor",
@@ -43,6 +48,7 @@ impl WindSource {
 pub struct WindEstimate {
     /// Seconds on the session clock when the estimate was made.
     pub time_s: f64,
+    /// Which source made the estimate; the selector ranks them by it.
     pub source: WindSource,
     /// Unit horizontal vector the wind blows *towards* (downwind): the
     /// direction the flow's wind force pushes branches.

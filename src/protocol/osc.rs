@@ -36,7 +36,7 @@
 use glam::DVec3;
 use rosc::{OscMessage, OscPacket, OscType};
 
-use crate::model::frame::{Marker, MarkerFrame};
+use crate::model::frame::{Marker, MarkerFrame, UpAxis};
 
 /// Bundles nested deeper than this are refused before rosc parses them:
 /// rosc recurses once per level, and a 64 KiB datagram of empty nested
@@ -48,10 +48,9 @@ pub const MAX_BUNDLE_DEPTH: usize = 8;
 pub struct DecodeOptions {
     /// Multiplier from the sender's length unit to metres (1 for m, 0.001 for mm).
     pub scale: f64,
-    /// The sender's positions are Z up (a bridge's `--yup2zup`, Blender,
-    /// Unreal); rotated to Y up as (x, y, z) → (x, z, −y), the inverse of the
-    /// bridges' `--yup2zup`.
-    pub z_up: bool,
+    /// The sender's up axis: Z up (a bridge's `--yup2zup`, Blender, Unreal)
+    /// is turned to Y up, the inverse of the bridges' `--yup2zup`.
+    pub up_axis: UpAxis,
     /// Also take `/othermarker` messages. Off by default: NatNet 3+ lists
     /// unlabeled markers under `/marker` as well, so a bridge sending both
     /// would double every marker.
@@ -62,7 +61,7 @@ impl Default for DecodeOptions {
     fn default() -> Self {
         DecodeOptions {
             scale: 1.0,
-            z_up: false,
+            up_axis: UpAxis::Y,
             othermarkers: false,
         }
     }
@@ -95,6 +94,7 @@ impl ProblemKind {
 /// One rejected input, phrased for the log.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Problem {
+    /// Which counter it goes to (garbage, bad arguments, broken frame).
     pub kind: ProblemKind,
     /// The OSC address concerned (empty for garbage).
     pub address: String,
@@ -117,6 +117,7 @@ impl std::fmt::Display for Problem {
 pub struct Output {
     /// Finished frames, in order of completion.
     pub frames: Vec<MarkerFrame>,
+    /// Input rejected on the way; each one skips only its own message.
     pub problems: Vec<Problem>,
     /// Well-formed messages at addresses we do not use (rigid bodies, …).
     pub ignored: u64,
@@ -151,6 +152,7 @@ pub struct Assembler {
 }
 
 impl Assembler {
+    /// An assembler with no frame open, converting positions by `opts`.
     pub fn new(opts: DecodeOptions) -> Self {
         Assembler {
             opts,
@@ -420,12 +422,7 @@ impl Assembler {
     }
 
     fn convert(&self, x: f64, y: f64, z: f64) -> DVec3 {
-        let v = if self.opts.z_up {
-            DVec3::new(x, z, -y)
-        } else {
-            DVec3::new(x, y, z)
-        };
-        v * self.opts.scale
+        self.opts.up_axis.to_y_up(DVec3::new(x, y, z)) * self.opts.scale
     }
 
     fn treemocap_markers(&mut self, m: &OscMessage, out: &mut Output) {
@@ -816,7 +813,7 @@ mod tests {
     fn z_up_and_millimetres_convert_to_metres_y_up() {
         let mut a = Assembler::new(DecodeOptions {
             scale: 0.001,
-            z_up: true,
+            up_axis: UpAxis::Z,
             othermarkers: false,
         });
         // Z up (x right, y forward, z up): a point 2 m up and 1 m forward.
@@ -1027,7 +1024,7 @@ mod tests {
         let mut rng = crate::rng::Rng::new(0x05C);
         let mut a = Assembler::new(DecodeOptions {
             scale: 0.001,
-            z_up: true,
+            up_axis: UpAxis::Z,
             othermarkers: true,
         });
         let mut frames = 0;

@@ -24,10 +24,11 @@
 use glam::DVec3;
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
 
-use crate::config::ReconstructConfig;
-use crate::error::{Error, Result};
+use crate::error::Result;
 use crate::model::tree::{Kind, Node, Tree};
+use crate::reconstruct::error::ReconstructError;
 use crate::reconstruct::trunk::{Bounds, Trunk};
+use crate::reconstruct::ReconstructSettings;
 
 /// A particle still flowing: where it is and the tree node it last left.
 #[derive(Debug, Clone, Copy)]
@@ -42,8 +43,52 @@ pub fn run(
     tips: &[(DVec3, Kind)],
     trunk: &Trunk,
     wind: DVec3,
-    cfg: &ReconstructConfig,
+    cfg: &ReconstructSettings,
 ) -> Result<Tree> {
+    let (mut nodes, trunk_ids, mut particles) = start(tips, trunk);
+    let forces = Forces {
+        bounds: Bounds::of(tips.iter().map(|t| t.0).chain(trunk.nodes.iter().copied())).unwrap_or(
+            Bounds {
+                min: DVec3::ZERO,
+                max: DVec3::ZERO,
+            },
+        ),
+        attractor: trunk.attractor_point(),
+        shape_magnitude: cfg.alpha * mean_height(tips, cfg.ground_height),
+        wind,
+        cfg,
+    };
+    let mut steps = 0;
+    while !particles.is_empty() && steps < cfg.max_steps {
+        steps += 1;
+        particles = step(&particles, &forces, trunk, &trunk_ids, &mut nodes)?;
+    }
+    // Ours: whatever is still free joins its nearest trunk node directly.
+    let forced_joins = particles.len();
+    for p in &particles {
+        let (t, _) = trunk.nearest(p.position);
+        nodes[p.node].parent = Some(trunk_ids[t]);
+    }
+    if forced_joins > 0 {
+        tracing::warn!(
+            forced_joins,
+            max_steps = cfg.max_steps,
+            "particles did not reach the trunk within max_steps and were joined to it directly"
+        );
+    }
+    Ok(Tree {
+        nodes,
+        trunk: trunk_ids,
+        attractor: trunk.attractor,
+        forced_joins,
+        steps,
+        wind,
+    })
+}
+
+/// The trunk's nodes (each the parent of the next) and one free particle
+/// per tip, each with its node.
+fn start(tips: &[(DVec3, Kind)], trunk: &Trunk) -> (Vec<Node>, Vec<usize>, Vec<Particle>) {
     let mut nodes: Vec<Node> = trunk
         .nodes
         .iter()
@@ -69,85 +114,58 @@ pub fn run(
             kind,
         });
     }
+    (nodes, trunk_ids, particles)
+}
 
-    let mean_height = if tips.is_empty() {
-        0.0
-    } else {
-        tips.iter()
-            .map(|(p, _)| p.y - cfg.ground_height)
-            .sum::<f64>()
-            / tips.len() as f64
-    };
-    let bounds =
-        Bounds::of(tips.iter().map(|t| t.0).chain(trunk.nodes.iter().copied())).unwrap_or(Bounds {
-            min: DVec3::ZERO,
-            max: DVec3::ZERO,
-        });
-    let forces = Forces {
-        bounds,
-        attractor: trunk.attractor_point(),
-        shape_magnitude: cfg.alpha * mean_height,
-        wind,
-        cfg,
-    };
+/// The tips' mean height above the ground: the shape-format force's scale.
+fn mean_height(tips: &[(DVec3, Kind)], ground_height: f64) -> f64 {
+    if tips.is_empty() {
+        return 0.0;
+    }
+    tips.iter().map(|(p, _)| p.y - ground_height).sum::<f64>() / tips.len() as f64
+}
 
-    let mut moved: Vec<DVec3> = Vec::with_capacity(particles.len());
-    let mut steps = 0;
-    while !particles.is_empty() && steps < cfg.max_steps {
-        steps += 1;
-        moved.clear();
-        moved.extend(particles.iter().map(|p| forces.step(p.position, trunk)));
-
-        let groups = merge_groups(&moved, cfg.merge_distance)?;
-        let mut next = Vec::with_capacity(groups.len());
-        for group in groups {
-            let position = group.iter().map(|&m| moved[m]).sum::<DVec3>() / group.len() as f64;
-            let id = nodes.len();
-            nodes.push(Node {
-                position,
-                parent: None,
-                radius: 0.0,
-                kind: if group.len() > 1 {
-                    Kind::Junction
-                } else {
-                    Kind::Branch
-                },
-            });
-            for &m in &group {
-                nodes[particles[m].node].parent = Some(id);
-            }
-            let (t, d) = trunk.nearest(position);
-            if d < cfg.trunk_distance {
-                nodes[id].parent = Some(trunk_ids[t]);
+/// One step of every free particle: move, merge the ones that come close
+/// into a junction, and join the trunk where it is near. Returns the
+/// particles still free.
+fn step(
+    particles: &[Particle],
+    forces: &Forces,
+    trunk: &Trunk,
+    trunk_ids: &[usize],
+    nodes: &mut Vec<Node>,
+) -> Result<Vec<Particle>> {
+    let cfg = forces.cfg;
+    let moved: Vec<DVec3> = particles
+        .iter()
+        .map(|p| forces.step(p.position, trunk))
+        .collect();
+    let groups = merge_groups(&moved, cfg.merge_distance)?;
+    let mut next = Vec::with_capacity(groups.len());
+    for group in groups {
+        let position = group.iter().map(|&m| moved[m]).sum::<DVec3>() / group.len() as f64;
+        let id = nodes.len();
+        nodes.push(Node {
+            position,
+            parent: None,
+            radius: 0.0,
+            kind: if group.len() > 1 {
+                Kind::Junction
             } else {
-                next.push(Particle { position, node: id });
-            }
+                Kind::Branch
+            },
+        });
+        for &m in &group {
+            nodes[particles[m].node].parent = Some(id);
         }
-        particles = next;
+        let (t, d) = trunk.nearest(position);
+        if d < cfg.trunk_distance {
+            nodes[id].parent = Some(trunk_ids[t]);
+        } else {
+            next.push(Particle { position, node: id });
+        }
     }
-
-    // Ours: whatever is still free joins its nearest trunk node directly.
-    let forced_joins = particles.len();
-    for p in &particles {
-        let (t, _) = trunk.nearest(p.position);
-        nodes[p.node].parent = Some(trunk_ids[t]);
-    }
-    if forced_joins > 0 {
-        tracing::warn!(
-            forced_joins,
-            max_steps = cfg.max_steps,
-            "particles did not reach the trunk within max_steps and were joined to it directly"
-        );
-    }
-
-    Ok(Tree {
-        nodes,
-        trunk: trunk_ids,
-        attractor: trunk.attractor,
-        forced_joins,
-        steps,
-        wind,
-    })
+    Ok(next)
 }
 
 /// The three forces of Table 1 and the step of equations 1–3.
@@ -156,7 +174,7 @@ struct Forces<'a> {
     attractor: DVec3,
     shape_magnitude: f64,
     wind: DVec3,
-    cfg: &'a ReconstructConfig,
+    cfg: &'a ReconstructSettings,
 }
 
 impl Forces<'_> {
@@ -186,7 +204,10 @@ fn merge_groups(points: &[DVec3], distance: f64) -> Result<Vec<Vec<usize>>> {
     let index = ImmutableKdTree::<f64, 3>::builder()
         .with_serial_construction()
         .build_from_slice(&coords)
-        .map_err(|e| Error::Runtime(format!("particle index: {e}")))?;
+        .map_err(|e| ReconstructError::Index {
+            what: "particle",
+            message: e.to_string(),
+        })?;
     let limit = distance * distance;
     let mut taken = vec![false; points.len()];
     let mut groups = Vec::new();

@@ -14,23 +14,16 @@ use glam::DVec3;
 use crate::rng::Rng;
 
 /// Why a hull could not be built.
-#[derive(Debug, Clone, PartialEq, Eq)]
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
 pub enum HullError {
     /// Fewer than 4 points, or all points on one line or plane: the hull
     /// has no volume.
+    #[error("the convex hull has no volume: {0}")]
     Degenerate(&'static str),
     /// Rounding broke the face adjacency (should not happen; reported rather
     /// than returning a hull with holes).
+    #[error("the convex hull failed on rounding errors")]
     Numerical,
-}
-
-impl std::fmt::Display for HullError {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        match self {
-            HullError::Degenerate(why) => write!(f, "the convex hull has no volume: {why}"),
-            HullError::Numerical => write!(f, "the convex hull failed on rounding errors"),
-        }
-    }
 }
 
 /// A closed convex polyhedron made of triangles whose corners are input points.
@@ -87,108 +80,19 @@ impl Hull {
         // coordinates' magnitude, not only with the cloud's size.
         let size = (hi - lo).length() + lo.abs().max(hi.abs()).length();
         let eps = 1e-10 * size.max(f64::MIN_POSITIVE);
-        let simplex = initial_simplex(points, eps)?;
-        let centre = simplex.iter().map(|&i| points[i]).sum::<DVec3>() / 4.0;
-
-        let mut faces: Vec<Face> = Vec::new();
-        let mut edges: HashMap<(usize, usize), usize> = HashMap::new();
-        let [a, b, c, d] = simplex;
-        for tri in [[a, b, c], [a, d, b], [b, d, c], [c, d, a]] {
-            let mut f = Face::new(points, tri);
-            if f.distance(centre) > 0.0 {
-                f = Face::new(points, [tri[0], tri[2], tri[1]]);
-            }
-            add_face(&mut faces, &mut edges, f)?;
-        }
-        let in_simplex = |i: usize| simplex.contains(&i);
-        for (i, &p) in points.iter().enumerate() {
-            if in_simplex(i) {
-                continue;
-            }
-            if let Some(f) = faces.iter_mut().find(|f| f.distance(p) > eps) {
-                f.outside.push(i);
-            }
-        }
-
+        let mut b = Builder::start(points, eps)?;
         // Work on the lowest-index face with outside points, so the hull
         // (and the random tips drawn in it) is the same on every run.
         let mut cursor = 0;
-        while cursor < faces.len() {
-            if !faces[cursor].alive || faces[cursor].outside.is_empty() {
+        while cursor < b.faces.len() {
+            if !b.faces[cursor].alive || b.faces[cursor].outside.is_empty() {
                 cursor += 1;
                 continue;
             }
-            let f = &faces[cursor];
-            let mut eye = f.outside[0];
-            let mut best = f.distance(points[eye]);
-            for &i in &f.outside[1..] {
-                let dist = f.distance(points[i]);
-                if dist > best {
-                    best = dist;
-                    eye = i;
-                }
-            }
-            let eye_p = points[eye];
-
-            // Faces that see the eye, grown from this one across edges.
-            let mut visible = vec![cursor];
-            let mut seen = vec![cursor];
-            let mut head = 0;
-            while let Some(&fi) = visible.get(head) {
-                head += 1;
-                let v = faces[fi].v;
-                for k in 0..3 {
-                    let nb = *edges
-                        .get(&(v[(k + 1) % 3], v[k]))
-                        .ok_or(HullError::Numerical)?;
-                    if !seen.contains(&nb) {
-                        seen.push(nb);
-                        if faces[nb].distance(eye_p) > eps {
-                            visible.push(nb);
-                        }
-                    }
-                }
-            }
-            // Horizon: edges of visible faces whose neighbour is not visible,
-            // kept in the visible faces' orientation.
-            let mut horizon = Vec::new();
-            for &fi in &visible {
-                let v = faces[fi].v;
-                for k in 0..3 {
-                    let (u, w) = (v[k], v[(k + 1) % 3]);
-                    let nb = *edges.get(&(w, u)).ok_or(HullError::Numerical)?;
-                    if !visible.contains(&nb) {
-                        horizon.push((u, w));
-                    }
-                }
-            }
-            let mut orphans = Vec::new();
-            for &fi in &visible {
-                let face = &mut faces[fi];
-                face.alive = false;
-                orphans.append(&mut face.outside);
-                let v = face.v;
-                for k in 0..3 {
-                    edges.remove(&(v[k], v[(k + 1) % 3]));
-                }
-            }
-            let first_new = faces.len();
-            for (u, w) in horizon {
-                add_face(&mut faces, &mut edges, Face::new(points, [u, w, eye]))?;
-            }
-            for i in orphans {
-                if i == eye {
-                    continue;
-                }
-                let p = points[i];
-                if let Some(f) = faces[first_new..].iter_mut().find(|f| f.distance(p) > eps) {
-                    f.outside.push(i);
-                }
-            }
+            let first_new = b.add_eye_of(cursor)?;
             cursor = cursor.min(first_new);
         }
-
-        let alive: Vec<&Face> = faces.iter().filter(|f| f.alive).collect();
+        let alive: Vec<&Face> = b.faces.iter().filter(|f| f.alive).collect();
         Ok(Hull {
             points: points.to_vec(),
             faces: alive.iter().map(|f| f.v).collect(),
@@ -252,6 +156,135 @@ impl Hull {
             out.push(in_tetrahedron(c, a, b, d, rng));
         }
         out
+    }
+}
+
+/// Quickhull's working state: the faces so far (dead ones stay, so indices
+/// are stable) and the directed edges that index them.
+struct Builder<'a> {
+    points: &'a [DVec3],
+    eps: f64,
+    faces: Vec<Face>,
+    edges: HashMap<(usize, usize), usize>,
+}
+
+impl<'a> Builder<'a> {
+    /// The initial simplex, oriented outwards, with every other point given
+    /// to the first face it lies outside of.
+    fn start(points: &'a [DVec3], eps: f64) -> Result<Self, HullError> {
+        let simplex = initial_simplex(points, eps)?;
+        let centre = simplex.iter().map(|&i| points[i]).sum::<DVec3>() / 4.0;
+        let mut b = Builder {
+            points,
+            eps,
+            faces: Vec::new(),
+            edges: HashMap::new(),
+        };
+        let [a, bb, c, d] = simplex;
+        for tri in [[a, bb, c], [a, d, bb], [bb, d, c], [c, d, a]] {
+            let mut f = Face::new(points, tri);
+            if f.distance(centre) > 0.0 {
+                f = Face::new(points, [tri[0], tri[2], tri[1]]);
+            }
+            add_face(&mut b.faces, &mut b.edges, f)?;
+        }
+        for (i, &p) in points.iter().enumerate() {
+            if simplex.contains(&i) {
+                continue;
+            }
+            if let Some(f) = b.faces.iter_mut().find(|f| f.distance(p) > eps) {
+                f.outside.push(i);
+            }
+        }
+        Ok(b)
+    }
+
+    /// Adds the farthest outside point of face `cursor` (the eye): the faces
+    /// it sees are replaced by a cone from the horizon to the eye. Returns
+    /// the index of the first new face.
+    fn add_eye_of(&mut self, cursor: usize) -> Result<usize, HullError> {
+        let f = &self.faces[cursor];
+        let mut eye = f.outside[0];
+        let mut best = f.distance(self.points[eye]);
+        for &i in &f.outside[1..] {
+            let dist = f.distance(self.points[i]);
+            if dist > best {
+                best = dist;
+                eye = i;
+            }
+        }
+        let visible = self.visible_from(cursor, self.points[eye])?;
+        let horizon = self.horizon(&visible)?;
+        let mut orphans = Vec::new();
+        for &fi in &visible {
+            let face = &mut self.faces[fi];
+            face.alive = false;
+            orphans.append(&mut face.outside);
+            let v = face.v;
+            for k in 0..3 {
+                self.edges.remove(&(v[k], v[(k + 1) % 3]));
+            }
+        }
+        let first_new = self.faces.len();
+        for (u, w) in horizon {
+            let face = Face::new(self.points, [u, w, eye]);
+            add_face(&mut self.faces, &mut self.edges, face)?;
+        }
+        for i in orphans {
+            if i == eye {
+                continue;
+            }
+            let p = self.points[i];
+            let eps = self.eps;
+            if let Some(f) = self.faces[first_new..]
+                .iter_mut()
+                .find(|f| f.distance(p) > eps)
+            {
+                f.outside.push(i);
+            }
+        }
+        Ok(first_new)
+    }
+
+    /// The faces that see `eye`, grown from face `from` across edges.
+    fn visible_from(&self, from: usize, eye: DVec3) -> Result<Vec<usize>, HullError> {
+        let mut visible = vec![from];
+        let mut seen = vec![from];
+        let mut head = 0;
+        while let Some(&fi) = visible.get(head) {
+            head += 1;
+            let v = self.faces[fi].v;
+            for k in 0..3 {
+                let nb = *self
+                    .edges
+                    .get(&(v[(k + 1) % 3], v[k]))
+                    .ok_or(HullError::Numerical)?;
+                if !seen.contains(&nb) {
+                    seen.push(nb);
+                    if self.faces[nb].distance(eye) > self.eps {
+                        visible.push(nb);
+                    }
+                }
+            }
+        }
+        Ok(visible)
+    }
+
+    /// Edges of the visible faces whose neighbour is not visible, kept in the
+    /// visible faces' orientation.
+    fn horizon(&self, visible: &[usize]) -> Result<Vec<(usize, usize)>, HullError> {
+        let mut horizon = Vec::new();
+        for &fi in visible {
+            let v = self.faces[fi].v;
+            for k in 0..3 {
+                let (u, w) = (v[k], v[(k + 1) % 3]);
+                let nb = *self.edges.get(&(w, u)).ok_or(HullError::Numerical)?;
+                if !visible.contains(&nb) {
+                    horizon.push((u, w));
+                }
+            }
+        }
+        Ok(horizon)
     }
 }
 

@@ -4,10 +4,10 @@
 
 use glam::DVec3;
 
-use crate::config::ReconstructConfig;
 use crate::error::Result;
 use crate::model::tree::{Kind, Tree};
 use crate::reconstruct::mesh::Mesh;
+use crate::reconstruct::ReconstructSettings;
 use crate::rng::Rng;
 
 /// Label of the leaves' random stream (see `Rng::fork`).
@@ -15,7 +15,7 @@ pub const RNG_LABEL: u64 = 3;
 
 /// The leaf quads of `tree`, as a mesh of their own (a separate glTF mesh
 /// with a double-sided material).
-pub fn leaves(tree: &Tree, cfg: &ReconstructConfig, seed: u64) -> Result<Mesh> {
+pub fn leaves(tree: &Tree, cfg: &ReconstructSettings, seed: u64) -> Result<Mesh> {
     let mut rng = Rng::new(seed).fork(RNG_LABEL);
     let mut mesh = Mesh::default();
     for chain in tree.chains() {

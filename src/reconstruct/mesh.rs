@@ -9,8 +9,9 @@ use std::f64::consts::TAU;
 
 use glam::{DQuat, DVec3};
 
-use crate::error::{Error, Result};
+use crate::error::Result;
 use crate::model::tree::Tree;
+use crate::reconstruct::error::ReconstructError;
 
 /// A triangle mesh as glTF wants it: f32 positions and unit normals, u32
 /// indices, counter-clockwise triangles seen from outside.
@@ -28,7 +29,7 @@ impl Mesh {
     /// Adds a vertex and returns its index.
     pub fn vertex(&mut self, p: DVec3, n: DVec3) -> Result<u32> {
         let i = u32::try_from(self.positions.len())
-            .map_err(|_| Error::Runtime("mesh has more than 2^32 vertices".into()))?;
+            .map_err(|_| ReconstructError::TooLarge { what: "the mesh" })?;
         self.positions.push(p.as_vec3().to_array());
         self.normals.push(
             n.try_normalize()

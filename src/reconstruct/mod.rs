@@ -4,19 +4,23 @@
 //! [`reconstruct`] turns captured tips and the wind into a [`Tree`]; turning
 //! the tree into files is `render`'s business.
 
+pub mod error;
 pub mod flow;
 pub mod hull;
 pub mod leaves;
 pub mod mesh;
 pub mod radii;
+pub mod settings;
 pub mod trunk;
 pub mod volume;
 
+pub use settings::{ReconstructSettings, VolumeKind};
+
 use glam::DVec3;
 
-use crate::config::ReconstructConfig;
-use crate::error::{Error, Result};
+use crate::error::Result;
 use crate::rng::Rng;
+pub use error::ReconstructError;
 
 use crate::model::tips::CapturedTip;
 use crate::model::tree::{Kind, Tree};
@@ -26,13 +30,13 @@ use crate::model::tree::{Kind, Tree};
 const TRUNK_STREAM: u64 = 1;
 const VOLUME_STREAM: u64 = 2;
 
-/// Reconstructs a tree from captured tips (contract 3): trunk, random tips
+/// Reconstructs a tree from captured tips: trunk, random tips
 /// in the crown volume, particle flow, pipe-model radii. `wind` is direction
 /// × speed (zero when unknown). The same inputs and seed give the same tree.
 pub fn reconstruct(
     tips: &[CapturedTip],
     wind: DVec3,
-    cfg: &ReconstructConfig,
+    cfg: &ReconstructSettings,
     seed: u64,
 ) -> Result<Tree> {
     Ok(reconstruct_with_volume(tips, wind, cfg, seed)?.0)
@@ -43,14 +47,12 @@ pub fn reconstruct(
 pub fn reconstruct_with_volume(
     tips: &[CapturedTip],
     wind: DVec3,
-    cfg: &ReconstructConfig,
+    cfg: &ReconstructSettings,
     seed: u64,
 ) -> Result<(Tree, volume::Volume)> {
     cfg.validate()?;
     if tips.is_empty() {
-        return Err(Error::Runtime(
-            "no captured tips to reconstruct from".into(),
-        ));
+        return Err(ReconstructError::NoTips.into());
     }
     // A capture volume is metres across; anything beyond 10 km is a unit or
     // file error, and would only overflow the geometry further down.
@@ -59,19 +61,18 @@ pub fn reconstruct_with_volume(
         .iter()
         .find(|t| !t.position.is_finite() || t.position.abs().max_element() > FAR)
     {
-        return Err(Error::Runtime(format!(
-            "captured tip of marker {} is not a finite position within {FAR} m: {}",
-            t.marker, t.position
-        )));
+        return Err(ReconstructError::TipOutOfRange {
+            marker: t.marker,
+            position: t.position,
+            limit_m: FAR,
+        }
+        .into());
     }
     if !wind.is_finite() || wind.length() > FAR {
-        return Err(Error::Runtime(format!(
-            "the wind vector {wind} is not finite or absurdly large"
-        )));
+        return Err(ReconstructError::WindOutOfRange(wind).into());
     }
     let positions: Vec<DVec3> = tips.iter().map(|t| t.position).collect();
-    let crown = trunk::Bounds::of(positions.iter().copied())
-        .ok_or_else(|| Error::Runtime("no captured tips".into()))?;
+    let crown = trunk::Bounds::of(positions.iter().copied()).ok_or(ReconstructError::NoTips)?;
     let trunk = trunk::Trunk::build(crown, cfg, &mut Rng::new(seed).fork(TRUNK_STREAM))?;
     let (volume, random) =
         volume::random_tips(&positions, cfg, &mut Rng::new(seed).fork(VOLUME_STREAM))?;
@@ -84,8 +85,7 @@ pub fn reconstruct_with_volume(
     let mut tree = flow::run(&starts, &trunk, wind, cfg)?;
     // Cheap (linear) and every output relies on it: fail loudly rather than
     // write a broken tree.
-    tree.check()
-        .map_err(|e| Error::Runtime(format!("reconstruction produced a broken tree: {e}")))?;
+    tree.check().map_err(ReconstructError::BrokenTree)?;
     radii::assign(&mut tree, cfg.tip_radius, cfg.gamma);
     Ok((tree, volume))
 }

@@ -6,8 +6,9 @@
 use glam::DVec3;
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
 
-use crate::config::ReconstructConfig;
-use crate::error::{Error, Result};
+use crate::error::Result;
+use crate::reconstruct::error::ReconstructError;
+use crate::reconstruct::ReconstructSettings;
 use crate::rng::Rng;
 
 /// Trunk nodes and a nearest-neighbour index over them.
@@ -47,7 +48,7 @@ impl Bounds {
 
 impl Trunk {
     /// Builds the trunk for captured tips with the given bounds.
-    pub fn build(crown: Bounds, cfg: &ReconstructConfig, rng: &mut Rng) -> Result<Trunk> {
+    pub fn build(crown: Bounds, cfg: &ReconstructSettings, rng: &mut Rng) -> Result<Trunk> {
         let n = cfg.trunk_nodes.max(2);
         let centre_x = 0.5 * (crown.min.x + crown.max.x);
         let centre_z = 0.5 * (crown.min.z + crown.max.z);
@@ -71,7 +72,10 @@ impl Trunk {
         let index = ImmutableKdTree::<f64, 3>::builder()
             .with_serial_construction()
             .build_from_slice(&points)
-            .map_err(|e| Error::Runtime(format!("trunk index: {e}")))?;
+            .map_err(|e| ReconstructError::Index {
+                what: "trunk",
+                message: e.to_string(),
+            })?;
         let attractor = if cfg.attractor_node >= 0 {
             (cfg.attractor_node as usize).min(n - 1)
         } else {
@@ -130,7 +134,7 @@ mod tests {
 
     #[test]
     fn trunk_stands_under_the_crown_centre() {
-        let cfg = ReconstructConfig::default();
+        let cfg = ReconstructSettings::default();
         let t = Trunk::build(crown(), &cfg, &mut Rng::new(1)).unwrap();
         assert_eq!(t.nodes.len(), cfg.trunk_nodes);
         // Base at the ground under the centre (0, ground, 2.5).
@@ -148,7 +152,7 @@ mod tests {
 
     #[test]
     fn nearest_matches_a_linear_scan() {
-        let cfg = ReconstructConfig::default();
+        let cfg = ReconstructSettings::default();
         let t = Trunk::build(crown(), &cfg, &mut Rng::new(3)).unwrap();
         let mut rng = Rng::new(9);
         for _ in 0..200 {
@@ -165,7 +169,7 @@ mod tests {
 
     #[test]
     fn attractor_can_be_chosen() {
-        let cfg = ReconstructConfig {
+        let cfg = ReconstructSettings {
             attractor_node: 0,
             ..Default::default()
         };

@@ -5,10 +5,11 @@
 
 use glam::DVec3;
 
-use crate::config::{ReconstructConfig, VolumeKind};
-use crate::error::{Error, Result};
+use crate::error::Result;
+use crate::reconstruct::error::ReconstructError;
 use crate::reconstruct::hull::Hull;
 use crate::reconstruct::trunk::Bounds;
+use crate::reconstruct::{ReconstructSettings, VolumeKind};
 use crate::rng::Rng;
 
 /// One box of the vertical stack.
@@ -78,14 +79,12 @@ pub fn proportional(total: usize, weights: &[usize]) -> Vec<usize> {
 /// so that captured + random = `total_tips`.
 pub fn random_tips(
     captured: &[DVec3],
-    cfg: &ReconstructConfig,
+    cfg: &ReconstructSettings,
     rng: &mut Rng,
 ) -> Result<(Volume, Vec<DVec3>)> {
     let count = cfg.total_tips.saturating_sub(captured.len());
     let Some(bounds) = Bounds::of(captured.iter().copied()) else {
-        return Err(Error::Runtime(
-            "no captured tips to reconstruct from".into(),
-        ));
+        return Err(ReconstructError::NoTips.into());
     };
     match cfg.volume {
         VolumeKind::Boxes => {
@@ -105,11 +104,7 @@ pub fn random_tips(
         VolumeKind::Hull => {
             let hull = match Hull::build(captured) {
                 Ok(h) => h,
-                Err(e) if count > 0 => {
-                    return Err(Error::Runtime(format!(
-                        "reconstruct.volume = \"hull\": {e}; use volume = \"boxes\" for these tips"
-                    )))
-                }
+                Err(e) if count > 0 => return Err(ReconstructError::Hull(e).into()),
                 // Nothing to place: a flat set of tips is no obstacle.
                 Err(_) => return Ok((Volume::Boxes(Vec::new()), Vec::new())),
             };
@@ -188,7 +183,7 @@ mod tests {
                 )
             })
             .collect();
-        let cfg = ReconstructConfig::default();
+        let cfg = ReconstructSettings::default();
         let (vol, tips) = random_tips(&captured, &cfg, &mut rng).unwrap();
         assert_eq!(tips.len(), cfg.total_tips - 30);
         let Volume::Boxes(boxes) = vol else { panic!() };

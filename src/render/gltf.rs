@@ -7,9 +7,10 @@
 use gltf_json as json;
 use json::validation::{Checked::Valid, USize64};
 
-use crate::error::{Error, Result};
+use crate::error::Result;
 use crate::model::tree::Tree;
 use crate::reconstruct::mesh::Mesh;
+use crate::render::error::RenderError;
 
 const GLB_MAGIC: u32 = 0x4654_6C67; // "glTF"
 const CHUNK_JSON: u32 = 0x4E4F_534A; // "JSON"
@@ -184,9 +185,10 @@ impl Builder {
             return Ok(None);
         }
         if mesh.normals.len() != mesh.positions.len() {
-            return Err(Error::Runtime(format!(
+            return Err(RenderError::Inconsistent(format!(
                 "{name}: normals and positions differ in count"
-            )));
+            ))
+            .into());
         }
         let positions = self.vec3(&mesh.positions, true);
         let normals = self.vec3(&mesh.normals, false);
@@ -214,7 +216,7 @@ impl Builder {
             if let Some(p) = n.parent {
                 let (a, b) = (u32::try_from(i), u32::try_from(p));
                 let (Ok(a), Ok(b)) = (a, b) else {
-                    return Err(Error::Runtime("skeleton has more than 2^32 nodes".into()));
+                    return Err(RenderError::TooLarge("skeleton has more than 2^32 nodes").into());
                 };
                 lines.extend_from_slice(&[a, b]);
             }
@@ -286,13 +288,13 @@ impl Builder {
         let mut text = self
             .root
             .to_vec()
-            .map_err(|e| Error::Runtime(format!("glTF JSON: {e}")))?;
+            .map_err(|e| RenderError::Gltf(e.to_string()))?;
         while !text.len().is_multiple_of(4) {
             text.push(b' ');
         }
         let total = 12 + 8 + text.len() + 8 + self.bin.len();
         let total = u32::try_from(total).map_err(|_| {
-            Error::Runtime("the tree is too large for one .glb file (4 GiB)".into())
+            RenderError::TooLarge("the tree is too large for one .glb file (4 GiB)")
         })?;
         let mut out = Vec::with_capacity(total as usize);
         out.extend_from_slice(&GLB_MAGIC.to_le_bytes());

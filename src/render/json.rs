@@ -20,18 +20,18 @@
 
 use serde_json::{json, Value};
 
-use crate::config::ReconstructConfig;
-use crate::error::{Error, Result};
+use crate::error::Result;
 use crate::model::tree::{Kind, Tree};
+use crate::reconstruct::ReconstructSettings;
+use crate::render::error::RenderError;
 
 /// Version of the tree.json layout.
 pub const VERSION: u32 = 1;
 
 /// Encodes `tree` (reconstructed with `cfg`) as tree.json text: one key per
 /// line, each array on a single line so the file stays small and diffable.
-pub fn to_json(tree: &Tree, cfg: &ReconstructConfig) -> Result<String> {
-    let parameters =
-        serde_json::to_value(cfg).map_err(|e| Error::Runtime(format!("tree.json: {e}")))?;
+pub fn to_json(tree: &Tree, cfg: &ReconstructSettings) -> Result<String> {
+    let parameters = serde_json::to_value(cfg).map_err(RenderError::from)?;
     let fields: Vec<(&str, Value)> = vec![
         ("version", json!(VERSION)),
         ("seed", json!(cfg.seed)),
@@ -76,8 +76,7 @@ pub fn to_json(tree: &Tree, cfg: &ReconstructConfig) -> Result<String> {
     ];
     let mut out = String::from("{\n");
     for (i, (key, value)) in fields.iter().enumerate() {
-        let v =
-            serde_json::to_string(value).map_err(|e| Error::Runtime(format!("tree.json: {e}")))?;
+        let v = serde_json::to_string(value).map_err(RenderError::from)?;
         out.push_str(&format!("  \"{key}\": {v}"));
         out.push_str(if i + 1 < fields.len() { ",\n" } else { "\n" });
     }
@@ -120,7 +119,7 @@ mod tests {
             steps: 3,
             wind: DVec3::new(0.0, 0.0, 2.0),
         };
-        let cfg = ReconstructConfig::default();
+        let cfg = ReconstructSettings::default();
         let text = to_json(&tree, &cfg).unwrap();
         let v: Value = serde_json::from_str(&text).unwrap();
         assert_eq!(v["seed"], json!(cfg.seed));

@@ -2,6 +2,7 @@
 //! the traces as a plot. Pure functions; writing the bytes somewhere is the
 //! caller's business (`app`, `daemon`, `serve`).
 
+pub mod error;
 pub mod gltf;
 pub mod json;
 pub mod outputs;

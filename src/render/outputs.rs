@@ -7,11 +7,10 @@ use std::path::PathBuf;
 use glam::DVec3;
 use serde::Serialize;
 
-use crate::config::Config;
 use crate::error::Result;
 use crate::model::tips::CapturedTip;
 use crate::model::tree::{Kind, Tree};
-use crate::reconstruct::{leaves, mesh, reconstruct};
+use crate::reconstruct::{leaves, mesh, reconstruct, ReconstructSettings};
 
 /// What a reconstruction produced, for the CLI and the daemon to print.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -51,18 +50,25 @@ pub struct Outputs {
     pub report: Report,
 }
 
-/// Reconstructs with `config.reconstruct` (and its seed) and encodes the
+/// Reconstructs with `cfg` (and its seed) and encodes the
 /// three outputs, without touching the disk.
-pub fn build_outputs(tips: &[CapturedTip], wind: DVec3, config: &Config) -> Result<Outputs> {
-    let mut outputs = build_model(tips, wind, config)?;
+pub fn build_outputs(
+    tips: &[CapturedTip],
+    wind: DVec3,
+    cfg: &ReconstructSettings,
+) -> Result<Outputs> {
+    let mut outputs = build_model(tips, wind, cfg)?;
     outputs.png = super::picture::tree_png(&outputs.tree)?;
     Ok(outputs)
 }
 
 /// Like [`build_outputs`] without the picture (`png` left empty): the daemon
 /// publishes the tree to its viewers first and draws the picture after.
-pub fn build_model(tips: &[CapturedTip], wind: DVec3, config: &Config) -> Result<Outputs> {
-    let cfg = &config.reconstruct;
+pub fn build_model(
+    tips: &[CapturedTip],
+    wind: DVec3,
+    cfg: &ReconstructSettings,
+) -> Result<Outputs> {
     let tree = reconstruct(tips, wind, cfg, cfg.seed)?;
     let branch_mesh = mesh::branches(&tree, cfg.sides)?;
     let leaf_mesh = if cfg.leaves {
@@ -90,4 +96,32 @@ pub fn build_model(tips: &[CapturedTip], wind: DVec3, config: &Config) -> Result
         png,
         report,
     })
+}
+
+impl Report {
+    /// The reconstruction's counts on one line, as `replay` and
+    /// `reconstruct` print them.
+    pub fn counts(&self) -> String {
+        format!(
+            "tree: {} captured + {} random tips, {} nodes, {} flow steps, {} forced joins, {} triangles, {} leaves",
+            self.captured_tips,
+            self.random_tips,
+            self.nodes,
+            self.steps,
+            self.forced_joins,
+            self.branch_triangles,
+            self.leaves
+        )
+    }
+}
+
+impl std::fmt::Display for Report {
+    /// The counts, then a line per file written.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        writeln!(f, "{}", self.counts())?;
+        for file in &self.files {
+            writeln!(f, "wrote {}", file.display())?;
+        }
+        Ok(())
+    }
 }

@@ -7,14 +7,19 @@
 //! Coordinates are pixels, x to the right and y down, as f64 so callers can
 //! map data without rounding; everything outside the canvas is clipped.
 
-use crate::error::{Error, Result};
+use crate::error::Result;
+use crate::render::error::RenderError;
 
 /// An sRGB colour.
 pub type Rgb = [u8; 3];
 
+/// The canvas's background.
 pub const WHITE: Rgb = [255, 255, 255];
+/// Text and labels of the plots.
 pub const BLACK: Rgb = [0, 0, 0];
+/// Panel outlines of the plots.
 pub const GREY: Rgb = [128, 128, 128];
+/// Zero lines: visible, yet quieter than the data drawn over them.
 pub const LIGHT_GREY: Rgb = [225, 225, 225];
 
 /// An RGB image being drawn.
@@ -36,10 +41,12 @@ impl Canvas {
         }
     }
 
+    /// Width in pixels (after clamping).
     pub fn width(&self) -> u32 {
         self.width
     }
 
+    /// Height in pixels (after clamping).
     pub fn height(&self) -> u32 {
         self.height
     }
@@ -235,7 +242,7 @@ impl Canvas {
     /// Encodes the canvas as an 8-bit RGB PNG.
     pub fn encode_png(&self) -> Result<Vec<u8>> {
         let mut out = Vec::new();
-        let err = |e: png::EncodingError| Error::Runtime(format!("PNG encoding: {e}"));
+        let err = RenderError::from;
         let mut encoder = png::Encoder::new(&mut out, self.width, self.height);
         encoder.set_color(png::ColorType::Rgb);
         encoder.set_depth(png::BitDepth::Eight);

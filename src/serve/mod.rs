@@ -3,5 +3,9 @@
 //! immutable [`snapshot::TreeSnapshot`]; none of them can slow the pipeline.
 
 pub mod http;
+pub mod live;
+pub mod natnet;
 pub mod osc;
 pub mod snapshot;
+pub mod view;
+mod web;

@@ -139,6 +139,7 @@ pub struct OscSender {
 const PAUSE: Duration = Duration::from_millis(1);
 
 impl OscSender {
+    /// A sender on an ephemeral UDP port for the `daemon.osc_targets`.
     pub fn new(targets: Vec<SocketAddr>) -> Result<Self> {
         let socket = UdpSocket::bind(("0.0.0.0", 0))
             .map_err(|e| Error::Runtime(format!("OSC out: cannot open a UDP socket: {e}")))?;
@@ -149,6 +150,9 @@ impl OscSender {
         })
     }
 
+    /// Sends one datagram to every target. A target that refuses is
+    /// counted, not fatal: a viewer that is not running must not stop the
+    /// daemon.
     pub fn send(&mut self, datagram: &[u8]) {
         for t in &self.targets {
             if let Err(e) = self.socket.send_to(datagram, t) {

@@ -21,14 +21,13 @@ pub mod truth;
 
 use std::f64::consts::TAU;
 use std::fmt;
-use std::io::BufWriter;
 use std::path::{Path, PathBuf};
 
 use glam::DVec3;
 use serde::{Deserialize, Serialize};
 
 // The same range rule and message as every config key.
-use crate::config::check_range as check;
+use crate::error::check_range as check;
 use crate::error::{Error, Result};
 use crate::model::frame::MarkerFrame;
 use crate::rng::Rng;
@@ -59,6 +58,7 @@ pub struct SynthOptions {
     pub seed: u64,
     /// Markers placed on the tree (1–70; the paper uses 24 and 35).
     pub tips: usize,
+    /// Crown form: round (maple) or conical (pine), the paper's two trees.
     pub shape: CrownShape,
     /// Frames per second (Hz).
     pub frame_rate: f64,
@@ -84,6 +84,7 @@ pub struct SynthOptions {
     pub long_gaps: Option<usize>,
     /// Shortest and longest long occlusion (s).
     pub long_gap_min_s: f64,
+    /// Longest long occlusion (s).
     pub long_gap_max_s: f64,
     /// Mean number of spurious reflections appearing per second.
     pub spurious_per_s: f64,
@@ -179,6 +180,7 @@ pub struct Synthetic {
     pub frames: Vec<MarkerFrame>,
     /// The CSV's columns (same as `truth.columns`).
     pub columns: Vec<ColumnTruth>,
+    /// What the session was made from, to score every stage against.
     pub truth: Truth,
 }
 
@@ -243,18 +245,29 @@ pub fn truth_path(csv: &Path) -> PathBuf {
 /// What `write_session` wrote, for the CLI to print.
 #[derive(Debug, Clone, Serialize)]
 pub struct SessionSummary {
+    /// The Motive CSV written.
     pub csv: PathBuf,
+    /// The truth file beside it.
     pub truth: PathBuf,
+    /// Size of the CSV.
     pub csv_bytes: u64,
+    /// Frames in the session.
     pub frames: usize,
+    /// Markers placed on the tree.
     pub tips: usize,
+    /// `Unlabeled N` columns (one per marker appearance and reflection).
     pub columns: usize,
+    /// Occlusions, short and long.
     pub gaps: usize,
     /// Fraction of tip samples missing.
     pub gap_fraction: f64,
+    /// Spurious reflections added.
     pub spurious: usize,
+    /// Height of the true tree (m).
     pub tree_height_m: f64,
+    /// Nodes of the true tree.
     pub tree_nodes: usize,
+    /// Unit vector the simulated wind blows towards.
     pub wind_direction: DVec3,
 }
 
@@ -282,51 +295,4 @@ impl fmt::Display for SessionSummary {
             self.spurious
         )
     }
-}
-
-/// Generates a session and writes the Motive CSV to `csv` and the truth to
-/// [`truth_path`]`(csv)`. An empty `take_name` becomes the file's stem.
-pub fn write_session(opts: &SynthOptions, csv: &Path) -> Result<SessionSummary> {
-    let mut opts = opts.clone();
-    if opts.take_name.is_empty() {
-        opts.take_name = csv
-            .file_stem()
-            .map(|s| s.to_string_lossy().into_owned())
-            .unwrap_or_default();
-    }
-    let syn = generate(&opts)?;
-    let truth_file = truth_path(csv);
-    if let Some(dir) = csv.parent().filter(|d| !d.as_os_str().is_empty()) {
-        std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
-    }
-    let file = std::fs::File::create(csv).map_err(|e| Error::io(csv, e))?;
-    let mut out = BufWriter::with_capacity(1 << 20, file);
-    write_motive_csv(&syn, &mut out).map_err(|e| Error::io(csv, e))?;
-    drop(out);
-    let mut json = serde_json::to_string_pretty(&syn.truth)
-        .map_err(|e| Error::Runtime(format!("{}: {e}", truth_file.display())))?;
-    json.push('\n');
-    std::fs::write(&truth_file, json).map_err(|e| Error::io(&truth_file, e))?;
-
-    let csv_bytes = std::fs::metadata(csv).map_err(|e| Error::io(csv, e))?.len();
-    let t = &syn.truth;
-    let missing: i64 = t
-        .gaps
-        .iter()
-        .map(|g| g.last_frame - g.first_frame + 1)
-        .sum();
-    Ok(SessionSummary {
-        csv: csv.to_path_buf(),
-        truth: truth_file,
-        csv_bytes,
-        frames: t.frames,
-        tips: t.tips.len(),
-        columns: t.columns.len(),
-        gaps: t.gaps.len(),
-        gap_fraction: missing as f64 / (t.frames * t.tips.len()).max(1) as f64,
-        spurious: t.spurious.len(),
-        tree_height_m: t.tree.height,
-        tree_nodes: t.tree.nodes.len(),
-        wind_direction: t.wind_direction,
-    })
 }

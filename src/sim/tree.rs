@@ -73,6 +73,7 @@ pub struct TreeNode {
 /// The true tree behind a synthetic session, as written to `NAME.truth.json`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct TreeTruth {
+    /// The crown form it was grown with.
     pub shape: CrownShape,
     /// Height of the highest node (m).
     pub height: f64,

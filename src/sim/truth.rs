@@ -62,8 +62,11 @@ pub struct TipTruth {
 /// `first_frame..=last_frame`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 pub struct GapTruth {
+    /// The hidden tip (index into `Truth::tips`).
     pub tip: usize,
+    /// First frame without it.
     pub first_frame: i64,
+    /// Last frame without it.
     pub last_frame: i64,
 }
 
@@ -77,6 +80,7 @@ pub struct ColumnTruth {
     pub tip: Option<usize>,
     /// First and last frame with data in this column (it is full in between).
     pub first_frame: i64,
+    /// Last frame with data in this column.
     pub last_frame: i64,
 }
 
@@ -85,7 +89,9 @@ pub struct ColumnTruth {
 pub struct SpuriousTruth {
     /// Its column in `Truth::columns`.
     pub column: usize,
+    /// First frame it is seen in.
     pub first_frame: i64,
+    /// Last frame it is seen in.
     pub last_frame: i64,
     /// Where it is (m); it does not move apart from measurement noise.
     pub position: DVec3,
@@ -115,6 +121,7 @@ pub struct Truth {
     /// Where a fan producing this wind would stand (2 m upwind of the crown's
     /// centre, at crown-centre height), for the fan-position wind source.
     pub fan_position: DVec3,
+    /// The true tree the tips belong to.
     pub tree: TreeTruth,
     /// The marked tips, in tip-index order.
     pub tips: Vec<TipTruth>,
@@ -122,6 +129,7 @@ pub struct Truth {
     pub gaps: Vec<GapTruth>,
     /// Every CSV column, in CSV order: the column → tip map.
     pub columns: Vec<ColumnTruth>,
+    /// Every stray reflection, which tracking must drop as noise.
     pub spurious: Vec<SpuriousTruth>,
 }
 

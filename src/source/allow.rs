@@ -10,7 +10,9 @@ use crate::error::{Error, Result};
 /// One allowed range: an address and how many leading bits must match.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
 pub struct IpRange {
+    /// The network's address (or a single host's).
     pub addr: IpAddr,
+    /// Leading bits that must match: 32 (IPv4) or 128 (IPv6) for one host.
     pub prefix: u8,
 }
 
@@ -35,6 +37,8 @@ impl IpRange {
         Ok(IpRange { addr, prefix })
     }
 
+    /// Whether `ip` lies in the range; an IPv4-mapped IPv6 address counts
+    /// as the IPv4 address it carries.
     pub fn contains(&self, ip: IpAddr) -> bool {
         match (self.addr, canonical(ip)) {
             (IpAddr::V4(a), IpAddr::V4(b)) => prefix_eq(
@@ -107,6 +111,7 @@ impl AllowList {
             .map(AllowList)
     }
 
+    /// Whether a datagram from `ip` may be read.
     pub fn allows(&self, ip: IpAddr) -> bool {
         self.0.iter().any(|r| r.contains(ip))
     }

@@ -71,6 +71,11 @@ impl FrameReceiver {
         self.rx.try_iter().map(|a| a.0)
     }
 
+    /// The underlying receiver, for `select!` (items carry their arrival).
+    pub fn receiver(&self) -> &Receiver<Arrived> {
+        &self.rx
+    }
+
     /// Frames waiting in the channel (the backlog).
     pub fn len(&self) -> usize {
         self.rx.len()

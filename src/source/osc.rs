@@ -17,12 +17,13 @@ use serde::Serialize;
 use tokio::net::UdpSocket;
 use tokio::sync::watch;
 
-use crate::config::OscConfig;
 use crate::error::{Error, Result};
+use crate::model::frame::{LengthUnit, UpAxis};
 use crate::protocol::osc::{Assembler, DecodeOptions, Output, ProblemKind};
 use crate::source::allow::AllowList;
 use crate::source::channel::FrameSink;
 use crate::source::live::{LiveSource, SourceFuture, SourceReport};
+use serde::Deserialize;
 
 /// Problems of one kind logged at `warn` before the rest go to `debug`.
 const WARN_FIRST: u64 = 5;
@@ -31,6 +32,25 @@ const MAX_REFUSED_SENDERS: usize = 256;
 /// Kernel receive buffer asked for: 1000 markers × 1000 frames/s arrive in
 /// bursts, and a datagram the kernel cannot queue is lost without a trace.
 const RECV_BUFFER_BYTES: usize = 4 << 20;
+
+/// The OSC source's settings (`[osc]` in the config): where it listens,
+/// whom it accepts, and how the sender's positions convert to metres, Y up.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct OscSettings {
+    /// Address and port to listen on; loopback unless the user widens it.
+    pub bind: SocketAddr,
+    /// IP addresses or CIDR ranges accepted as senders.
+    pub allow: Vec<String>,
+    /// The sender's up axis.
+    pub up_axis: UpAxis,
+    /// The sender's length unit.
+    pub units: LengthUnit,
+    /// Also take `/othermarker` messages.
+    pub othermarkers: bool,
+    /// Nominal frame rate for recording headers (Hz).
+    pub frame_rate: f64,
+}
 
 /// Everything the OSC source needs to run.
 #[derive(Debug, Clone)]
@@ -49,41 +69,15 @@ pub struct OscOptions {
 }
 
 impl OscOptions {
-    /// Options from the `[osc]` config section, each bad value named by key.
-    pub fn from_config(c: &OscConfig) -> Result<Self> {
-        let bind = c.bind.parse().map_err(|_| {
-            Error::config(
-                "osc.bind",
-                format!("'{}' is not ADDRESS:PORT (e.g. 127.0.0.1:9000)", c.bind),
-            )
-        })?;
-        let z_up = match c.up_axis.to_ascii_lowercase().as_str() {
-            "y" => false,
-            "z" => true,
-            other => {
-                return Err(Error::config(
-                    "osc.up_axis",
-                    format!("'{other}': expected \"y\" or \"z\""),
-                ))
-            }
-        };
-        let scale = match c.units.as_str() {
-            "m" => 1.0,
-            "cm" => 0.01,
-            "mm" => 0.001,
-            other => {
-                return Err(Error::config(
-                    "osc.units",
-                    format!("'{other}': expected \"m\", \"cm\" or \"mm\""),
-                ))
-            }
-        };
+    /// Options from the `[osc]` settings; a bad allow-list entry is named
+    /// by its key.
+    pub fn from_settings(c: &OscSettings) -> Result<Self> {
         Ok(OscOptions {
-            bind,
+            bind: c.bind,
             allow: AllowList::parse("osc.allow", &c.allow)?,
             decode: DecodeOptions {
-                scale,
-                z_up,
+                scale: c.units.metres(),
+                up_axis: c.up_axis,
                 othermarkers: c.othermarkers,
             },
             frame_rate: c.frame_rate,
@@ -122,14 +116,23 @@ pub struct OscStats {
 /// A copy of the counters at one instant.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize)]
 pub struct OscCounts {
+    /// Datagrams received from allowed senders.
     pub datagrams: u64,
+    /// Frames delivered.
     pub frames: u64,
+    /// Markers in those frames.
     pub markers: u64,
+    /// Datagrams from senders outside `osc.allow`, dropped unread.
     pub not_allowed: u64,
+    /// Datagrams that are not OSC.
     pub garbage: u64,
+    /// Messages with wrong type tags or arguments, skipped.
     pub bad_args: u64,
+    /// Frame brackets broken by a lost datagram.
     pub broken_frames: u64,
+    /// Well-formed messages at addresses we do not use.
     pub ignored: u64,
+    /// Frames dropped because the consumer fell behind.
     pub dropped: u64,
 }
 
@@ -146,6 +149,7 @@ impl OscCounts {
 }
 
 impl OscStats {
+    /// The counters now, for the progress line and `/status`.
     pub fn snapshot(&self) -> OscCounts {
         let get = |a: &AtomicU64| a.load(Ordering::Relaxed);
         OscCounts {

@@ -12,7 +12,9 @@ use crate::source::channel::FrameSink;
 /// What a playback did.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct PlayReport {
+    /// Frames handed to the sink.
     pub frames: u64,
+    /// Passes started again at the recording's end (`repeat`).
     pub loops: u64,
 }
 
@@ -72,14 +74,14 @@ pub fn play(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::format::motive_csv::MotiveCsvReader;
+
     use crate::source::channel::frame_channel;
     use std::path::Path;
 
     fn open() -> Result<Box<dyn Recording>> {
         let p = Path::new(env!("CARGO_MANIFEST_DIR"))
             .join("tests/fixtures/motive/quirks/v1.23_centimeters_jumps.csv");
-        Ok(Box::new(MotiveCsvReader::open(&p)?))
+        Ok(Box::new(crate::app::open::motive_csv(&p)?))
     }
 
     #[test]

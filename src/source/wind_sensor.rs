@@ -15,142 +15,7 @@ use std::time::Duration;
 use serde::Serialize;
 
 use crate::model::wind::{direction_of, WindEstimate, WindSource};
-
-/// What one line from the sensor says.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct SensorReading {
-    /// Degrees the wind comes from, clockwise from the sensor's 0° mark.
-    pub angle_deg: f64,
-    /// MWV's reference: relative (`R`) or theoretical/true (`T`); plain lines
-    /// carry none. A sensor fixed in the lab makes the two the same.
-    pub reference: Option<char>,
-    /// Metres per second, converted from the sentence's unit.
-    pub speed_m_s: f64,
-}
-
-/// Why a line gave no reading. Each kind is counted separately in the status.
-#[derive(Debug, Clone, PartialEq)]
-pub enum LineError {
-    /// `*hh` did not match the XOR of the sentence.
-    Checksum { expected: u8, found: String },
-    /// A field is missing or not what MWV allows.
-    Invalid { field: &'static str, value: String },
-    /// MWV status `V`: the sensor itself says the data are not valid.
-    NotValid,
-    /// Another NMEA sentence (not wind): ignored.
-    Other(String),
-}
-
-impl std::fmt::Display for LineError {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        match self {
-            LineError::Checksum { expected, found } => {
-                write!(
-                    f,
-                    "checksum *{found} does not match (computed {expected:02X})"
-                )
-            }
-            LineError::Invalid { field, value } => write!(f, "field {field}: invalid '{value}'"),
-            LineError::NotValid => write!(f, "status V (sensor reports data not valid)"),
-            LineError::Other(s) => write!(f, "not a wind sentence ({s})"),
-        }
-    }
-}
-
-fn invalid(field: &'static str, value: &str) -> LineError {
-    LineError::Invalid {
-        field,
-        value: value.chars().take(40).collect(),
-    }
-}
-
-fn parse_angle(s: &str) -> Result<f64, LineError> {
-    match s.trim().parse::<f64>() {
-        Ok(a) if (0.0..=360.0).contains(&a) => Ok(a % 360.0),
-        _ => Err(invalid("angle", s)),
-    }
-}
-
-fn parse_speed(s: &str) -> Result<f64, LineError> {
-    match s.trim().parse::<f64>() {
-        Ok(v) if v.is_finite() && v >= 0.0 => Ok(v),
-        _ => Err(invalid("speed", s)),
-    }
-}
-
-/// Parses one line (without its line end). Empty lines give `Ok(None)`.
-pub fn parse_line(line: &str) -> Result<Option<SensorReading>, LineError> {
-    let line = line.trim();
-    if line.is_empty() {
-        return Ok(None);
-    }
-    if let Some(body) = line.strip_prefix('$') {
-        return parse_nmea(body).map(Some);
-    }
-    let Some((angle, speed)) = line.split_once(',') else {
-        return Err(invalid("line", line));
-    };
-    Ok(Some(SensorReading {
-        angle_deg: parse_angle(angle)?,
-        reference: None,
-        speed_m_s: parse_speed(speed)?,
-    }))
-}
-
-fn parse_nmea(body: &str) -> Result<SensorReading, LineError> {
-    let (data, checksum) = match body.split_once('*') {
-        Some((d, c)) => (d, Some(c)),
-        None => (body, None),
-    };
-    // The checksum is optional in NMEA 0183, but when present it must match.
-    if let Some(found) = checksum {
-        let expected = data.bytes().fold(0u8, |a, b| a ^ b);
-        match u8::from_str_radix(found.trim(), 16) {
-            Ok(v) if v == expected && found.trim().len() == 2 => {}
-            _ => {
-                return Err(LineError::Checksum {
-                    expected,
-                    found: found.trim().chars().take(8).collect(),
-                })
-            }
-        }
-    }
-    let fields: Vec<&str> = data.split(',').collect();
-    let id = fields[0];
-    if id.len() != 5 || !id.is_ascii() {
-        return Err(invalid("sentence id", id));
-    }
-    if &id[2..] != "MWV" {
-        return Err(LineError::Other(id.to_string()));
-    }
-    if fields.len() < 6 {
-        return Err(invalid("field count", &fields.len().to_string()));
-    }
-    let angle = parse_angle(fields[1])?;
-    let reference = match fields[2] {
-        "R" => 'R',
-        "T" => 'T',
-        other => return Err(invalid("reference", other)),
-    };
-    let speed = parse_speed(fields[3])?;
-    let factor = match fields[4] {
-        "M" => 1.0,
-        "K" => 1.0 / 3.6,
-        "N" => 1852.0 / 3600.0,
-        "S" => 0.44704,
-        other => return Err(invalid("speed unit", other)),
-    };
-    match fields[5] {
-        "A" => {}
-        "V" => return Err(LineError::NotValid),
-        other => return Err(invalid("status", other)),
-    }
-    Ok(SensorReading {
-        angle_deg: angle,
-        reference: Some(reference),
-        speed_m_s: speed * factor,
-    })
-}
+pub use crate::protocol::nmea::{parse_line, LineError, SensorReading};
 
 /// A reading turned into capture coordinates.
 pub fn to_estimate(reading: &SensorReading, heading_deg: f64, time_s: f64) -> WindEstimate {
@@ -167,43 +32,63 @@ pub fn to_estimate(reading: &SensorReading, heading_deg: f64, time_s: f64) -> Wi
 pub struct SerialOptions {
     /// Device path, e.g. `/dev/ttyUSB0`.
     pub port: String,
+    /// Baud rate of the line (NMEA 0183 is 4800).
     pub baud: u32,
     /// Capture azimuth of the sensor's 0° mark (degrees).
     pub heading_deg: f64,
     /// First and longest wait between reconnection attempts.
     pub backoff_min: Duration,
+    /// Longest wait between attempts: how late a replugged sensor is seen.
     pub backoff_max: Duration,
 }
 
 /// Live counters of the sensor thread, for `/status` and the log.
 #[derive(Debug, Default)]
 pub struct SerialStatus {
+    /// The port is open right now.
     pub connected: AtomicBool,
+    /// Lines that gave a wind estimate.
     pub readings: AtomicU64,
+    /// NMEA sentences whose checksum did not match; skipped.
     pub bad_checksum: AtomicU64,
+    /// Lines with a missing, malformed or unknown field; skipped.
     pub invalid: AtomicU64,
+    /// MWV sentences flagged invalid by the sensor itself (status V); skipped.
     pub not_valid: AtomicU64,
+    /// Well-formed sentences other than MWV (a multi-sensor's other data).
     pub other_sentences: AtomicU64,
     /// Successful opens after the first one.
     pub reconnects: AtomicU64,
+    /// Why the port was last lost or could not be opened.
     pub last_error: Mutex<Option<String>>,
 }
 
 /// A copy of [`SerialStatus`] at one instant.
 #[derive(Debug, Clone, Default, PartialEq, Serialize)]
 pub struct SerialStatusSnapshot {
+    /// The device, so `/status` says which sensor it describes.
     pub port: String,
+    /// The port was open.
     pub connected: bool,
+    /// Lines that gave a wind estimate.
     pub readings: u64,
+    /// Sentences with a wrong checksum.
     pub bad_checksum: u64,
+    /// Lines with a missing or malformed field.
     pub invalid: u64,
+    /// Sentences the sensor flagged invalid (status V).
     pub not_valid: u64,
+    /// Sentences other than MWV.
     pub other_sentences: u64,
+    /// Successful opens after the first one.
     pub reconnects: u64,
+    /// Why the port was last lost or could not be opened.
     pub last_error: Option<String>,
 }
 
 impl SerialStatus {
+    /// The counters now, for `/status` (each read on its own; they may be
+    /// a few lines apart).
     pub fn snapshot(&self, port: &str) -> SerialStatusSnapshot {
         SerialStatusSnapshot {
             port: port.to_string(),
@@ -240,6 +125,14 @@ pub fn run_blocking(
 ) {
     let mut backoff = opts.backoff_min;
     let mut opened_before = false;
+    let mut lines = LineReader {
+        opts,
+        clock,
+        on_estimate,
+        status,
+        line: Vec::with_capacity(MAX_LINE),
+        line_no: 0,
+    };
     while !shutdown.load(Ordering::Relaxed) {
         let port = serialport::new(&opts.port, opts.baud)
             .timeout(Duration::from_millis(100))
@@ -261,67 +154,92 @@ pub fn run_blocking(
         backoff = opts.backoff_min;
         status.connected.store(true, Ordering::Relaxed);
         tracing::info!("wind sensor on {} connected", opts.port);
-        let mut line = Vec::with_capacity(MAX_LINE);
+        lines.read_port(&mut *port, shutdown);
+        status.connected.store(false, Ordering::Relaxed);
+        tracing::warn!("wind sensor on {} lost; reconnecting", opts.port);
+    }
+    status.connected.store(false, Ordering::Relaxed);
+}
+
+/// Splits the port's bytes into lines and turns each into a reading.
+struct LineReader<'a> {
+    opts: &'a SerialOptions,
+    clock: &'a dyn Fn() -> f64,
+    on_estimate: &'a mut dyn FnMut(WindEstimate),
+    status: &'a SerialStatus,
+    /// The line being read; a line longer than `MAX_LINE` is cut and refused.
+    line: Vec<u8>,
+    /// Lines read on this connection, for the warnings.
+    line_no: u64,
+}
+
+impl LineReader<'_> {
+    /// Reads until the port fails or closes, or the shutdown flag is set
+    /// (checked after every read, which times out after 100 ms).
+    fn read_port(&mut self, port: &mut dyn Read, shutdown: &AtomicBool) {
+        // A new connection starts a new line count, and half a line from
+        // before the port was lost is not the start of the next one.
+        self.line.clear();
+        self.line_no = 0;
         let mut buf = [0u8; 256];
-        let mut line_no = 0u64;
         while !shutdown.load(Ordering::Relaxed) {
             let n = match port.read(&mut buf) {
                 Ok(0) => {
-                    status.set_error(format!("{}: port closed", opts.port));
-                    break;
+                    self.status
+                        .set_error(format!("{}: port closed", self.opts.port));
+                    return;
                 }
                 Ok(n) => n,
                 Err(e) if e.kind() == std::io::ErrorKind::TimedOut => continue,
                 Err(e) if e.kind() == std::io::ErrorKind::Interrupted => continue,
                 Err(e) => {
-                    status.set_error(format!("{}: {e}", opts.port));
-                    break;
+                    self.status.set_error(format!("{}: {e}", self.opts.port));
+                    return;
                 }
             };
             for &b in &buf[..n] {
                 if b != b'\n' {
-                    if line.len() < MAX_LINE {
-                        line.push(b);
+                    if self.line.len() < MAX_LINE {
+                        self.line.push(b);
                     }
                     continue;
                 }
-                line_no += 1;
-                let text = String::from_utf8_lossy(&line).into_owned();
-                let too_long = line.len() >= MAX_LINE;
-                line.clear();
-                if too_long {
-                    status.invalid.fetch_add(1, Ordering::Relaxed);
-                    tracing::warn!(
-                        "{}: line {line_no}: longer than {MAX_LINE} bytes",
-                        opts.port
-                    );
-                    continue;
-                }
-                match parse_line(&text) {
-                    Ok(Some(r)) => {
-                        status.readings.fetch_add(1, Ordering::Relaxed);
-                        on_estimate(to_estimate(&r, opts.heading_deg, clock()));
-                    }
-                    Ok(None) => {}
-                    Err(e) => {
-                        let counter = match e {
-                            LineError::Checksum { .. } => &status.bad_checksum,
-                            LineError::Invalid { .. } => &status.invalid,
-                            LineError::NotValid => &status.not_valid,
-                            LineError::Other(_) => &status.other_sentences,
-                        };
-                        counter.fetch_add(1, Ordering::Relaxed);
-                        if !matches!(e, LineError::Other(_)) {
-                            tracing::warn!("{}: line {line_no}: {e}", opts.port);
-                        }
-                    }
+                self.end_of_line();
+            }
+        }
+    }
+
+    fn end_of_line(&mut self) {
+        self.line_no += 1;
+        let (port, line_no, status) = (&self.opts.port, self.line_no, self.status);
+        let text = String::from_utf8_lossy(&self.line).into_owned();
+        let too_long = self.line.len() >= MAX_LINE;
+        self.line.clear();
+        if too_long {
+            status.invalid.fetch_add(1, Ordering::Relaxed);
+            tracing::warn!("{port}: line {line_no}: longer than {MAX_LINE} bytes");
+            return;
+        }
+        match parse_line(&text) {
+            Ok(Some(r)) => {
+                status.readings.fetch_add(1, Ordering::Relaxed);
+                (self.on_estimate)(to_estimate(&r, self.opts.heading_deg, (self.clock)()));
+            }
+            Ok(None) => {}
+            Err(e) => {
+                let counter = match e {
+                    LineError::Checksum { .. } => &status.bad_checksum,
+                    LineError::Invalid { .. } => &status.invalid,
+                    LineError::NotValid => &status.not_valid,
+                    LineError::Other(_) => &status.other_sentences,
+                };
+                counter.fetch_add(1, Ordering::Relaxed);
+                if !matches!(e, LineError::Other(_)) {
+                    tracing::warn!("{port}: line {line_no}: {e}");
                 }
             }
         }
-        status.connected.store(false, Ordering::Relaxed);
-        tracing::warn!("wind sensor on {} lost; reconnecting", opts.port);
     }
-    status.connected.store(false, Ordering::Relaxed);
 }
 
 fn sleep_unless(shutdown: &AtomicBool, total: Duration) {
@@ -351,64 +269,6 @@ pub fn spawn(
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    fn nmea(body: &str) -> String {
-        let cs = body.bytes().fold(0u8, |a, b| a ^ b);
-        format!("${body}*{cs:02X}")
-    }
-
-    #[test]
-    fn mwv_sentences() {
-        let r = parse_line(&nmea("WIMWV,270.0,R,10.0,N,A"))
-            .unwrap()
-            .unwrap();
-        assert_eq!(r.angle_deg, 270.0);
-        assert_eq!(r.reference, Some('R'));
-        assert!((r.speed_m_s - 5.144444).abs() < 1e-5);
-        let r = parse_line(&nmea("IIMWV,045,T,36,K,A")).unwrap().unwrap();
-        assert!((r.speed_m_s - 10.0).abs() < 1e-12);
-        let r = parse_line(&nmea("WIMWV,10,R,4.5,M,A")).unwrap().unwrap();
-        assert_eq!(r.speed_m_s, 4.5);
-        let r = parse_line(&nmea("WIMWV,10,R,10,S,A")).unwrap().unwrap();
-        assert!((r.speed_m_s - 4.4704).abs() < 1e-12);
-        // Without a checksum: accepted (NMEA makes it optional for MWV).
-        assert!(parse_line("$WIMWV,10,R,4.5,M,A").unwrap().is_some());
-    }
-
-    #[test]
-    fn bad_sentences_are_told_apart() {
-        let good = nmea("WIMWV,270.0,R,10.0,N,A");
-        let bad = format!("{}00", &good[..good.len() - 2]);
-        assert!(matches!(parse_line(&bad), Err(LineError::Checksum { .. })));
-        assert_eq!(
-            parse_line(&nmea("WIMWV,270.0,R,10.0,N,V")),
-            Err(LineError::NotValid)
-        );
-        assert!(matches!(
-            parse_line(&nmea("WIMWV,400,R,10.0,N,A")),
-            Err(LineError::Invalid { field: "angle", .. })
-        ));
-        assert!(matches!(
-            parse_line(&nmea("WIMWV,40,R,10.0,X,A")),
-            Err(LineError::Invalid {
-                field: "speed unit",
-                ..
-            })
-        ));
-        assert!(matches!(
-            parse_line(&nmea("WIXDR,C,20,C")),
-            Err(LineError::Other(_))
-        ));
-        assert!(matches!(
-            parse_line("garbage"),
-            Err(LineError::Invalid { .. })
-        ));
-        assert!(matches!(parse_line("$"), Err(LineError::Invalid { .. })));
-        assert!(matches!(
-            parse_line("12,-3"),
-            Err(LineError::Invalid { field: "speed", .. })
-        ));
-    }
 
     #[test]
     fn plain_lines_and_heading() {

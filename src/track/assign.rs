@@ -11,8 +11,12 @@
 /// A candidate pairing of row `row` with column `col` at `cost`.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Edge {
+    /// What seeks a partner: a trace (or a trace's end, when joining pieces).
     pub row: usize,
+    /// What can be taken: a marker of the frame (or a later trace's start).
     pub col: usize,
+    /// How far (m) the column lies from where the row predicts it; the
+    /// assignment minimises the sum.
     pub cost: f64,
 }
 

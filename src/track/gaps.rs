@@ -24,19 +24,26 @@ use crate::model::trace::{Fill, Trace};
 pub struct GapStats {
     /// Gaps filled and the frames in them.
     pub filled: u64,
+    /// Frames inside the filled gaps.
     pub filled_frames: u64,
     /// Gaps left open because they were longer than `max_fill_s`.
     pub too_long: u64,
+    /// Frames inside the gaps left open as too long.
     pub too_long_frames: u64,
     /// Gaps left open because of an implausible jump across them.
     pub rejected_jump: u64,
+    /// Frames inside the gaps left open for a jump.
     pub rejected_jump_frames: u64,
 }
 
 /// Settings of gap filling, from `[tracking]`.
 #[derive(Debug, Clone, Copy)]
 pub struct GapSettings {
+    /// Longest gap filled (s); longer gaps stay missing and are reported.
     pub max_fill_s: f64,
+    /// Largest distance (m) between the far side of a gap and a linear
+    /// extrapolation from the near side; beyond it the two sides are taken
+    /// for different markers and the gap is not filled.
     pub max_jump_m: f64,
 }
 

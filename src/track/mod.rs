@@ -18,7 +18,10 @@ pub mod assign;
 pub mod gaps;
 pub mod noise;
 pub mod rest;
+pub mod settings;
 pub mod tracker;
+
+pub use settings::TrackingSettings;
 
 use std::fmt;
 
@@ -30,7 +33,6 @@ pub use noise::DroppedTrace;
 pub use rest::{RestSource, RestWindow};
 pub use tracker::{TrackStats, Tracked, Tracker};
 
-use crate::config::TrackingConfig;
 use crate::error::Result;
 use crate::model::recording::Recording;
 use crate::model::tips::{Tip, Tips};
@@ -38,10 +40,13 @@ use crate::model::tips::{Tip, Tips};
 /// What the marker stage did, for the user (printed by `tips` and `replay`).
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Summary {
+    /// Where the frames came from (the recording's `source`).
     pub source: String,
+    /// Frames per second of the recording.
     pub frame_rate: f64,
     /// Frames received and the time they span (s).
     pub frames: u64,
+    /// Seconds from the first to the last frame.
     pub duration_s: f64,
     /// Counters of the tracker, including the bad input it skipped.
     pub tracking: TrackStats,
@@ -49,6 +54,8 @@ pub struct Summary {
     pub traces: usize,
     /// Pieces joined to an earlier piece of the same marker.
     pub joined_by_motion: usize,
+    /// Pieces joined because their rest positions lie within
+    /// `merge_radius_mm` of each other.
     pub joined_by_rest: usize,
     /// Long fragments without a rest position put into a gap of the marker
     /// whose neighbourhood they occupy.
@@ -56,10 +63,13 @@ pub struct Summary {
     /// Traces dropped as noise (measured in fewer than `noise_fraction` of
     /// the frames), longest first.
     pub dropped: Vec<DroppedTrace>,
+    /// The noise threshold used (`tracking.noise_fraction`), for the report.
     pub noise_fraction: f64,
+    /// What gap filling did.
     pub gaps: GapStats,
     /// The rest window (s) and where it came from.
     pub rest_window_s: [f64; 2],
+    /// Whether the rest window was found, configured or the whole recording.
     pub rest_source: RestSource,
     /// Tips found.
     pub tips: usize,
@@ -126,7 +136,7 @@ impl fmt::Display for Summary {
 
 /// Runs the whole marker stage over a recording: reads, tracks, joins,
 /// drops noise, fills gaps, finds the rest phase and averages.
-pub fn process(recording: &mut dyn Recording, cfg: &TrackingConfig) -> Result<(Tips, Summary)> {
+pub fn process(recording: &mut dyn Recording, cfg: &TrackingSettings) -> Result<(Tips, Summary)> {
     let frame_rate = recording.info().frame_rate;
     let source = recording.info().source.clone();
     let mut tracker = Tracker::new(cfg, Some(frame_rate));
@@ -143,7 +153,7 @@ pub fn process(recording: &mut dyn Recording, cfg: &TrackingConfig) -> Result<(T
 /// Steps 2–6 on the tracker's output.
 pub fn clean(
     tracked: Tracked,
-    cfg: &TrackingConfig,
+    cfg: &TrackingSettings,
     source: &str,
     frame_rate: f64,
 ) -> (Tips, Summary) {

@@ -33,6 +33,7 @@ pub struct DroppedTrace {
     pub fraction: f64,
     /// First and last internal frame.
     pub first_frame: i64,
+    /// Last internal frame in which it was measured.
     pub last_frame: i64,
 }
 

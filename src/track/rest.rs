@@ -49,8 +49,12 @@ pub enum RestSource {
 /// The rest window in internal frames `[start, end)`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct RestWindow {
+    /// First internal frame of the window.
     pub start: i64,
+    /// First internal frame after the window (exclusive).
     pub end: i64,
+    /// Found, configured, or the whole recording as a fallback (reported,
+    /// because rest positions from a moving tree are less precise).
     pub source: RestSource,
 }
 

@@ -30,9 +30,9 @@ use kiddo::{ImmutableKdTree, SquaredEuclidean};
 use serde::Serialize;
 
 use super::assign::{Assigner, Edge};
-use crate::config::TrackingConfig;
 use crate::model::frame::MarkerFrame;
 use crate::model::trace::{Timeline, Trace};
+use crate::track::TrackingSettings;
 
 /// Counters of what the tracker saw, for the summary and the daemon's metrics.
 #[derive(Debug, Clone, Default, PartialEq, Serialize)]
@@ -67,7 +67,9 @@ pub struct TrackStats {
 pub struct Tracked {
     /// Every trace, in order of appearance (`trace.id` = index).
     pub traces: Vec<Trace>,
+    /// Internal frame index → source frame number and time.
     pub timeline: Timeline,
+    /// What the tracker counted, including the bad input it skipped.
     pub stats: TrackStats,
 }
 
@@ -173,7 +175,7 @@ pub struct Tracker {
 impl Tracker {
     /// `frame_rate` (if known) gives the frame interval until two frames
     /// have been seen.
-    pub fn new(cfg: &TrackingConfig, frame_rate: Option<f64>) -> Self {
+    pub fn new(cfg: &TrackingSettings, frame_rate: Option<f64>) -> Self {
         let dt = frame_rate
             .filter(|r| r.is_finite() && *r > 0.0)
             .map_or(0.01, |r| 1.0 / r);
@@ -505,8 +507,8 @@ mod tests {
     use super::*;
     use crate::model::frame::Marker;
 
-    fn cfg() -> TrackingConfig {
-        TrackingConfig::default()
+    fn cfg() -> TrackingSettings {
+        TrackingSettings::default()
     }
 
     fn frame(n: i64, pts: &[DVec3]) -> MarkerFrame {

@@ -40,7 +40,7 @@ pub fn crown_centre(tips: &[DVec3]) -> Option<DVec3> {
 /// The wind of the fan in the config (`wind.fan_position`, `fan_speed_m_s`)
 /// through the centre of these tips; `None` without a fan or tips.
 pub fn configured_fan_wind(
-    config: &crate::config::WindConfig,
+    config: &crate::wind::WindSettings,
     tips: &[DVec3],
     time_s: f64,
 ) -> Option<WindEstimate> {

@@ -10,6 +10,9 @@ use crate::model::wind::{WindEstimate, WindSource};
 
 pub mod fan;
 pub mod pca;
+pub mod settings;
+
+pub use settings::WindSettings;
 
 /// Keeps the latest estimate per source and picks by priority.
 #[derive(Debug, Clone)]
@@ -22,6 +25,8 @@ pub struct WindSelector {
 }
 
 impl WindSelector {
+    /// A selector with no estimate yet; `priority` is `wind.priority`,
+    /// `max_age_s` is `wind.max_age_s`.
     pub fn new(priority: Vec<WindSource>, max_age_s: f64) -> Self {
         WindSelector {
             priority,
@@ -30,6 +35,7 @@ impl WindSelector {
         }
     }
 
+    /// Replaces the latest estimate of the estimate's source.
     pub fn update(&mut self, estimate: WindEstimate) {
         self.latest.retain(|e| e.source != estimate.source);
         self.latest.push(estimate);

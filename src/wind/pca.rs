@@ -51,6 +51,8 @@ pub struct SwayPca {
 }
 
 impl SwayPca {
+    /// An empty window of `window_s` seconds (session clock); a sway under
+    /// `min_sway_m` RMS gives no estimate.
     pub fn new(window_s: f64, min_sway_m: f64) -> Self {
         SwayPca {
             window_s,

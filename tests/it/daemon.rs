@@ -125,10 +125,11 @@ fn natnet_in_tree_out_over_osc_http_and_websocket() {
     // A WebSocket client gets the tree notice and then live tips.
     let rt = tokio::runtime::Runtime::new().unwrap();
     rt.block_on(async {
-        let (mut ws, _) =
-            tokio_tungstenite::connect_async(format!("ws://127.0.0.1:{http_port}/live"))
-                .await
-                .unwrap();
+        let (mut ws, _) = tokio_tungstenite::connect_async(format!(
+            "ws://127.0.0.1:{http_port}/live?format=json"
+        ))
+        .await
+        .unwrap();
         let mut tips_frames = 0;
         let mut saw_tree = false;
         while tips_frames < 20 {
@@ -140,9 +141,11 @@ fn natnet_in_tree_out_over_osc_http_and_websocket() {
             let v: serde_json::Value = serde_json::from_str(&msg.into_text().unwrap()).unwrap();
             match v["type"].as_str() {
                 Some("tree") => saw_tree = true,
-                Some("tips") => {
+                Some("frame") => {
                     tips_frames += 1;
-                    assert!(v["tips"].as_array().unwrap().len() <= 24);
+                    // The tree's 24 tips, each measured, filled or not seen.
+                    assert_eq!(v["tips"].as_array().unwrap().len(), 24, "{v}");
+                    assert!(!v["markers"].as_array().unwrap().is_empty());
                 }
                 _ => {}
             }
@@ -408,7 +411,7 @@ fn a_killed_daemon_loses_at_most_the_last_second_of_its_recording() {
         .status()
         .unwrap();
     let _ = d.0.wait();
-    let mut rec = treemocap::format::log::LogReader::open(&out.join("session.log.csv")).unwrap();
+    let mut rec = treemocap::app::open::log(&out.join("session.log.csv")).unwrap();
     let kept = rec.by_ref().filter(|f| f.is_ok()).count() as u64;
     // 100 Hz: one second is 100 frames; allow a little for the status round trip.
     assert!(kept + 125 >= seen, "kept {kept} of at least {seen} frames");
@@ -677,7 +680,7 @@ fn a_burst_faster_than_the_pipeline_drops_oldest_frames_and_counts_them() {
         wind_s: 2.0,
         ..Default::default()
     };
-    treemocap::sim::write_session(&opts, &csv).unwrap();
+    treemocap::app::synth::write_session(&opts, &csv).unwrap();
     let total = 3600u64;
     let http_port = free_tcp();
     let _d = start_daemon(

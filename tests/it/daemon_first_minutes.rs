@@ -73,7 +73,7 @@ fn rest_improves_a_rebuild_uses_it_and_a_known_wind_rebuilds() {
         wind_s: 16.0,
         ..Default::default()
     };
-    treemocap::sim::write_session(&opts, &session).unwrap();
+    treemocap::app::synth::write_session(&opts, &session).unwrap();
     let port = std::net::TcpListener::bind("127.0.0.1:0")
         .unwrap()
         .local_addr()

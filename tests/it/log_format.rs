@@ -61,7 +61,7 @@ fn round_trip_is_bit_exact() {
     w.finish().unwrap();
 
     assert_eq!(replay::detect(&path).unwrap(), Format::Log);
-    let mut r = LogReader::open(&path).unwrap();
+    let mut r = treemocap::app::open::log(&path).unwrap();
     assert_eq!(r.info().frame_rate, 240.0);
     assert_eq!(r.info().source, "test bench, seed 7");
     let back = read_all(&mut r);
@@ -99,7 +99,7 @@ fn a_file_cut_mid_line_reads_up_to_its_last_whole_row() {
         + 1;
     std::fs::write(&path, &full[..last_row_start + 5]).unwrap();
 
-    let mut r = LogReader::open(&path).unwrap();
+    let mut r = treemocap::app::open::log(&path).unwrap();
     let back = read_all(&mut r);
     let whole: usize = frames.iter().map(|f| f.markers.len().max(1)).sum::<usize>() - 1;
     let rows: usize = back.iter().map(|f| f.markers.len().max(1)).sum();
@@ -119,7 +119,7 @@ fn a_file_being_appended_can_be_followed() {
         w.write_frame(f).unwrap();
     }
     w.flush().unwrap();
-    let mut r = LogReader::open(&path).unwrap();
+    let mut r = treemocap::app::open::log(&path).unwrap();
     let first = read_all(&mut r);
     assert_eq!(first.len(), 4);
 
@@ -147,7 +147,7 @@ fn writer_flushes_within_the_interval_without_being_asked() {
     std::thread::sleep(Duration::from_millis(60));
     w.tick().unwrap();
     // Read while the writer is alive (as after a SIGKILL): the frame is there.
-    let mut r = LogReader::open(&path).unwrap();
+    let mut r = treemocap::app::open::log(&path).unwrap();
     assert_eq!(read_all(&mut r).len(), 1);
     drop(w);
 }
@@ -161,7 +161,7 @@ fn bad_rows_name_file_line_and_column() {
         "# treemocap log 1\n# frame_rate: 100\nframe,time_s,id,x,y,z\n0,0,,1,2,3\n1,0.01,,1,x,3\n",
     )
     .unwrap();
-    let mut r = LogReader::open(&path).unwrap();
+    let mut r = treemocap::app::open::log(&path).unwrap();
     let first = r.next().unwrap();
     assert!(first.is_ok(), "{first:?}");
     let e = r.next().unwrap().unwrap_err().to_string();
@@ -171,9 +171,9 @@ fn bad_rows_name_file_line_and_column() {
     );
 
     std::fs::write(&path, "# treemocap log 1\nframe,time_s,id,x,y,z\n").unwrap();
-    let e = LogReader::open(&path).err().unwrap().to_string();
+    let e = treemocap::app::open::log(&path).err().unwrap().to_string();
     assert!(e.contains("frame_rate"), "{e}");
     std::fs::write(&path, "# treemocap log 9\n").unwrap();
-    let e = LogReader::open(&path).err().unwrap().to_string();
+    let e = treemocap::app::open::log(&path).err().unwrap().to_string();
     assert!(e.contains("version"), "{e}");
 }

@@ -2,17 +2,17 @@
 //! sockets (127.0.0.1): every supported bitstream version, the whole session
 //! must arrive intact (every frame, every marker, bit-exact f32 positions).
 
-use std::sync::atomic::Ordering;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use crate::common::natnet::{free_port, session, wire};
+use crate::common::natnet::{check_session, free_port, session};
 use treemocap::model::frame::MarkerFrame;
+use treemocap::protocol::natnet::session::RateSource;
+use treemocap::protocol::natnet::{Transport, Version, SUPPORTED_VERSIONS};
+use treemocap::serve::natnet::{self as server, ServeOptions, ServerStats};
 use treemocap::source::channel::frame_channel;
-use treemocap::source::natnet::client::{self, NatNetOptions, NatNetStats};
-use treemocap::source::natnet::packet::{Version, SUPPORTED_VERSIONS};
-use treemocap::source::natnet::server::{self, ServeOptions, ServerStats};
-use treemocap::source::natnet::Transport;
+use treemocap::source::natnet::client::{self, NatNetStatus};
+use treemocap::source::natnet::settings::{Interface, NatNetSettings, TransportSetting};
 
 fn runtime() -> tokio::runtime::Runtime {
     tokio::runtime::Builder::new_multi_thread()
@@ -24,13 +24,14 @@ fn runtime() -> tokio::runtime::Runtime {
 
 /// Receives until `n` frames arrived or `timeout`, then stops the client.
 async fn collect(
-    opts: NatNetOptions,
+    opts: NatNetSettings,
     n: usize,
     timeout: Duration,
-) -> (treemocap::Result<client::SourceReport>, Vec<MarkerFrame>) {
+) -> (treemocap::Result<client::ClientReport>, Vec<MarkerFrame>) {
     let (sink, rx) = frame_channel(100_000);
     let (stop, shutdown) = tokio::sync::watch::channel(false);
-    let task = tokio::spawn(async move { client::run(&opts, sink, shutdown).await });
+    let status = Arc::new(NatNetStatus::default());
+    let task = tokio::spawn(async move { client::run(&opts, &status, sink, shutdown).await });
     let deadline = Instant::now() + timeout;
     let mut got = Vec::new();
     while got.len() < n && Instant::now() < deadline && !task.is_finished() {
@@ -53,7 +54,9 @@ fn start_server(
     tokio::sync::watch::Sender<bool>,
 ) {
     let (stop, shutdown) = tokio::sync::watch::channel(false);
-    let h = tokio::spawn(async move { server::serve(&path, &opts, shutdown).await });
+    let h = tokio::spawn(async move {
+        server::serve(|| treemocap::app::open::open(&path), &opts, shutdown).await
+    });
     (h, stop)
 }
 
@@ -78,52 +81,6 @@ async fn command_port(stats: &ServerStats) -> u16 {
     panic!("server did not start");
 }
 
-fn check_session(version: Version, sent: &[MarkerFrame], got: &[MarkerFrame]) {
-    assert_eq!(got.len(), sent.len(), "NatNet {version}: frame count");
-    for (s, g) in sent.iter().zip(got) {
-        assert_eq!(g.frame, s.frame, "NatNet {version}");
-        let want_time = if version == Version::new(2, 6) {
-            s.time_s as f32 as f64
-        } else {
-            s.time_s
-        };
-        assert_eq!(
-            g.time_s.to_bits(),
-            want_time.to_bits(),
-            "NatNet {version} frame {} time",
-            s.frame
-        );
-        assert_eq!(
-            g.markers.len(),
-            s.markers.len(),
-            "NatNet {version} frame {}",
-            s.frame
-        );
-        for (a, b) in s.markers.iter().zip(&g.markers) {
-            let w = wire(a.position);
-            assert_eq!(
-                [w.x.to_bits(), w.y.to_bits(), w.z.to_bits()],
-                [
-                    b.position.x.to_bits(),
-                    b.position.y.to_bits(),
-                    b.position.z.to_bits()
-                ],
-                "NatNet {version} frame {}",
-                s.frame
-            );
-            // 3.0+ carries the point-cloud id with the unlabeled marker.
-            let id = if version.major >= 3 { a.id } else { None };
-            assert_eq!(b.id, id);
-        }
-        if version.major >= 3 {
-            let l = g.latency_s.expect("3.0+ frames carry latency");
-            assert!((0.0..1.0).contains(&l), "{l}");
-        } else {
-            assert_eq!(g.latency_s, None);
-        }
-    }
-}
-
 #[test]
 fn every_version_arrives_intact_over_unicast() {
     let dir = tempfile::tempdir().unwrap();
@@ -142,7 +99,7 @@ fn every_version_arrives_intact_over_unicast() {
                 },
             );
             let port = command_port(&stats).await;
-            let opts = NatNetOptions {
+            let opts = NatNetSettings {
                 command_port: port,
                 ..Default::default()
             };
@@ -150,22 +107,22 @@ fn every_version_arrives_intact_over_unicast() {
             runs.push((
                 version,
                 server,
-                opts.stats.clone(),
                 tokio::spawn(collect(opts, n, Duration::from_secs(20))),
             ));
         }
-        for (version, server, cstats, run) in runs {
+        for (version, server, run) in runs {
             let (report, got) = run.await.unwrap();
             let report = report.unwrap_or_else(|e| panic!("NatNet {version}: {e}"));
             assert_eq!(report.version, Some(version));
             assert!(report.server.starts_with("treemocap"), "{}", report.server);
             check_session(version, &sent, &got);
-            assert_eq!(cstats.bad_packets(), 0, "NatNet {version}");
-            assert_eq!(cstats.missed_frames.load(Ordering::Relaxed), 0);
-            assert!(
-                cstats.modeldefs.load(Ordering::Relaxed) >= 1,
-                "NatNet {version}: MODELDEF answered"
-            );
+            let c = report.counters;
+            assert_eq!(c.bad_packets() + c.wrong_sender, 0, "NatNet {version}");
+            assert_eq!(c.missed_frames, 0);
+            assert!(c.modeldefs >= 1, "NatNet {version}: MODELDEF answered");
+            // The server's FrameRate answer, not a guess.
+            let rate = report.frame_rate.expect("frame rate known");
+            assert_eq!((rate.hz, rate.source), (100.0, RateSource::Server));
             let sr = server.await.unwrap().unwrap();
             assert_eq!(sr.frames, sent.len() as u64);
         }
@@ -198,12 +155,11 @@ fn bitstream_negotiation_switches_the_decoder_and_refusals_are_errors() {
                     ..loopback_server(&stats)
                 },
             );
-            let opts = NatNetOptions {
+            let opts = NatNetSettings {
                 command_port: command_port(&stats).await,
                 bitstream: Some(want),
                 ..Default::default()
             };
-            let cstats = opts.stats.clone();
             let (report, got) = collect(opts, sent.len(), Duration::from_secs(10)).await;
             if ok {
                 let report = report.unwrap();
@@ -218,7 +174,7 @@ fn bitstream_negotiation_switches_the_decoder_and_refusals_are_errors() {
                 );
                 let first = (got[0].frame) as usize;
                 check_session(want, &sent[first..], &got);
-                assert_eq!(cstats.bad_packets(), 0);
+                assert_eq!(report.counters.bad_packets(), 0);
             } else {
                 let e = report.unwrap_err().to_string();
                 assert!(e.contains(&want.to_string()), "{e}");
@@ -235,7 +191,7 @@ fn nothing_listening_is_a_clear_error() {
     let rt = runtime();
     rt.block_on(async {
         let port = free_port();
-        let opts = NatNetOptions {
+        let opts = NatNetSettings {
             command_port: port,
             connect_timeout: Duration::from_millis(300),
             ..Default::default()
@@ -267,11 +223,11 @@ fn multicast_join_failure_names_the_interface() {
             },
         );
         // 192.0.2.1 (TEST-NET-1) is no interface of this machine.
-        let opts = NatNetOptions {
+        let opts = NatNetSettings {
             command_port: command_port(&stats).await,
-            transport: Some(Transport::Multicast),
+            transport: TransportSetting::Multicast,
             data_port: Some(free_port()),
-            local: "192.0.2.1".parse().unwrap(),
+            interface: Interface::Address("192.0.2.1".parse().unwrap()),
             ..Default::default()
         };
         let (report, _) = collect(opts, 1, Duration::from_secs(5)).await;
@@ -300,12 +256,11 @@ fn client_reconnects_after_the_server_restarts() {
             ..Default::default()
         };
         let (first, _s1) = start_server(path.clone(), serve(Arc::default()));
-        let opts = NatNetOptions {
+        let opts = NatNetSettings {
             command_port: port,
             silence_timeout: Duration::from_millis(300),
             ..Default::default()
         };
-        let cstats: Arc<NatNetStats> = opts.stats.clone();
         let client = tokio::spawn(collect(opts, 2 * sent.len(), Duration::from_secs(15)));
         first.await.unwrap().unwrap();
         // The first server played everything and exited; after a pause a new
@@ -316,9 +271,9 @@ fn client_reconnects_after_the_server_restarts() {
         second.await.unwrap().unwrap();
         let report = report.unwrap();
         assert_eq!(got.len(), 2 * sent.len());
-        assert_eq!(report.restarts, 1);
-        assert!(report.reconnects >= 1, "{report:?}");
-        assert_eq!(cstats.frames.load(Ordering::Relaxed), 2 * sent.len() as u64);
+        assert_eq!(report.counters.restarts, 1);
+        assert!(report.counters.reconnects >= 1, "{report:?}");
+        assert_eq!(report.counters.frames, 2 * sent.len() as u64);
         check_session(Version::new(3, 1), &sent, &got[..sent.len()]);
         check_session(Version::new(3, 1), &sent, &got[sent.len()..]);
     });
@@ -382,8 +337,8 @@ fn multicast_session() {
             );
             command_port(&stats).await;
             // 2.x SERVERINFO does not say multicast: the client listens on both.
-            let opts = NatNetOptions {
-                local: "127.0.0.1".parse().unwrap(),
+            let opts = NatNetSettings {
+                interface: Interface::Address("127.0.0.1".parse().unwrap()),
                 ..Default::default()
             };
             let (report, got) = collect(opts, sent.len(), Duration::from_secs(20)).await;
@@ -419,7 +374,7 @@ fn a_motive_csv_take_is_served_exactly() {
                 ..Default::default()
             },
         );
-        let opts = NatNetOptions {
+        let opts = NatNetSettings {
             command_port: command_port(&stats).await,
             ..Default::default()
         };
@@ -440,8 +395,7 @@ fn discovery_finds_the_server() {
     rt.block_on(async {
         let stats = Arc::new(ServerStats::default());
         let (server, _stop) = start_server(path, loopback_server(&stats));
-        let opts = NatNetOptions {
-            server: None,
+        let opts = NatNetSettings {
             discovery: true,
             discovery_address: "127.0.0.1".parse().unwrap(),
             command_port: command_port(&stats).await,
@@ -451,12 +405,5 @@ fn discovery_finds_the_server() {
         assert!(report.unwrap().server.contains("treemocap"));
         check_session(Version::new(3, 1), &sent, &got);
         server.await.unwrap().unwrap();
-        // Without an address and without discovery the client refuses to guess.
-        let opts = NatNetOptions {
-            server: None,
-            ..Default::default()
-        };
-        let (report, _) = collect(opts, 1, Duration::from_secs(2)).await;
-        assert!(report.unwrap_err().to_string().contains("discovery"));
     });
 }

@@ -2,8 +2,8 @@
 //! built by hand from the byte layouts in `shared/spec/natnet.md` (not with
 //! our encoder), and bad input.
 
+use treemocap::protocol::natnet::*;
 use treemocap::rng::Rng;
-use treemocap::source::natnet::packet::*;
 
 // ---------------------------------------------------------------------------
 // Random content

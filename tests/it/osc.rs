@@ -12,7 +12,6 @@ use std::sync::mpsc;
 use std::time::{Duration, Instant};
 
 use glam::DVec3;
-use treemocap::format::log::LogReader;
 use treemocap::format::Recording;
 use treemocap::rng::Rng;
 use treemocap::source::channel::frame_channel;
@@ -156,7 +155,7 @@ fn with_source(
 }
 
 fn options() -> OscOptions {
-    let mut opts = OscOptions::from_config(&treemocap::config::Config::default().osc).unwrap();
+    let mut opts = OscOptions::from_settings(&treemocap::config::Config::default().osc).unwrap();
     opts.bind = "127.0.0.1:0".parse().unwrap();
     opts
 }
@@ -270,9 +269,9 @@ fn z_up_millimetre_senders_arrive_in_metres_y_up() {
         .collect();
     let file = write_frames(dir.path(), &sent);
     let mut config = treemocap::config::Config::default().osc;
-    config.up_axis = "z".into();
-    config.units = "mm".into();
-    let mut opts = OscOptions::from_config(&config).unwrap();
+    config.up_axis = treemocap::model::frame::UpAxis::Z;
+    config.units = treemocap::model::frame::LengthUnit::Mm;
+    let mut opts = OscOptions::from_settings(&config).unwrap();
     opts.bind = "127.0.0.1:0".parse().unwrap();
     let (got, _) = with_source(opts, |addr| {
         send(
@@ -417,7 +416,7 @@ fn record_osc_writes_what_python_osc_sent() {
             .any(|l| l.contains("100 frames") && l.contains("bad_args 0")),
         "progress lines: {printed:#?}"
     );
-    let mut reader = LogReader::open(&out).unwrap();
+    let mut reader = treemocap::app::open::log(&out).unwrap();
     assert!(
         reader.info().source.contains("osc udp 127.0.0.1"),
         "{:?}",
@@ -472,7 +471,7 @@ fn killed_recorder_loses_at_most_the_last_second() {
     let _ = sender.kill();
     let _ = sender.wait();
 
-    let mut reader = LogReader::open(&out).unwrap();
+    let mut reader = treemocap::app::open::log(&out).unwrap();
     let got: Vec<MarkerFrame> = reader.by_ref().map(|f| f.unwrap()).collect();
     assert!(!got.is_empty(), "nothing reached the disk in 2.5 s");
     // Every frame read back is what was sent (the last one may be cut at a row).

@@ -8,15 +8,16 @@ use std::process::Command;
 use crate::common::crowns::{crown_tips, replay_truth, sim_tips, tips_json, Shape};
 use glam::DVec3;
 use treemocap::app::reconstruct::run_and_write;
-use treemocap::config::{Config, ReconstructConfig, VolumeKind};
+use treemocap::config::Config;
 use treemocap::model::tips::CapturedTip;
 use treemocap::model::tree::{Kind, Tree};
 use treemocap::reconstruct::reconstruct;
+use treemocap::reconstruct::{ReconstructSettings, VolumeKind};
 use treemocap::rng::Rng;
 use treemocap::sim::CrownShape;
 
-fn cfg_with(f: impl FnOnce(&mut ReconstructConfig)) -> ReconstructConfig {
-    let mut c = ReconstructConfig::default();
+fn cfg_with(f: impl FnOnce(&mut ReconstructSettings)) -> ReconstructSettings {
+    let mut c = ReconstructSettings::default();
     f(&mut c);
     c
 }
@@ -25,7 +26,7 @@ fn cfg_with(f: impl FnOnce(&mut ReconstructConfig)) -> ReconstructConfig {
 
 /// Checks every promise of the tree against the input, without using the
 /// tree's own helpers.
-fn check_invariants(tree: &Tree, tips: &[CapturedTip], cfg: &ReconstructConfig, what: &str) {
+fn check_invariants(tree: &Tree, tips: &[CapturedTip], cfg: &ReconstructSettings, what: &str) {
     let n = tree.nodes.len();
     let mut has_child = vec![false; n];
     for (i, node) in tree.nodes.iter().enumerate() {
@@ -227,8 +228,8 @@ fn more_captured_than_total_tips_adds_none_and_single_tip_works() {
     check_invariants(&tree, &tips, &cfg, "total < captured");
     // One marker: a flat crown; the hull cannot place tips but boxes can.
     let one = &tips[..1];
-    let tree = reconstruct(one, DVec3::ZERO, &ReconstructConfig::default(), 1).unwrap();
-    check_invariants(&tree, one, &ReconstructConfig::default(), "one tip");
+    let tree = reconstruct(one, DVec3::ZERO, &ReconstructSettings::default(), 1).unwrap();
+    check_invariants(&tree, one, &ReconstructSettings::default(), "one tip");
     let hull = cfg_with(|c| c.volume = VolumeKind::Hull);
     let e = reconstruct(one, DVec3::ZERO, &hull, 1)
         .unwrap_err()
@@ -242,7 +243,7 @@ fn more_captured_than_total_tips_adds_none_and_single_tip_works() {
             position: DVec3::new(0.1, 1.5, 0.2),
         })
         .collect();
-    let cfg = ReconstructConfig::default();
+    let cfg = ReconstructSettings::default();
     let tree = reconstruct(&same, DVec3::ZERO, &cfg, 1).unwrap();
     assert!(
         tree.nodes
@@ -256,18 +257,18 @@ fn more_captured_than_total_tips_adds_none_and_single_tip_works() {
         marker: 0,
         position: DVec3::new(f64::NAN, 0.0, 0.0),
     }];
-    assert!(reconstruct(&bad, DVec3::ZERO, &ReconstructConfig::default(), 1).is_err());
-    assert!(reconstruct(&[], DVec3::ZERO, &ReconstructConfig::default(), 1).is_err());
+    assert!(reconstruct(&bad, DVec3::ZERO, &ReconstructSettings::default(), 1).is_err());
+    assert!(reconstruct(&[], DVec3::ZERO, &ReconstructSettings::default(), 1).is_err());
     let far = [CapturedTip {
         marker: 0,
         position: DVec3::new(0.0, 1e300, 0.0),
     }];
-    assert!(reconstruct(&far, DVec3::ZERO, &ReconstructConfig::default(), 1).is_err());
+    assert!(reconstruct(&far, DVec3::ZERO, &ReconstructSettings::default(), 1).is_err());
     let tips = crown_tips(Shape::Pine, 10, 1);
     assert!(reconstruct(
         &tips,
         DVec3::splat(f64::INFINITY),
-        &ReconstructConfig::default(),
+        &ReconstructSettings::default(),
         1
     )
     .is_err());
@@ -421,7 +422,7 @@ fn larger_wind_weight_bends_branches_further_downwind() {
 fn moving_the_attractor_changes_the_converging_direction() {
     for (shape, seed) in [(Shape::Maple, 5), (Shape::Pine, 6)] {
         let tips = crown_tips(shape, 35, seed);
-        let cfg = ReconstructConfig::default();
+        let cfg = ReconstructSettings::default();
         let direction = |node: i64| {
             let c = cfg_with(|c| c.attractor_node = node);
             let tree = reconstruct(&tips, DVec3::ZERO, &c, 1).unwrap();

@@ -6,7 +6,7 @@ use std::process::{Command, Stdio};
 use std::time::Duration;
 
 use glam::DVec3;
-use treemocap::format::log::{LogHeader, LogReader, LogWriter};
+use treemocap::format::log::{LogHeader, LogWriter};
 use treemocap::format::Recording;
 use treemocap::rng::Rng;
 use treemocap::{Marker, MarkerFrame};
@@ -91,7 +91,7 @@ fn record_natnet_writes_the_served_session() {
     );
     assert!(stdout.contains("connected to "), "{stdout}");
 
-    let mut reader = LogReader::open(&out).unwrap();
+    let mut reader = treemocap::app::open::log(&out).unwrap();
     assert!(
         reader.info().source.starts_with("natnet "),
         "{:?}",

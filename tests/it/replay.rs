@@ -8,7 +8,7 @@ use std::process::Command;
 use glam::DVec3;
 use treemocap::config::Config;
 use treemocap::model::wind::angle_between_deg;
-use treemocap::sim::{self, CrownShape, SynthOptions};
+use treemocap::sim::{CrownShape, SynthOptions};
 
 fn root() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
@@ -120,7 +120,7 @@ fn pca_wind_within_10_degrees_on_generated_sessions() {
             wind_s: 8.0,
             ..SynthOptions::default()
         };
-        let summary = sim::write_session(&opts, &csv).unwrap();
+        let summary = treemocap::app::synth::write_session(&opts, &csv).unwrap();
         let mut rec = treemocap::app::open::open(&csv).unwrap();
         let (found, _) = treemocap::track::process(rec.as_mut(), &config.tracking).unwrap();
         let w = treemocap::app::replay::estimate_wind(&found, &config).expect("a wind estimate");

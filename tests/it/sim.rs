@@ -137,7 +137,7 @@ fn parse(bytes: &[u8]) -> Parsed {
 /// Everything a user would check of a session against its truth file.
 fn check_session(opts: &SynthOptions, dir: &Path) {
     let csv_path = dir.join(format!("{}-{}.csv", opts.shape, opts.tips));
-    let summary = sim::write_session(opts, &csv_path).unwrap();
+    let summary = treemocap::app::synth::write_session(opts, &csv_path).unwrap();
     let bytes = std::fs::read(&csv_path).unwrap();
     let truth: Truth =
         serde_json::from_slice(&std::fs::read(sim::truth_path(&csv_path)).unwrap()).unwrap();

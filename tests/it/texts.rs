@@ -84,8 +84,8 @@ fn our_log_reads_in_pandas_with_no_options_and_keeps_its_metadata() {
         .output()
         .unwrap();
     let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
-    assert_eq!(v["info"]["frame_rate"], 120.0, "{v}");
-    assert_eq!(v["info"]["source"], "natnet 127.0.0.1:1510");
+    assert_eq!(v["frame_rate"], 120.0, "{v}");
+    assert_eq!(v["source"], "natnet 127.0.0.1:1510");
     // …and without it, from the frame numbers and times, saying so.
     std::fs::remove_file(sidecar_path(&log)).unwrap();
     let out = treemocap()
@@ -94,7 +94,7 @@ fn our_log_reads_in_pandas_with_no_options_and_keeps_its_metadata() {
         .output()
         .unwrap();
     let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
-    assert_eq!(v["info"]["frame_rate"], 120.0, "{v}");
+    assert_eq!(v["frame_rate"], 120.0, "{v}");
     assert!(v.to_string().contains("no sidecar"), "{v}");
 }
 

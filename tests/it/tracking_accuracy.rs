@@ -7,10 +7,11 @@
 use std::collections::HashMap;
 use std::path::Path;
 
-use treemocap::config::{Config, TrackingConfig};
+use treemocap::config::Config;
 use treemocap::model::tips::Tips;
 use treemocap::model::trace::SampleKind;
 use treemocap::sim::{self, CrownShape, SynthOptions, Truth};
+use treemocap::track::TrackingSettings;
 use treemocap::track::{self, Tracker};
 
 /// What one session scored.
@@ -125,7 +126,7 @@ fn smallest_spacing(truth: &Truth) -> f64 {
     best
 }
 
-fn run_frames(frames: &[treemocap::MarkerFrame], cfg: &TrackingConfig, rate: f64) -> Tips {
+fn run_frames(frames: &[treemocap::MarkerFrame], cfg: &TrackingSettings, rate: f64) -> Tips {
     let mut tracker = Tracker::new(cfg, Some(rate));
     for f in frames {
         tracker.push(f);
@@ -235,7 +236,7 @@ fn shipped_replays_match_their_truth() {
 
 #[test]
 fn twenty_generated_sessions_match_their_truth() {
-    let cfg = TrackingConfig::default();
+    let cfg = TrackingSettings::default();
     let mut all = Vec::new();
     let only: Option<u64> = std::env::var("TRACK_SEED")
         .ok()

@@ -115,7 +115,7 @@ fn cmuphyscomp_six_markers_with_data_become_six_tips() {
 }
 
 #[test]
-fn tips_command_writes_contract_json_and_a_png() {
+fn tips_command_writes_tips_json_and_a_png() {
     let dir = tempfile::tempdir().unwrap();
     let json = dir.path().join("tips.json");
     let png = dir.path().join("traces.png");

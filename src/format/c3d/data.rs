@@ -28,6 +28,7 @@ pub struct FrameDecoder {
 }
 
 impl FrameDecoder {
+    /// A decoder for the storage, processor, scale and up axis of `layout`.
     pub fn new(layout: &Layout) -> FrameDecoder {
         let to_metres = match layout.storage {
             Storage::Int16 { scale } => scale.abs() * layout.metres_per_unit,
@@ -85,12 +86,7 @@ impl FrameDecoder {
     #[inline]
     fn push(&self, i: usize, x: f64, y: f64, z: f64, out: &mut Vec<Marker>, present: &mut [u64]) {
         let k = self.to_metres;
-        // Z up to Y up is a −90° turn about X, which keeps the frame
-        // right-handed: (x, y, z) → (x, z, −y).
-        let position = match self.up {
-            UpAxis::Y => DVec3::new(x * k, y * k, z * k),
-            UpAxis::Z => DVec3::new(x * k, z * k, -y * k),
-        };
+        let position = self.up.to_y_up(DVec3::new(x * k, y * k, z * k));
         out.push(Marker {
             position,
             id: Some(i as i64),

@@ -21,12 +21,16 @@ use super::{FormatError, UpAxis};
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Storage {
     /// int16 × scale (the scale is |POINT:SCALE|, in file units).
-    Int16 { scale: f64 },
+    Int16 {
+        /// |POINT:SCALE|: file units per integer step.
+        scale: f64,
+    },
     /// float32, already in file units.
     Float32,
 }
 
 impl Storage {
+    /// Bytes per coordinate or residual word: 2 for int16, 4 for float32.
     pub fn word_bytes(self) -> usize {
         match self {
             Storage::Int16 { .. } => 2,
@@ -34,6 +38,7 @@ impl Storage {
         }
     }
 
+    /// The storage's name in `inspect` and in error messages.
     pub fn name(self) -> &'static str {
         match self {
             Storage::Int16 { .. } => "int16",
@@ -100,7 +105,63 @@ pub fn resolve(
     up: UpChoice,
     warnings: &mut Vec<String>,
 ) -> Result<Layout, FormatError> {
-    // Points per frame.
+    let points = point_count(h, params, warnings)?;
+    let storage = storage(h, params)?;
+    let rate = frame_rate(h, params)?;
+    let analog_values = analog_values(h, params, rate, warnings)?;
+    let word = storage.word_bytes();
+    let frame_bytes = points * 4 * word + analog_values * word;
+    let (data_block, data_offset) = data_start(h, params, file_len, warnings)?;
+    let (frames, first_frame) = frame_count(h, params, warnings)?;
+    if frame_bytes == 0 && frames > u16::MAX as u64 {
+        return Err(err(
+            8,
+            format!("{frames} frames of zero bytes each is not plausible"),
+        ));
+    }
+    if frames > 0 && frame_bytes > 0 {
+        let room = file_len.saturating_sub(data_offset);
+        if room < frame_bytes as u64 {
+            return Err(err(
+                data_offset,
+                format!(
+                    "the data section (block {data_block}) holds {room} bytes, less than one frame of \
+                     {points} points and {analog_values} analog values ({frame_bytes} bytes)"
+                ),
+            ));
+        }
+    }
+
+    let (units, metres_per_unit) = units(params, warnings)?;
+    let software = ["SOFTWARE", "COMPANY"]
+        .iter()
+        .filter_map(|n| params.get("MANUFACTURER", n))
+        .flat_map(|p| p.strings())
+        .find(|s| !s.is_empty());
+    Ok(Layout {
+        processor,
+        storage,
+        points,
+        analog_values,
+        data_offset,
+        frame_bytes,
+        first_frame,
+        frames,
+        rate,
+        units,
+        metres_per_unit,
+        up: up_axis(params, up, warnings),
+        labels: labels(params, points),
+        software,
+    })
+}
+
+/// Points per frame: POINT:USED, or header word 2 when it is absent.
+fn point_count(
+    h: &Header,
+    params: &Params,
+    warnings: &mut Vec<String>,
+) -> Result<usize, FormatError> {
     let used_param = params.get("POINT", "USED");
     let points = match used_param.and_then(|p| p.count()) {
         Some(n) => {
@@ -120,9 +181,11 @@ pub fn resolve(
             format!("POINT:USED = {points} is more than a C3D file can hold (65535)"),
         ));
     }
-    let points = points as usize;
+    Ok(points as usize)
+}
 
-    // Scale and storage.
+/// Integers scaled by POINT:SCALE, or floats when the scale is negative.
+fn storage(h: &Header, params: &Params) -> Result<Storage, FormatError> {
     let scale_param = params.get("POINT", "SCALE");
     let scale = match scale_param.and_then(|p| p.number(0)) {
         Some(s) if s.is_finite() && s != 0.0 => s,
@@ -134,13 +197,15 @@ pub fn resolve(
             format!("POINT:SCALE is {scale}; it must be a non-zero number"),
         ));
     }
-    let storage = if scale < 0.0 {
+    Ok(if scale < 0.0 {
         Storage::Float32
     } else {
         Storage::Int16 { scale }
-    };
+    })
+}
 
-    // Rate.
+/// Frames per second: POINT:RATE, or header words 11-12.
+fn frame_rate(h: &Header, params: &Params) -> Result<f64, FormatError> {
     let rate = params
         .get("POINT", "RATE")
         .and_then(|p| p.number(0))
@@ -152,8 +217,16 @@ pub fn resolve(
             format!("frame rate is {rate} (header words 11-12 and POINT:RATE)"),
         ));
     }
+    Ok(rate)
+}
 
-    // Analog values per frame.
+/// Analog values stored with each frame (skipped, but they take room).
+fn analog_values(
+    h: &Header,
+    params: &Params,
+    rate: f64,
+    warnings: &mut Vec<String>,
+) -> Result<usize, FormatError> {
     let analog_used = params.get("ANALOG", "USED").and_then(|p| p.count());
     let analog_values = match analog_used {
         None => h.analog_total as u64,
@@ -185,11 +258,17 @@ pub fn resolve(
             format!("{analog_values} analog values per frame is not plausible"),
         ));
     }
-    let analog_values = analog_values as usize;
-    let word = storage.word_bytes();
-    let frame_bytes = points * 4 * word + analog_values * word;
+    Ok(analog_values as usize)
+}
 
-    // Data start: the header first (Motive's POINT:DATA_START is 0).
+/// The data section's block and byte offset: header word 9 first (Motive's
+/// POINT:DATA_START is 0), then POINT:DATA_START.
+fn data_start(
+    h: &Header,
+    params: &Params,
+    file_len: u64,
+    warnings: &mut Vec<String>,
+) -> Result<(u64, u64), FormatError> {
     let ds_param = params.get("POINT", "DATA_START").and_then(|p| p.count());
     let valid_block =
         |b: u64| b >= 2 && b != h.param_block as u64 && (b - 1) * BLOCK as u64 <= file_len;
@@ -211,9 +290,17 @@ pub fn resolve(
             ),
         ));
     };
-    let data_offset = (data_block - 1) * BLOCK as u64;
+    Ok((data_block, (data_block - 1) * BLOCK as u64))
+}
 
-    // Frames.
+/// Frames in the file and the first frame's number: the header's range, or
+/// the parameters that hold counts beyond 65535 (TRIAL fields, POINT:FRAMES,
+/// POINT:LONG_FRAMES).
+fn frame_count(
+    h: &Header,
+    params: &Params,
+    warnings: &mut Vec<String>,
+) -> Result<(u64, i64), FormatError> {
     let trial = |name: &str| {
         params
             .get("TRIAL", name)
@@ -277,26 +364,11 @@ pub fn resolve(
             }
         },
     };
-    if frame_bytes == 0 && frames > u16::MAX as u64 {
-        return Err(err(
-            8,
-            format!("{frames} frames of zero bytes each is not plausible"),
-        ));
-    }
-    if frames > 0 && frame_bytes > 0 {
-        let room = file_len.saturating_sub(data_offset);
-        if room < frame_bytes as u64 {
-            return Err(err(
-                data_offset,
-                format!(
-                    "the data section (block {data_block}) holds {room} bytes, less than one frame of \
-                     {points} points and {analog_values} analog values ({frame_bytes} bytes)"
-                ),
-            ));
-        }
-    }
+    Ok((frames, first_frame))
+}
 
-    // Units.
+/// POINT:UNITS and metres per unit.
+fn units(params: &Params, warnings: &mut Vec<String>) -> Result<(String, f64), FormatError> {
     let units = params
         .get("POINT", "UNITS")
         .and_then(|p| p.strings().into_iter().next())
@@ -316,15 +388,18 @@ pub fn resolve(
             ))
         }
     };
+    Ok((units, metres_per_unit))
+}
 
-    // Up axis.
+/// The up axis: the setting, or POINT:Y_SCREEN when it is `auto`.
+fn up_axis(params: &Params, up: UpChoice, warnings: &mut Vec<String>) -> UpAxis {
     let screen = |name: &str| {
         params
             .get("POINT", name)
             .and_then(|p| p.strings().into_iter().next())
             .map(|s| s.to_ascii_uppercase())
     };
-    let up = match up {
+    match up {
         UpChoice::Fixed(a) => a,
         UpChoice::Auto => match (screen("Y_SCREEN").as_deref(), screen("X_SCREEN").as_deref()) {
             (Some("+Y" | "Y"), _) => UpAxis::Y,
@@ -340,9 +415,12 @@ pub fn resolve(
             // Without Y_SCREEN, C3D's usual Z up.
             (None, _) => UpAxis::Z,
         },
-    };
+    }
+}
 
-    // Labels: LABELS, LABELS2, LABELS3, … in order, first `points` of them.
+/// Labels: LABELS, LABELS2, LABELS3, … in order, the first `points` of them,
+/// with a name made up for every empty or missing one.
+fn labels(params: &Params, points: usize) -> Vec<String> {
     let mut labels: Vec<String> = Vec::new();
     for i in 1.. {
         let name = if i == 1 {
@@ -367,27 +445,5 @@ pub fn resolve(
     while labels.len() < points {
         labels.push(format!("Point {}", labels.len()));
     }
-
-    let software = ["SOFTWARE", "COMPANY"]
-        .iter()
-        .filter_map(|n| params.get("MANUFACTURER", n))
-        .flat_map(|p| p.strings())
-        .find(|s| !s.is_empty());
-
-    Ok(Layout {
-        processor,
-        storage,
-        points,
-        analog_values,
-        data_offset,
-        frame_bytes,
-        first_frame,
-        frames,
-        rate,
-        units,
-        metres_per_unit,
-        up,
-        labels,
-        software,
-    })
+    labels
 }

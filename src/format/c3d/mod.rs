@@ -50,14 +50,7 @@ impl FormatError {
     }
 }
 
-/// The vertical axis of a file's coordinates.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-pub enum UpAxis {
-    /// Y up, as inside treemocap and in Motive's default export.
-    Y,
-    /// Z up, the usual C3D convention (Vicon, Qualisys).
-    Z,
-}
+pub use crate::model::frame::UpAxis;
 
 /// The `c3d.up_axis` setting: which axis of a C3D file points up.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
@@ -113,10 +106,9 @@ pub struct C3dReader<R = BufReader<File>> {
 }
 
 impl C3dReader<BufReader<File>> {
-    /// Opens `path`, reads its header and parameters, and positions at the
-    /// first frame.
-    pub fn open(path: &Path, options: &C3dOptions) -> Result<Self> {
-        let file = File::open(path).map_err(|e| Error::io(path, e))?;
+    /// Reads the header and parameters of an opened file (`path` names it in
+    /// errors) and positions at the first frame.
+    pub fn from_file(file: File, path: &Path, options: &C3dOptions) -> Result<Self> {
         let len = file.metadata().map_err(|e| Error::io(path, e))?.len();
         C3dReader::new(path, BufReader::with_capacity(1 << 18, file), len, options)
     }

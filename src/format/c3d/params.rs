@@ -69,6 +69,7 @@ impl Param {
         self.data.len() / self.kind.size()
     }
 
+    /// True for a parameter that holds no element (a declared, unset value).
     pub fn is_empty(&self) -> bool {
         self.data.is_empty()
     }
@@ -129,6 +130,8 @@ impl Param {
 /// All parameters of a file in file order.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct Params {
+    /// Parameters as they appear; lookups take the first match, as other
+    /// readers do when a file repeats one.
     pub list: Vec<Param>,
 }
 
@@ -285,7 +288,12 @@ pub enum Value {
     Float(Vec<f32>, Vec<usize>),
     /// Strings padded with spaces to a common length (`[len, n]`), or one
     /// string (`[len]`) when `array` is false.
-    Chars { strings: Vec<String>, array: bool },
+    Chars {
+        /// The strings, in order.
+        strings: Vec<String>,
+        /// Written as a 2-D array (`[len, n]`) rather than one string.
+        array: bool,
+    },
 }
 
 /// Encodes a parameter section: `groups` are (id, name), `params` are

@@ -45,6 +45,7 @@ impl Processor {
         }
     }
 
+    /// A 16-bit signed word in this processor's byte order.
     #[inline]
     pub fn i16(self, b: [u8; 2]) -> i16 {
         match self {
@@ -53,6 +54,7 @@ impl Processor {
         }
     }
 
+    /// A 16-bit unsigned word in this processor's byte order.
     #[inline]
     pub fn u16(self, b: [u8; 2]) -> u16 {
         match self {
@@ -61,6 +63,7 @@ impl Processor {
         }
     }
 
+    /// A float in this processor's format (VAX F_floating for DEC).
     #[inline]
     pub fn f32(self, b: [u8; 4]) -> f32 {
         match self {
@@ -70,6 +73,7 @@ impl Processor {
         }
     }
 
+    /// The bytes of `v` in this processor's byte order (the encoder, `encode.rs`).
     pub fn put_i16(self, v: i16) -> [u8; 2] {
         match self {
             Processor::Mips => v.to_be_bytes(),
@@ -77,6 +81,7 @@ impl Processor {
         }
     }
 
+    /// The bytes of `v` in this processor's byte order (the encoder, `encode.rs`).
     pub fn put_u16(self, v: u16) -> [u8; 2] {
         match self {
             Processor::Mips => v.to_be_bytes(),
@@ -84,6 +89,7 @@ impl Processor {
         }
     }
 
+    /// The bytes of `v` in this processor's float format (the encoder, `encode.rs`).
     pub fn put_f32(self, v: f32) -> [u8; 4] {
         match self {
             Processor::Intel => v.to_le_bytes(),

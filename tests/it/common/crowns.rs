@@ -54,7 +54,7 @@ pub fn crown_tips(shape: Shape, n: usize, seed: u64) -> Vec<CapturedTip> {
     tips
 }
 
-/// A tips.json (contract 2) for `tips` and a wind.
+/// A tips.json (docs/formats.md) for `tips` and a wind.
 pub fn tips_json(tips: &[CapturedTip], wind: Option<(DVec3, f64)>) -> String {
     let tips: Vec<serde_json::Value> = tips
         .iter()

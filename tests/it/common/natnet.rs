@@ -8,6 +8,7 @@ use std::time::Duration;
 use glam::DVec3;
 use treemocap::format::log::{LogHeader, LogWriter};
 use treemocap::model::frame::{Marker, MarkerFrame};
+use treemocap::protocol::natnet::Version;
 use treemocap::rng::Rng;
 
 /// A session of `frames` frames at `rate` Hz with up to `markers` markers
@@ -70,4 +71,53 @@ pub fn free_port() -> u16 {
         .local_addr()
         .unwrap()
         .port()
+}
+
+/// What a NatNet client of bitstream `version` must have received of the
+/// session `sent`: every frame, its time (f32 in 2.6), every marker
+/// bit-exact as f32, point-cloud ids from 3.0, latency from 3.0.
+pub fn check_session(version: Version, sent: &[MarkerFrame], got: &[MarkerFrame]) {
+    assert_eq!(got.len(), sent.len(), "NatNet {version}: frame count");
+    for (s, g) in sent.iter().zip(got) {
+        assert_eq!(g.frame, s.frame, "NatNet {version}");
+        let want_time = if version == Version::new(2, 6) {
+            s.time_s as f32 as f64
+        } else {
+            s.time_s
+        };
+        assert_eq!(
+            g.time_s.to_bits(),
+            want_time.to_bits(),
+            "NatNet {version} frame {} time",
+            s.frame
+        );
+        assert_eq!(
+            g.markers.len(),
+            s.markers.len(),
+            "NatNet {version} frame {}",
+            s.frame
+        );
+        for (a, b) in s.markers.iter().zip(&g.markers) {
+            let w = wire(a.position);
+            assert_eq!(
+                [w.x.to_bits(), w.y.to_bits(), w.z.to_bits()],
+                [
+                    b.position.x.to_bits(),
+                    b.position.y.to_bits(),
+                    b.position.z.to_bits()
+                ],
+                "NatNet {version} frame {}",
+                s.frame
+            );
+            // 3.0+ carries the point-cloud id with the unlabeled marker.
+            let id = if version.major >= 3 { a.id } else { None };
+            assert_eq!(b.id, id);
+        }
+        if version.major >= 3 {
+            let l = g.latency_s.expect("3.0+ frames carry latency");
+            assert!((0.0..1.0).contains(&l), "{l}");
+        } else {
+            assert_eq!(g.latency_s, None);
+        }
+    }
 }

@@ -1,5 +1,5 @@
-//! Which markers of a NatNet frame become the [`MarkerFrame`], and its
-//! timestamps.
+//! Which markers of a NatNet frame become the [`MarkerFrame`], in which
+//! axes, and its timestamps: the edge where NatNet's types become ours.
 //!
 //! A tree rig wants the unlabeled point cloud. Where NatNet puts it depends on
 //! the version (spec §5): from 3.0 the unlabeled markers are the entries of
@@ -11,7 +11,8 @@
 use glam::DVec3;
 use serde::{Deserialize, Serialize};
 
-use super::packet::{FrameOfData, Version};
+use super::{FrameOfData, Version};
+pub use crate::model::frame::UpAxis;
 use crate::model::frame::{Marker, MarkerFrame};
 
 /// The `natnet.markers` setting.
@@ -48,17 +49,78 @@ impl std::str::FromStr for MarkerSelection {
     }
 }
 
-fn v3(p: &[f32; 3]) -> DVec3 {
-    DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64)
+/// The `natnet.up_axis` setting: which axis of the stream points up.
+/// treemocap works Y up; a Z-up stream is turned at this edge.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum UpAxisSetting {
+    /// Ask the server (`GetProperty,,Up Axis`, Motive 2.0+); Y up when it
+    /// cannot say (frames themselves never say).
+    #[default]
+    Auto,
+    /// The stream is Y up (Motive's default).
+    Y,
+    /// The stream is Z up (Motive's "Z up" streaming option).
+    Z,
+}
+
+impl std::str::FromStr for UpAxisSetting {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        match s.to_ascii_lowercase().as_str() {
+            "auto" => Ok(UpAxisSetting::Auto),
+            "y" => Ok(UpAxisSetting::Y),
+            "z" => Ok(UpAxisSetting::Z),
+            _ => Err(format!("'{s}' is not an up axis; use y, z or auto")),
+        }
+    }
+}
+
+/// Reads Motive's answer to `GetProperty,,Up Axis`: a text naming the axis
+/// ("Y", "Z up", …). None when it names neither.
+pub fn up_axis_from_answer(text: &str) -> Option<UpAxis> {
+    let t = text.trim().to_ascii_uppercase();
+    match (t.contains('Z'), t.contains('Y')) {
+        (true, false) => Some(UpAxis::Z),
+        (false, true) => Some(UpAxis::Y),
+        _ => None,
+    }
+}
+
+/// The axis as the server names it in its answer and the log says it.
+pub fn up_axis_name(up: UpAxis) -> &'static str {
+    match up {
+        UpAxis::Y => "Y",
+        UpAxis::Z => "Z",
+    }
+}
+
+fn v3(p: &[f32; 3], up: UpAxis) -> DVec3 {
+    up.to_y_up(DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64))
+}
+
+/// What a NatNet frame becomes a [`MarkerFrame`] with: known once the
+/// session has talked to the server.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FrameContext {
+    /// The bitstream the frame was decoded with.
+    pub version: Version,
+    /// Which markers to take.
+    pub selection: MarkerSelection,
+    /// The stream's up axis.
+    pub up: UpAxis,
+    /// Ticks per second of the server's clock (0: unknown), for latency.
+    pub clock_frequency: u64,
 }
 
 /// The markers of `frame` that `selection` asks for, positions in metres
-/// (NatNet streams metres, Y up). Labeled-list entries keep their NatNet id
-/// as the hint; other markers have none.
+/// (NatNet streams metres), turned Y up. Labeled-list entries keep their
+/// NatNet id as the hint; other markers have none.
 pub fn select_markers(
     frame: &FrameOfData,
     version: Version,
     selection: MarkerSelection,
+    up: UpAxis,
 ) -> Vec<Marker> {
     let labeled = |keep: &dyn Fn(bool) -> bool| -> Vec<Marker> {
         frame
@@ -66,7 +128,7 @@ pub fn select_markers(
             .iter()
             .filter(|m| keep(m.is_unlabeled()))
             .map(|m| Marker {
-                position: v3(&m.position),
+                position: v3(&m.position, up),
                 id: Some(m.id as i64),
             })
             .collect()
@@ -75,7 +137,7 @@ pub fn select_markers(
         frame
             .other_markers
             .iter()
-            .map(|p| Marker::new(v3(p)))
+            .map(|p| Marker::new(v3(p, up)))
             .collect()
     };
     let modern = version.major >= 3;
@@ -106,17 +168,15 @@ pub fn latency_s(frame: &FrameOfData, version: Version, clock_frequency: u64) ->
     Some(ticks as f64 / clock_frequency as f64)
 }
 
-/// Builds the [`MarkerFrame`]. `time_s` is the frame's own timestamp (2.6+);
-/// for 2.5 and earlier, which have none, the caller's `fallback_time_s`
-/// (frame number over the server's frame rate, or arrival time).
+/// Builds the [`MarkerFrame`]. Its time is the frame's own timestamp
+/// (2.6+); for 2.5 and earlier, which have none, the caller's
+/// `fallback_time_s` (frame number over the frame rate, or arrival time).
 pub fn to_marker_frame(
     frame: &FrameOfData,
-    version: Version,
-    selection: MarkerSelection,
-    clock_frequency: u64,
+    cx: &FrameContext,
     fallback_time_s: f64,
 ) -> MarkerFrame {
-    let time_s = if version.at_least(2, 6) {
+    let time_s = if cx.version.at_least(2, 6) {
         frame.timestamp
     } else {
         fallback_time_s
@@ -124,15 +184,15 @@ pub fn to_marker_frame(
     MarkerFrame {
         frame: frame.frame_number as i64,
         time_s,
-        markers: select_markers(frame, version, selection),
-        latency_s: latency_s(frame, version, clock_frequency),
+        markers: select_markers(frame, cx.version, cx.selection, cx.up),
+        latency_s: latency_s(frame, cx.version, cx.clock_frequency),
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::source::natnet::packet::LabeledMarker;
+    use crate::protocol::natnet::LabeledMarker;
 
     fn frame() -> FrameOfData {
         FrameOfData {
@@ -162,26 +222,54 @@ mod tests {
     #[test]
     fn unlabeled_is_the_flagged_labeled_entries_in_3x_and_other_markers_in_2x() {
         let f = frame();
-        let m = select_markers(&f, Version::new(3, 1), MarkerSelection::Unlabeled);
+        let m = select_markers(
+            &f,
+            Version::new(3, 1),
+            MarkerSelection::Unlabeled,
+            UpAxis::Y,
+        );
         assert_eq!(m.len(), 1);
         assert_eq!(m[0].id, Some(50007));
         assert_eq!(m[0].position, DVec3::new(1.0, 2.0, 3.0));
-        let m = select_markers(&f, Version::new(2, 9), MarkerSelection::Unlabeled);
+        let m = select_markers(
+            &f,
+            Version::new(2, 9),
+            MarkerSelection::Unlabeled,
+            UpAxis::Y,
+        );
         assert_eq!(m, vec![Marker::new(DVec3::splat(9.0))]);
-        let m = select_markers(&f, Version::new(4, 1), MarkerSelection::Labeled);
+        let m = select_markers(&f, Version::new(4, 1), MarkerSelection::Labeled, UpAxis::Y);
         assert_eq!(m[0].id, Some(131073));
         assert_eq!(
-            select_markers(&f, Version::new(4, 1), MarkerSelection::All).len(),
+            select_markers(&f, Version::new(4, 1), MarkerSelection::All, UpAxis::Y).len(),
             2
         );
         assert_eq!(
-            select_markers(&f, Version::new(2, 7), MarkerSelection::All).len(),
+            select_markers(&f, Version::new(2, 7), MarkerSelection::All, UpAxis::Y).len(),
             3
         );
         assert_eq!(
-            select_markers(&f, Version::new(4, 1), MarkerSelection::Other).len(),
+            select_markers(&f, Version::new(4, 1), MarkerSelection::Other, UpAxis::Y).len(),
             1
         );
+    }
+
+    #[test]
+    fn z_up_streams_are_turned_y_up_and_the_answer_is_read() {
+        let f = frame();
+        let m = select_markers(
+            &f,
+            Version::new(3, 1),
+            MarkerSelection::Unlabeled,
+            UpAxis::Z,
+        );
+        // Z up (1, 2, 3): height 3 becomes y, depth is -2.
+        assert_eq!(m[0].position, DVec3::new(1.0, 3.0, -2.0));
+        assert_eq!(up_axis_from_answer("Z Up"), Some(UpAxis::Z));
+        assert_eq!(up_axis_from_answer("y"), Some(UpAxis::Y));
+        assert_eq!(up_axis_from_answer("1"), None);
+        assert_eq!("Z".parse(), Ok(UpAxisSetting::Z));
+        assert!("up".parse::<UpAxisSetting>().is_err());
     }
 
     #[test]
@@ -191,15 +279,15 @@ mod tests {
         assert_eq!(latency_s(&f, Version::new(3, 0), 1_000_000), Some(0.003));
         assert_eq!(latency_s(&f, Version::new(2, 9), 1_000_000), None);
         assert_eq!(latency_s(&f, Version::new(3, 0), 0), None);
-        let mf = to_marker_frame(&f, Version::new(2, 5), MarkerSelection::Unlabeled, 0, 0.25);
+        let cx = |version, clock_frequency| FrameContext {
+            version,
+            selection: MarkerSelection::Unlabeled,
+            up: UpAxis::Y,
+            clock_frequency,
+        };
+        let mf = to_marker_frame(&f, &cx(Version::new(2, 5), 0), 0.25);
         assert_eq!((mf.frame, mf.time_s, mf.latency_s), (5, 0.25, None));
-        let mf = to_marker_frame(
-            &f,
-            Version::new(3, 0),
-            MarkerSelection::Unlabeled,
-            1_000_000,
-            0.25,
-        );
+        let mf = to_marker_frame(&f, &cx(Version::new(3, 0), 1_000_000), 0.25);
         assert_eq!((mf.time_s, mf.latency_s), (12.5, Some(0.003)));
     }
 }

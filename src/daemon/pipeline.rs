@@ -1,0 +1,285 @@
+//! The pipeline thread: every frame is counted, recorded, kept in the window,
+//! followed by the live tips (→ WebSocket, OSC, sway PCA), and handed to the
+//! analysis every `daemon.analysis_interval_s`. It owns its state and takes
+//! no lock on the way.
+
+use std::sync::atomic::Ordering;
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use crossbeam_channel::{select, Receiver};
+use glam::DVec3;
+
+use super::follow::TipFollower;
+use super::handoff::{AnalysisHandoff, Job};
+use super::live_tips::LiveTips;
+use super::shared::{lock, Shared};
+use super::window::FrameWindow;
+use crate::error::{Error, Result};
+use crate::format::log::{LogHeader, LogWriter};
+use crate::model::frame::MarkerFrame;
+use crate::serve::osc::{tips_datagram, wind_datagram, OscSender};
+use crate::source::channel::{FrameReceiver, FrameSink};
+use crate::wind::pca::SwayPca;
+
+/// How often the pipeline wakes with no frame: the recording's flush and a
+/// rebuild asked for while the source is quiet must not wait for a frame.
+const TICK: Duration = Duration::from_millis(50);
+
+/// The pipeline's state.
+pub(crate) struct Pipeline {
+    shared: Arc<Shared>,
+    window: FrameWindow,
+    follower: TipFollower,
+    /// The tips' states for the live page (measured, filled, not seen).
+    live_tips: LiveTips,
+    pca: SwayPca,
+    next_pca: f64,
+    next_analysis: f64,
+    rate: RateEstimate,
+    osc: Option<OscSender>,
+    recorder: Option<LogWriter>,
+    record_error_logged: bool,
+    /// Where the window goes for analysis: a snapshot (shared chunks, no
+    /// copy), offered only when the analysis is free.
+    handoff: Arc<AnalysisHandoff>,
+}
+
+/// A smoothed estimate of the source's frame rate. Until two frames have
+/// been seen it is unknown; 100 Hz is only the placeholder for a header.
+struct RateEstimate {
+    hz: f64,
+    known: bool,
+    last_time: Option<f64>,
+}
+
+impl RateEstimate {
+    fn update(&mut self, time_s: f64) -> Option<f64> {
+        let prev = self.last_time.replace(time_s)?;
+        let dt = time_s - prev;
+        if dt <= 0.0 {
+            return None;
+        }
+        self.hz = if self.known {
+            0.99 * self.hz + 0.01 / dt
+        } else {
+            1.0 / dt
+        };
+        self.known = true;
+        Some(self.hz)
+    }
+}
+
+impl Pipeline {
+    /// The pipeline's state from the settings; opens the recording when
+    /// `daemon.record` asks for one.
+    pub(crate) fn new(shared: Arc<Shared>, handoff: Arc<AnalysisHandoff>) -> Result<Self> {
+        let c = &shared.config;
+        let d = &c.daemon;
+        let rate = RateEstimate {
+            hz: 100.0,
+            known: false,
+            last_time: None,
+        };
+        let recorder = if d.record {
+            let header = LogHeader {
+                source: lock(&shared.status.source).clone(),
+                frame_rate: rate.hz,
+            };
+            Some(LogWriter::create(
+                &shared.out.join("session.log.csv"),
+                &header,
+                Duration::from_secs_f64(c.record.flush_interval_s),
+            )?)
+        } else {
+            None
+        };
+        Ok(Pipeline {
+            window: FrameWindow::new(d.window_s),
+            follower: TipFollower::new(d.follow_gate_mm / 1000.0),
+            live_tips: LiveTips::new(c.tracking.max_fill_s),
+            pca: SwayPca::new(c.wind.pca_window_s, c.wind.pca_min_sway_mm / 1000.0),
+            next_pca: f64::NEG_INFINITY,
+            next_analysis: f64::NEG_INFINITY,
+            rate,
+            osc: super::osc_sender(&d.osc_targets)?,
+            recorder,
+            record_error_logged: false,
+            handoff,
+            shared,
+        })
+    }
+
+    /// Runs until the shutdown signal or until every source has gone; the
+    /// recording is finished on the way out.
+    pub(crate) fn run(
+        mut self,
+        rx: FrameReceiver,
+        sink: &FrameSink,
+        tips_rx: Receiver<Vec<(usize, DVec3)>>,
+    ) {
+        let stop = self.shared.shutdown.gate();
+        let frames = rx.receiver();
+        loop {
+            select! {
+                recv(frames) -> frame => match frame {
+                    Ok((frame, arrived)) => {
+                        self.shared.status.record_backlog(rx.len(), arrived.elapsed());
+                        self.on_frame(frame, arrived, sink);
+                    }
+                    Err(_) => break,
+                },
+                recv(tips_rx) -> tips => {
+                    if let Ok(tips) = tips {
+                        self.on_tips(&tips);
+                    }
+                }
+                recv(stop) -> _ => break,
+                default(TICK) => self.on_quiet(),
+            }
+            self.flush_recording();
+        }
+        if let Some(w) = self.recorder.take() {
+            if let Err(e) = w.finish() {
+                self.record_failed(&e);
+            }
+        }
+    }
+
+    /// The tips of a new tree: the live follower starts from them.
+    fn on_tips(&mut self, tips: &[(usize, DVec3)]) {
+        self.follower.set_tips(tips);
+        self.live_tips.set_tips(tips);
+        self.shared
+            .status
+            .tips
+            .store(tips.len() as u64, Ordering::Relaxed);
+    }
+
+    /// A quiet source (a finished replay, a paused rig) must not leave a
+    /// requested rebuild waiting for the next frame.
+    fn on_quiet(&mut self) {
+        if self.shared.rebuild.load(Ordering::Relaxed) && !self.window.is_empty() {
+            self.offer_window();
+        }
+    }
+
+    fn flush_recording(&mut self) {
+        if let Some(w) = self.recorder.as_mut() {
+            if let Err(e) = w.tick() {
+                self.record_failed(&e);
+            }
+        }
+    }
+
+    /// One frame through the pipeline; `arrived` is when the source handed
+    /// it over (the latency counts from there, queueing included).
+    fn on_frame(&mut self, frame: MarkerFrame, arrived: Instant, sink: &FrameSink) {
+        self.shared.status.progress.frame_arrived();
+        self.count(&frame, sink);
+        if let Some(w) = self.recorder.as_mut() {
+            if let Err(e) = w.write_frame(&frame) {
+                self.record_failed(&e);
+            }
+        }
+        let now = frame.time_s;
+        if !self.follower.is_empty() {
+            self.follow(&frame);
+        }
+        // The viewers' frame: built only while someone watches, published
+        // into a latest-wins slot (never a wait on a viewer).
+        if self.shared.hub.has_viewers() {
+            let live = self.live_tips.frame(&frame, self.follower.claimed());
+            self.shared.hub.publish_frame(live);
+        }
+        self.window.push(&frame);
+        drop(frame);
+        self.maybe_analyse(now);
+        let us = arrived.elapsed().as_micros() as u64;
+        let status = &self.shared.status;
+        status.latency_us_last.store(us, Ordering::Relaxed);
+        status.latency_us_max.fetch_max(us, Ordering::Relaxed);
+        status.latency_hist.record(us);
+    }
+
+    fn count(&mut self, frame: &MarkerFrame, sink: &FrameSink) {
+        let status = &self.shared.status;
+        status.frames.fetch_add(1, Ordering::Relaxed);
+        let n = frame.markers.len() as u64;
+        status.samples.fetch_add(n, Ordering::Relaxed);
+        status.markers.store(n, Ordering::Relaxed);
+        status
+            .last_frame
+            .store(frame.frame as u64, Ordering::Relaxed);
+        status
+            .last_frame_time_bits
+            .store(frame.time_s.to_bits(), Ordering::Relaxed);
+        status.dropped.store(sink.dropped(), Ordering::Relaxed);
+        if let Some(hz) = self.rate.update(frame.time_s) {
+            status
+                .frame_rate_bits
+                .store(hz.to_bits(), Ordering::Relaxed);
+        }
+    }
+
+    /// The live tips of this frame → viewers, OSC, and the sway PCA.
+    fn follow(&mut self, frame: &MarkerFrame) {
+        let now = frame.time_s;
+        let positions: Vec<DVec3> = frame.positions().collect();
+        let seen = self.follower.update(&positions);
+        let shared = &self.shared;
+        shared
+            .status
+            .tips_live
+            .store(seen.len() as u64, Ordering::Relaxed);
+        self.pca.push(now, self.follower.displacements(&seen));
+        self.live_tips.update(now, &seen);
+        if let Some(o) = self.osc.as_mut() {
+            o.send(&tips_datagram(frame.frame, now, &seen));
+        }
+        if now >= self.next_pca {
+            self.next_pca = now + shared.config.wind.pca_window_s;
+            if let Some(e) = self.pca.estimate() {
+                shared.new_wind(e);
+                if let Some(o) = self.osc.as_mut() {
+                    o.send(&wind_datagram(&e));
+                }
+            }
+        }
+    }
+
+    /// Hands the window to the analysis when one is due (or the clock went
+    /// back: a restarted source) and the analysis is free; while it is busy
+    /// this costs two atomic loads per frame and nothing is copied.
+    fn maybe_analyse(&mut self, now: f64) {
+        let interval = self.shared.config.daemon.analysis_interval_s;
+        if now < self.next_analysis && now >= self.next_analysis - 2.0 * interval {
+            return;
+        }
+        if self.offer_window() {
+            self.next_analysis = now + interval;
+        }
+    }
+
+    /// Offers a snapshot of the window if the analysis is free; true if it was.
+    fn offer_window(&mut self) -> bool {
+        if !self.handoff.wants() {
+            return false;
+        }
+        self.handoff.offer(Job {
+            snapshot: self.window.snapshot(),
+            frame_rate: self.rate.hz.round().max(1.0),
+        });
+        true
+    }
+
+    /// A recording that fails is said once in the log and stays on /status;
+    /// ingest goes on.
+    fn record_failed(&mut self, e: &Error) {
+        if !self.record_error_logged {
+            tracing::error!("recording: {e}");
+            self.record_error_logged = true;
+        }
+        self.shared.output_error(Some(format!("recording: {e}")));
+    }
+}
