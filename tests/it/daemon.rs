@@ -125,10 +125,11 @@ fn natnet_in_tree_out_over_osc_http_and_websocket() {
     // A WebSocket client gets the tree notice and then live tips.
     let rt = tokio::runtime::Runtime::new().unwrap();
     rt.block_on(async {
-        let (mut ws, _) =
-            tokio_tungstenite::connect_async(format!("ws://127.0.0.1:{http_port}/live"))
-                .await
-                .unwrap();
+        let (mut ws, _) = tokio_tungstenite::connect_async(format!(
+            "ws://127.0.0.1:{http_port}/live?format=json"
+        ))
+        .await
+        .unwrap();
         let mut tips_frames = 0;
         let mut saw_tree = false;
         while tips_frames < 20 {
@@ -140,9 +141,11 @@ fn natnet_in_tree_out_over_osc_http_and_websocket() {
             let v: serde_json::Value = serde_json::from_str(&msg.into_text().unwrap()).unwrap();
             match v["type"].as_str() {
                 Some("tree") => saw_tree = true,
-                Some("tips") => {
+                Some("frame") => {
                     tips_frames += 1;
-                    assert!(v["tips"].as_array().unwrap().len() <= 24);
+                    // The tree's 24 tips, each measured, filled or not seen.
+                    assert_eq!(v["tips"].as_array().unwrap().len(), 24, "{v}");
+                    assert!(!v["markers"].as_array().unwrap().is_empty());
                 }
                 _ => {}
             }
