@@ -12,7 +12,6 @@ use std::time::Duration;
 
 use serde_json::{json, Map, Value};
 
-use super::status::Status;
 use crate::app::recording::{Recorder, RecordingStats};
 use crate::error::Result;
 use crate::format::log::LogHeader;
@@ -24,7 +23,7 @@ use crate::source::bad_input::{BadInput, BadInputKind};
 /// counters, registered on `status` as "http".
 pub(crate) fn http_limits(
     d: &crate::config::DaemonConfig,
-    status: &Status,
+    bad_input: &InputCounters,
 ) -> Result<(HttpLimits, Arc<BadInput>)> {
     let limits = HttpLimits {
         allow: AllowList::parse("daemon.http_allow", &d.http_allow)?,
@@ -35,9 +34,7 @@ pub(crate) fn http_limits(
     };
     let bad = Arc::new(BadInput::default());
     let b = bad.clone();
-    status
-        .bad_input
-        .register("http", Arc::new(move || b.counts()));
+    bad_input.register("http", Arc::new(move || b.counts()));
     Ok((limits, bad))
 }
 
@@ -46,11 +43,11 @@ pub(crate) fn http_limits(
 pub(crate) fn start_recording(
     out: &Path,
     flush_interval_s: f64,
-    status: &Status,
+    recording: &std::sync::OnceLock<Arc<RecordingStats>>,
     header: LogHeader,
 ) -> Result<Recorder> {
     let stats = Arc::new(RecordingStats::default());
-    let _ = status.recording.set(stats.clone());
+    let _ = recording.set(stats.clone());
     Recorder::create(
         &out.join("session.log.csv"),
         header,

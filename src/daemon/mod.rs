@@ -186,7 +186,7 @@ fn start_http(shared: &Arc<Shared>, rt: &tokio::runtime::Handle, addr: SocketAdd
         rebuild: Some(Arc::new(move || s.ask_rebuild())),
         shutdown: shared.shutdown.receiver(),
     };
-    let (limits, bad) = counters::http_limits(&shared.config.daemon, &shared.status)?;
+    let (limits, bad) = counters::http_limits(&shared.config.daemon, &shared.status.bad_input)?;
     rt.spawn(async move {
         if let Err(e) = http::serve(listener, state, limits, bad).await {
             tracing::error!("HTTP server: {e}");

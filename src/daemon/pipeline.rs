@@ -89,7 +89,7 @@ impl Pipeline {
             Some(super::counters::start_recording(
                 &shared.out,
                 c.record.flush_interval_s,
-                &shared.status,
+                &shared.status.recording,
                 header,
             )?)
         } else {

@@ -27,27 +27,12 @@ use axum::Router;
 use tokio::sync::{watch, Semaphore};
 
 use super::limits::HttpLimits;
-use super::live::{self, FrameFormat, LiveHub};
+use super::live::{self, FrameFormat};
 use super::snapshot::TreeSnapshot;
+pub use crate::shutdown::until_true;
 use crate::source::bad_input::BadInput;
 
-/// What the HTTP server reads. Cheap to clone.
-#[derive(Clone)]
-pub struct HttpState {
-    /// The latest tree, `None` before the first.
-    pub tree: watch::Receiver<Option<Arc<TreeSnapshot>>>,
-    /// What the pipeline publishes for `/live`: frames and events.
-    pub hub: Arc<LiveHub>,
-    /// The `/status` document, computed on request.
-    pub status: Arc<dyn Fn() -> serde_json::Value + Send + Sync>,
-    /// The `/metrics` text, computed on request.
-    pub metrics: Arc<dyn Fn() -> String + Send + Sync>,
-    /// Called by `POST /rebuild`; `None` where nothing can be rebuilt
-    /// (`treemocap view`), and the route answers 405.
-    pub rebuild: Option<Arc<dyn Fn() + Send + Sync>>,
-    /// Turns true at shutdown; open WebSockets close on it.
-    pub shutdown: watch::Receiver<bool>,
-}
+pub use super::live::{tree_notice, HttpState};
 
 /// The router, for tests and for [`serve`].
 pub fn router(state: HttpState) -> Router {
@@ -111,18 +96,6 @@ pub async fn serve_router(
     axum::serve(listener, router)
         .with_graceful_shutdown(until_true(shutdown))
         .await
-}
-
-/// Resolves when the flag turns true (or its sender is gone).
-pub async fn until_true(mut flag: watch::Receiver<bool>) {
-    loop {
-        if *flag.borrow_and_update() {
-            return;
-        }
-        if flag.changed().await.is_err() {
-            return;
-        }
-    }
 }
 
 fn latest(state: &HttpState) -> Option<Arc<TreeSnapshot>> {
@@ -246,17 +219,4 @@ async fn live(
         live::session(socket, s, format).await;
         drop(permit);
     })
-}
-
-/// The `/live` message announcing a new tree.
-pub fn tree_notice(t: &TreeSnapshot) -> Arc<str> {
-    serde_json::json!({
-        "type": "tree",
-        "version": t.version,
-        "time_s": t.time_s,
-        "reason": t.reason,
-        "nodes": t.nodes.len(),
-    })
-    .to_string()
-    .into()
 }

@@ -38,7 +38,7 @@ use crate::source::allow::AllowList;
 use crate::source::bad_input::{BadInput, BadInputKind};
 use crate::throttle::LogThrottle;
 
-use super::http::until_true;
+use crate::shutdown::until_true;
 
 /// The limits of the HTTP server (`daemon.http_*` settings).
 #[derive(Debug, Clone)]
