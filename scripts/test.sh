@@ -5,6 +5,14 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
+# The live page's browser tests (tests/it/live_view.rs) drive Debian's
+# Chromium headless; playwright-core (npm, below) only talks to it and
+# downloads no browser of its own.
+if ! command -v chromium >/dev/null 2>&1; then
+  echo "== installing Debian's chromium (browser tests of the live page)"
+  apt-get update -qq
+  DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium >/dev/null
+fi
 if [ -s tests/peers/requirements.txt ]; then
   echo "== installing Python test peers (tests/peers/requirements.txt)"
   python3 -m pip install --quiet --disable-pip-version-check -r tests/peers/requirements.txt
@@ -16,6 +24,15 @@ if [ -f tests/peers/package.json ]; then
   else
     npm install --prefix tests/peers --no-audit --no-fund --loglevel=error
   fi
+fi
+
+# tcpdump records our own NatNet server and client on loopback for the
+# capture (pcap) tests in tests/it/natnet_pcap.rs. Debian's package; apt is
+# shared with other jobs on the machine, hence the lock.
+if ! command -v tcpdump >/dev/null; then
+  echo "== installing tcpdump (NatNet capture tests)"
+  flock /tmp/apt.lock apt-get update -qq
+  flock /tmp/apt.lock apt-get install -y -qq tcpdump >/dev/null
 fi
 
 # animate (issue 13): the animated tree.glb is played by three.js in headless

@@ -34,11 +34,20 @@ struct ConfigArgs {
     /// Override one setting, e.g. --set record.flush_interval_s=0.5 (repeatable).
     #[arg(long = "set", value_name = "KEY=VALUE")]
     set: Vec<String>,
+    /// Refuse a recording that can be read only in part (a C3D file holding
+    /// fewer frames than it declares) instead of reading its complete frames
+    /// with a warning; the same as --set replay.strict=true.
+    #[arg(long)]
+    strict: bool,
 }
 
 impl ConfigArgs {
     fn load(&self) -> Result<treemocap::config::Config> {
-        treemocap::config::Config::load(self.config.as_deref(), &self.set)
+        let mut sets = self.set.clone();
+        if self.strict {
+            sets.push("replay.strict=true".into());
+        }
+        treemocap::config::Config::load(self.config.as_deref(), &sets)
     }
 }
 
@@ -61,8 +70,13 @@ enum Command {
     /// animation), tree.json and tree.png to --out (default: output.dir of
     /// the config, "out").
     Replay {
-        /// A Motive CSV export or a treemocap log (detected by content).
+        /// A Motive CSV export, a C3D file, a NatNet capture (pcap/pcapng)
+        /// or a treemocap log (detected by content).
         file: PathBuf,
+        /// The NatNet bitstream of a capture (.pcap/.pcapng) that holds
+        /// no SERVERINFO (overrides replay.natnet_version).
+        #[arg(long, value_name = "X.Y")]
+        natnet_version: Option<natnet::Version>,
         #[command(flatten)]
         config: ConfigArgs,
         /// Output folder (overrides output.dir).
@@ -76,8 +90,13 @@ enum Command {
     /// drop noise, average each marker over the still phase. Prints a table
     /// of tips and a summary.
     Tips {
-        /// A Motive CSV export or a treemocap log (detected by content).
+        /// A Motive CSV export, a C3D file, a NatNet capture (pcap/pcapng)
+        /// or a treemocap log (detected by content).
         file: PathBuf,
+        /// The NatNet bitstream of a capture (.pcap/.pcapng) that holds
+        /// no SERVERINFO (overrides replay.natnet_version).
+        #[arg(long, value_name = "X.Y")]
+        natnet_version: Option<natnet::Version>,
         #[command(flatten)]
         config: ConfigArgs,
         /// Write the tips as JSON (tips.json, what reconstruction reads).
@@ -89,11 +108,20 @@ enum Command {
     },
     /// Describe a recording: format, rate, units, frames, markers, gaps.
     Inspect {
-        /// A Motive CSV export or a treemocap log (detected by content).
+        /// A Motive CSV export, a C3D file, a NatNet capture (pcap/pcapng)
+        /// or a treemocap log (detected by content).
         file: PathBuf,
+        /// The NatNet bitstream of a capture (.pcap/.pcapng) that holds
+        /// no SERVERINFO (overrides replay.natnet_version).
+        #[arg(long, value_name = "X.Y")]
+        natnet_version: Option<natnet::Version>,
         /// Print one JSON object instead of the table.
         #[arg(long)]
         json: bool,
+        /// Refuse a file that can be read only in part (a C3D file holding
+        /// fewer frames than it declares).
+        #[arg(long)]
+        strict: bool,
     },
     /// Record a live source (OSC or NatNet) to a treemocap log until Ctrl-C
     /// or --seconds, printing frames, markers and losses once a second.
@@ -115,6 +143,24 @@ enum Command {
         /// Write the still tree.glb even when the tips have trajectories.
         #[arg(long)]
         still: bool,
+    },
+    /// Show a finished session in the live page, with a timeline to scrub:
+    /// a recording (the marker stage runs on it) or an output folder
+    /// (`replay --out`, or the daemon's out/ with its session.log.csv).
+    /// Serves until Ctrl-C.
+    View {
+        /// A recording (Motive CSV, C3D, treemocap log) or an output folder.
+        path: PathBuf,
+        /// For an output folder without session.log.csv: the recording its
+        /// tips came from, for the timeline.
+        #[arg(long, value_name = "FILE")]
+        recording: Option<PathBuf>,
+        /// Where to serve the page (0.0.0.0:8080 for the lab network; port 0
+        /// picks a free one).
+        #[arg(long, value_name = "ADDR:PORT", default_value = "127.0.0.1:8080")]
+        http: String,
+        #[command(flatten)]
+        config: ConfigArgs,
     },
     /// Make a synthetic capture session of a simulated tree: a Motive 1.23
     /// CSV of unlabeled markers plus NAME.truth.json beside it (the true tree,
@@ -184,7 +230,8 @@ struct NatNetArgs {
 /// Options of `treemocap serve`.
 #[derive(clap::Args, Debug)]
 struct ServeArgs {
-    /// A Motive CSV export or a treemocap log (detected by content).
+    /// A recording: Motive CSV, C3D, a NatNet capture (pcap/pcapng) or a
+    /// treemocap log (detected by content).
     file: PathBuf,
     /// NatNet bitstream version to stream (2.5 … 4.x); unicast clients
     /// may switch theirs with a `Bitstream,X.Y` request.
@@ -203,8 +250,10 @@ struct ServeArgs {
     /// Send frames to each client that connects (the default).
     #[arg(long)]
     unicast: bool,
-    /// Local address to listen on.
-    #[arg(long, default_value = "0.0.0.0")]
+    /// Local address to listen on: loopback, so that only clients on this
+    /// machine can connect; 0.0.0.0 (or the lab interface's address) to
+    /// serve the lab network.
+    #[arg(long, default_value = "127.0.0.1")]
     bind: std::net::Ipv4Addr,
     /// Command port (clients send CONNECT here).
     #[arg(long, default_value_t = natnet::DEFAULT_COMMAND_PORT)]
@@ -326,10 +375,19 @@ fn main() -> ExitCode {
     match run(cli.command) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("treemocap: {e}");
+            // One line whatever the error holds; a closed stderr is no
+            // reason to panic either.
+            use std::io::Write;
+            let line = treemocap::error::one_line(&e.to_string());
+            let _ = writeln!(std::io::stderr(), "treemocap: {line}");
             ExitCode::from(e.exit_code() as u8)
         }
     }
+}
+
+/// `print!` that ends quietly on a closed pipe (see `app::stdout`).
+macro_rules! say {
+    ($($arg:tt)*) => { treemocap::app::stdout::print(format_args!($($arg)*)) };
 }
 
 /// The process's one async runtime and one shutdown signal, with the one
@@ -368,16 +426,37 @@ fn to_json(value: &impl serde::Serialize) -> Result<String> {
 fn run(command: Command) -> Result<()> {
     match command {
         Command::Run { config, out } => run_daemon(config, out),
+        Command::View {
+            path,
+            recording,
+            http,
+            config,
+        } => {
+            let config = config.load()?;
+            let session = treemocap::app::view::load(&path, recording.as_deref(), &config)?;
+            let listener = std::net::TcpListener::bind(&http)
+                .map_err(|e| Error::Runtime(format!("view: HTTP on {http}: {e}")))?;
+            let frames = session.frames.len();
+            let (_stop, shutdown) = tokio::sync::watch::channel(false);
+            treemocap::app::view::serve(session, listener, shutdown, |url| {
+                let _ = say!(
+                    "{}: {frames} frames; the page is at {url} (Ctrl-C stops)\n",
+                    path.display()
+                );
+            })
+        }
         Command::Replay {
             file,
             config,
             out,
+            natnet_version,
             still,
         } => {
-            let config = config.load()?;
+            let mut config = config.load()?;
+            config.replay.natnet_version = natnet_version.or(config.replay.natnet_version);
             let out = out.unwrap_or_else(|| PathBuf::from(&config.output.dir));
             let report = treemocap::app::replay::run_with(&file, &config, still, &out)?;
-            print!("{report}");
+            say!("{report}")?;
             Ok(())
         }
         Command::Tips {
@@ -385,23 +464,33 @@ fn run(command: Command) -> Result<()> {
             config,
             json,
             plot,
+            natnet_version,
         } => {
-            let config = config.load()?;
+            let mut config = config.load()?;
+            config.replay.natnet_version = natnet_version.or(config.replay.natnet_version);
             let (_, _, text) = treemocap::app::tips::tips_command(
                 &file,
                 &config,
                 json.as_deref(),
                 plot.as_deref(),
             )?;
-            print!("{text}");
+            say!("{text}")?;
             Ok(())
         }
-        Command::Inspect { file, json } => {
-            let report = treemocap::app::inspect::inspect(&file)?;
+        Command::Inspect {
+            file,
+            json,
+            natnet_version,
+            strict,
+        } => {
+            let mut options = treemocap::app::open::ReplayOptions::default();
+            options.pcap.version = natnet_version;
+            options.c3d.strict = strict;
+            let report = treemocap::app::inspect::inspect_with(&file, &options)?;
             if json {
-                println!("{}", to_json(&report)?);
+                say!("{}\n", to_json(&report)?)?;
             } else {
-                print!("{report}");
+                say!("{report}")?;
             }
             Ok(())
         }
@@ -409,7 +498,7 @@ fn run(command: Command) -> Result<()> {
         Command::Serve(args) => serve(args),
         Command::Synth(args) => {
             let summary = treemocap::app::synth::write_session(&args.options(), &args.out)?;
-            print!("{summary}");
+            say!("{summary}")?;
             Ok(())
         }
         Command::Reconstruct {
@@ -421,9 +510,7 @@ fn run(command: Command) -> Result<()> {
             let config = config.load()?;
             let out = out.unwrap_or_else(|| PathBuf::from(&config.output.dir));
             let report = treemocap::app::reconstruct::command(&tips, &config, still, &out)?;
-            // A closed pipe (`| head`) is not an error worth a panic.
-            use std::io::Write;
-            let _ = write!(std::io::stdout().lock(), "{report}");
+            say!("{report}")?;
             Ok(())
         }
     }
@@ -435,7 +522,8 @@ fn run_daemon(args: ConfigArgs, out: Option<PathBuf>) -> Result<()> {
     let out = out.unwrap_or_else(|| PathBuf::from(&config.output.dir));
     let (rt, shutdown) = runtime()?;
     let reload: treemocap::daemon::Reload = Box::new(move || args.load());
-    let result = treemocap::daemon::run(config, &out, rt.handle(), &shutdown, Some(reload));
+    let result =
+        treemocap::daemon::run_at_the_rig(config, &out, rt.handle(), &shutdown, Some(reload));
     rt.shutdown_timeout(std::time::Duration::from_millis(500));
     result
 }
@@ -523,11 +611,19 @@ fn serve(args: ServeArgs) -> Result<()> {
         ..Default::default()
     };
     let (rt, shutdown) = runtime()?;
-    let open = || treemocap::app::open::open(&args.file);
+    // A capture without SERVERINFO is read in the bitstream it is served in.
+    let mut options = treemocap::app::open::ReplayOptions::default();
+    options.pcap.version = Some(args.natnet_version);
+    let open = || treemocap::app::open::open_with(&args.file, &options);
     let report = rt.block_on(server::serve(open, &opts, shutdown.receiver()))?;
-    eprintln!(
+    use std::io::Write;
+    let _ = writeln!(
+        std::io::stderr(),
         "served {} frames ({} loops) to {} clients in {:.1} s",
-        report.frames, report.loops, report.clients, report.elapsed_s
+        report.frames,
+        report.loops,
+        report.clients,
+        report.elapsed_s
     );
     Ok(())
 }

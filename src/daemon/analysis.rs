@@ -99,6 +99,7 @@ impl Analysis {
     fn handle(&mut self, now: f64, tips: Tips, still: bool) {
         let f = self.findings(tips, still);
         let shared = self.shared.clone();
+        shared.status.progress.set_still(f.rest_len_s);
         if !self.fan_set && f.still && !f.rest.is_empty() {
             if let Some(e) = fan::configured_fan_wind(&shared.config.wind, &f.rest, now) {
                 shared.new_wind(e);

@@ -83,7 +83,7 @@ fn publish(
         .map(|t| (t.marker, t.position))
         .collect();
     let _ = tips_tx.try_send(tips);
-    let _ = shared.live.send(http::tree_notice(&snapshot));
+    shared.hub.publish_event(http::tree_notice(&snapshot));
     let published_ms = request.fired.elapsed().as_secs_f64() * 1000.0;
     if let Some(o) = osc {
         o.send_paced(&tree_datagrams(&snapshot));
@@ -100,6 +100,7 @@ fn publish(
     *lock(&st.last_tree) = Some(serde_json::json!({
         "version": version,
         "reason": request.reason,
+        "reason_text": request.reason.to_string(),
         "time_s": request.time_s,
         "nodes": snapshot.nodes.len(),
         "tips": request.tips.len(),

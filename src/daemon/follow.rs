@@ -11,6 +11,9 @@ pub struct TipFollower {
     /// (marker index, rest position, last seen position).
     tips: Vec<(usize, DVec3, DVec3)>,
     gate_m: f64,
+    /// Per marker of the last frame: claimed by a tip (for the live view's
+    /// noise markers). Reused, so it costs no allocation per frame.
+    claimed: Vec<bool>,
 }
 
 impl TipFollower {
@@ -20,6 +23,7 @@ impl TipFollower {
         TipFollower {
             tips: Vec::new(),
             gate_m,
+            claimed: Vec::new(),
         }
     }
 
@@ -47,7 +51,9 @@ impl TipFollower {
         }
         pairs.sort_by(|a, b| a.0.total_cmp(&b.0));
         let mut tip_taken = vec![false; self.tips.len()];
-        let mut marker_taken = vec![false; markers.len()];
+        let mut marker_taken = std::mem::take(&mut self.claimed);
+        marker_taken.clear();
+        marker_taken.resize(markers.len(), false);
         let mut seen = Vec::new();
         for (_, ti, mi) in pairs {
             if tip_taken[ti] || marker_taken[mi] {
@@ -59,7 +65,14 @@ impl TipFollower {
             seen.push((self.tips[ti].0, markers[mi]));
         }
         seen.sort_by_key(|s| s.0);
+        self.claimed = marker_taken;
         seen
+    }
+
+    /// Per marker of the last frame given to [`Self::update`]: whether a
+    /// tip took it.
+    pub fn claimed(&self) -> &[bool] {
+        &self.claimed
     }
 
     /// Displacements from rest of the tips seen (for the sway PCA).

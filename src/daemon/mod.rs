@@ -21,9 +21,14 @@
 
 mod analysis;
 mod builder;
+mod console;
+pub mod counters;
 pub mod follow;
+mod live_tips;
+mod osc_control;
 mod pipeline;
 mod pose;
+pub mod progress;
 mod shared;
 mod sources;
 pub mod status;
@@ -38,11 +43,12 @@ use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
 
 use crossbeam_channel::bounded;
-use tokio::sync::{broadcast, watch};
+use tokio::sync::watch;
 
 use crate::config::Config;
 use crate::error::{Error, Result};
 use crate::serve::http;
+use crate::serve::live::LiveHub;
 use crate::serve::osc::OscSender;
 use crate::shutdown::Shutdown;
 use crate::source::channel::frame_channel;
@@ -65,6 +71,30 @@ pub fn run(
     shutdown: &Shutdown,
     reload: Option<Reload>,
 ) -> Result<()> {
+    run_with(config, out, rt, shutdown, reload, false)
+}
+
+/// [`run`] for an operator at the rig (`treemocap run`): with the console
+/// on stderr (the source and the page's address at start, the source
+/// connecting or going silent, the still-phase progress, each new tree).
+pub fn run_at_the_rig(
+    config: Config,
+    out: &Path,
+    rt: &tokio::runtime::Handle,
+    shutdown: &Shutdown,
+    reload: Option<Reload>,
+) -> Result<()> {
+    run_with(config, out, rt, shutdown, reload, true)
+}
+
+fn run_with(
+    config: Config,
+    out: &Path,
+    rt: &tokio::runtime::Handle,
+    shutdown: &Shutdown,
+    reload: Option<Reload>,
+    console: bool,
+) -> Result<()> {
     std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
     let shared = new_shared(config, out, shutdown.clone());
     if let Some(reload) = reload {
@@ -82,6 +112,14 @@ pub fn run(
     let (sink, rx) = frame_channel(d.channel_frames as usize);
     let mut threads: Vec<JoinHandle<()>> = Vec::new();
     threads.extend(sources::start_source(&shared, rt, sink.clone())?);
+    if console {
+        let start = console::start_line(&shared.status, d.http);
+        threads.push(console::spawn(
+            start,
+            shared.status.clone(),
+            shutdown.flag(),
+        ));
+    }
     if !shared.config.wind.sensor_port.is_empty() {
         threads.push(sources::start_serial(&shared));
     }
@@ -113,7 +151,10 @@ fn new_shared(config: Config, out: &Path, shutdown: Shutdown) -> Arc<Shared> {
         .ok();
     Arc::new(Shared {
         out: out.to_path_buf(),
-        status: Arc::new(Status::default()),
+        status: Arc::new(Status {
+            progress: progress::Progress::new(config.daemon.rest_min_s),
+            ..Status::default()
+        }),
         shutdown,
         wind: Mutex::new(WindSelector::new(
             config.wind.priority.clone(),
@@ -121,7 +162,7 @@ fn new_shared(config: Config, out: &Path, shutdown: Shutdown) -> Arc<Shared> {
         )),
         wind_log: Mutex::new(wind_log),
         rebuild: Arc::new(AtomicBool::new(false)),
-        live: broadcast::channel(1024).0,
+        hub: Arc::new(LiveHub::default()),
         tree_tx: watch::channel(None).0,
         requests: LatestRequest::default(),
         recon_config: Mutex::new(config.clone()),
@@ -140,14 +181,15 @@ fn start_http(shared: &Arc<Shared>, rt: &tokio::runtime::Handle, addr: SocketAdd
     let (st, st2, s) = (shared.status.clone(), shared.status.clone(), shared.clone());
     let state = http::HttpState {
         tree: shared.tree_tx.subscribe(),
-        live: shared.live.clone(),
+        hub: shared.hub.clone(),
         status: Arc::new(move || st.to_json()),
         metrics: Arc::new(move || st2.to_prometheus()),
-        rebuild: Arc::new(move || s.ask_rebuild()),
+        rebuild: Some(Arc::new(move || s.ask_rebuild())),
         shutdown: shared.shutdown.receiver(),
     };
+    let (limits, bad) = counters::http_limits(&shared.config.daemon, &shared.status)?;
     rt.spawn(async move {
-        if let Err(e) = http::serve(listener, state).await {
+        if let Err(e) = http::serve(listener, state, limits, bad).await {
             tracing::error!("HTTP server: {e}");
         }
     });

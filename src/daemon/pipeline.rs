@@ -11,13 +11,13 @@ use crossbeam_channel::{select, Receiver, Sender, TrySendError};
 use glam::DVec3;
 
 use super::follow::TipFollower;
+use super::live_tips::LiveTips;
 use super::pose::LivePose;
 use super::shared::{lock, Shared};
 use super::window::{FrameWindow, WindowRecording};
-use crate::error::{Error, Result};
-use crate::format::log::{LogHeader, LogWriter};
+use crate::error::Result;
+use crate::format::log::LogHeader;
 use crate::model::frame::MarkerFrame;
-use crate::serve::http;
 use crate::serve::osc::{tips_datagram, wind_datagram, OscSender};
 use crate::serve::pose::{pose_datagrams, pose_message};
 use crate::source::channel::{FrameReceiver, FrameSink};
@@ -35,6 +35,8 @@ pub(crate) struct Pipeline {
     shared: Arc<Shared>,
     window: FrameWindow,
     follower: TipFollower,
+    /// The tips' states for the live page (measured, filled, not seen).
+    live_tips: LiveTips,
     pca: SwayPca,
     next_pca: f64,
     next_analysis: f64,
@@ -42,8 +44,8 @@ pub(crate) struct Pipeline {
     osc: Option<OscSender>,
     /// The current tree swayed by the live tips (issue 13).
     pose: LivePose,
-    recorder: Option<LogWriter>,
-    record_error_logged: bool,
+    /// The recording (`daemon.record`), which survives a full disk.
+    recorder: Option<crate::app::recording::Recorder>,
     analysis_tx: Sender<AnalysisJob>,
 }
 
@@ -88,10 +90,11 @@ impl Pipeline {
                 source: lock(&shared.status.source).clone(),
                 frame_rate: rate.hz,
             };
-            Some(LogWriter::create(
-                &shared.out.join("session.log.csv"),
-                &header,
-                Duration::from_secs_f64(c.record.flush_interval_s),
+            Some(super::counters::start_recording(
+                &shared.out,
+                c.record.flush_interval_s,
+                &shared.status,
+                header,
             )?)
         } else {
             None
@@ -99,15 +102,15 @@ impl Pipeline {
         Ok(Pipeline {
             window: FrameWindow::new(d.window_s),
             follower: TipFollower::new(d.follow_gate_mm / 1000.0),
+            live_tips: LiveTips::new(c.tracking.max_fill_s),
+            pose: LivePose::new(&c.animate),
             pca: SwayPca::new(c.wind.pca_window_s, c.wind.pca_min_sway_mm / 1000.0),
             next_pca: f64::NEG_INFINITY,
             next_analysis: f64::NEG_INFINITY,
             rate,
             osc: super::osc_sender(&d.osc_targets)?,
             recorder,
-            record_error_logged: false,
             analysis_tx,
-            pose: LivePose::new(&shared.config.animate),
             shared,
         })
     }
@@ -143,15 +146,14 @@ impl Pipeline {
             self.flush_recording();
         }
         if let Some(w) = self.recorder.take() {
-            if let Err(e) = w.finish() {
-                self.record_failed(&e);
-            }
+            super::counters::finish_recording(w);
         }
     }
 
     /// The tips of a new tree: the live follower starts from them.
     fn on_tips(&mut self, tips: &[(usize, DVec3)]) {
         self.follower.set_tips(tips);
+        self.live_tips.set_tips(tips);
         self.shared
             .status
             .tips
@@ -171,24 +173,27 @@ impl Pipeline {
 
     fn flush_recording(&mut self) {
         if let Some(w) = self.recorder.as_mut() {
-            if let Err(e) = w.tick() {
-                self.record_failed(&e);
-            }
+            w.tick();
         }
     }
 
     /// One frame through the pipeline; false when the analysis has gone.
     fn on_frame(&mut self, frame: MarkerFrame, sink: &FrameSink) -> bool {
         let arrived = Instant::now();
+        self.shared.status.progress.frame_arrived();
         self.count(&frame, sink);
         if let Some(w) = self.recorder.as_mut() {
-            if let Err(e) = w.write_frame(&frame) {
-                self.record_failed(&e);
-            }
+            w.write_frame(&frame);
         }
         let now = frame.time_s;
         if !self.follower.is_empty() {
             self.follow(&frame);
+        }
+        // The viewers' frame: built only while someone watches, published
+        // into a latest-wins slot (never a wait on a viewer).
+        if self.shared.hub.has_viewers() {
+            let live = self.live_tips.frame(&frame, self.follower.claimed());
+            self.shared.hub.publish_frame(live);
         }
         self.window.push(frame);
         let alive = self.maybe_analyse(now);
@@ -231,11 +236,7 @@ impl Pipeline {
             .tips_live
             .store(seen.len() as u64, Ordering::Relaxed);
         self.pca.push(now, self.follower.displacements(&seen));
-        if shared.live.receiver_count() > 0 {
-            let _ = shared
-                .live
-                .send(http::tips_message(frame.frame, now, &seen));
-        }
+        self.live_tips.update(now, &seen);
         if let Some(o) = self.osc.as_mut() {
             o.send(&tips_datagram(frame.frame, now, &seen));
         }
@@ -252,10 +253,11 @@ impl Pipeline {
         }
     }
 
-    /// The current tree swayed by this frame's live tips, to the WebSocket
-    /// and OSC, when someone listens and a pose is due.
+    /// The current tree swayed by this frame's live tips, to the `/live`
+    /// viewers (a JSON `pose` event) and OSC, when someone listens and a
+    /// pose is due.
     fn send_pose(&mut self, frame: i64, now: f64, seen: &[(usize, DVec3)]) {
-        let viewers = self.shared.live.receiver_count() > 0;
+        let viewers = self.shared.hub.has_viewers();
         if !viewers && self.osc.is_none() {
             return;
         }
@@ -264,7 +266,7 @@ impl Pipeline {
             return;
         };
         if viewers {
-            let _ = self.shared.live.send(pose_message(&p));
+            self.shared.hub.publish_event(pose_message(&p));
         }
         if let Some(o) = self.osc.as_mut() {
             for d in pose_datagrams(&p) {
@@ -289,15 +291,5 @@ impl Pipeline {
             Err(TrySendError::Disconnected(_)) => return false,
         }
         true
-    }
-
-    /// A recording that fails is said once in the log and stays on /status;
-    /// ingest goes on.
-    fn record_failed(&mut self, e: &Error) {
-        if !self.record_error_logged {
-            tracing::error!("recording: {e}");
-            self.record_error_logged = true;
-        }
-        self.shared.output_error(Some(format!("recording: {e}")));
     }
 }

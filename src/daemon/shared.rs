@@ -7,7 +7,7 @@ use std::sync::{Arc, Condvar, Mutex, MutexGuard, PoisonError};
 use std::time::Instant;
 
 use glam::DVec3;
-use tokio::sync::{broadcast, watch};
+use tokio::sync::watch;
 
 use super::status::Status;
 use super::triggers::Reason;
@@ -15,6 +15,7 @@ use super::wind_log::WindLog;
 use crate::config::Config;
 use crate::model::tips::CapturedTip;
 use crate::model::wind::WindEstimate;
+use crate::serve::live::LiveHub;
 use crate::serve::snapshot::TreeSnapshot;
 use crate::shutdown::Shutdown;
 use crate::wind::WindSelector;
@@ -109,8 +110,8 @@ pub(crate) struct Shared {
     pub(crate) wind_log: Mutex<Option<WindLog>>,
     /// A rebuild was asked for (HTTP, OSC, SIGHUP).
     pub(crate) rebuild: Arc<AtomicBool>,
-    /// JSON messages for the WebSocket viewers.
-    pub(crate) live: broadcast::Sender<Arc<str>>,
+    /// Frames and JSON events for the live page's WebSocket (`/live`).
+    pub(crate) hub: Arc<LiveHub>,
     /// The latest tree for HTTP.
     pub(crate) tree_tx: watch::Sender<Option<Arc<TreeSnapshot>>>,
     /// Tree requests from the analysis to the builder.
@@ -131,7 +132,7 @@ impl Shared {
             }
         }
         *lock(&self.status.wind) = current;
-        let _ = self.live.send(
+        self.hub.publish_event(
             serde_json::json!({
                 "type": "wind", "source": e.source.name(), "azimuth_deg": e.azimuth_deg(),
                 "direction": [e.direction.x, e.direction.y, e.direction.z], "speed_m_s": e.speed_m_s,

@@ -7,6 +7,7 @@ use std::sync::Mutex;
 
 use serde_json::json;
 
+use super::progress::Progress;
 use crate::model::wind::WindEstimate;
 
 /// Shared counters of a running daemon.
@@ -58,6 +59,13 @@ pub struct Status {
     /// last bucket everything slower. Fixed size, so percentiles cost no
     /// memory however long the daemon runs.
     pub latency_hist: LatencyHistogram,
+    /// Bad input of every listening socket, by source and kind.
+    pub bad_input: super::counters::InputCounters,
+    /// The recording's counters, once recording.
+    pub recording: std::sync::OnceLock<std::sync::Arc<crate::app::recording::RecordingStats>>,
+    /// Source connection, still-phase progress and rejected input, for the
+    /// live page and the console.
+    pub progress: Progress,
 }
 
 /// Buckets of 10 µs up to 20 ms.
@@ -122,7 +130,7 @@ impl Status {
                 "time_s": w.time_s,
             })
         });
-        json!({
+        let mut doc = json!({
             "source": self.source.lock().map(|s| s.clone()).unwrap_or_default(),
             "source_error": self.source_error.lock().ok().and_then(|e| e.clone()),
             "config_error": self.config_error.lock().ok().and_then(|e| e.clone()),
@@ -147,7 +155,15 @@ impl Status {
                 "p99": self.latency_hist.quantile_us(0.99),
                 "max": get(&self.latency_us_max),
             },
-        })
+            "bad_input": self.bad_input.to_json(),
+            "recording": super::counters::recording_json(self.recording.get()),
+        });
+        if let (Some(doc), serde_json::Value::Object(more)) =
+            (doc.as_object_mut(), self.progress.to_json())
+        {
+            doc.extend(more);
+        }
+        doc
     }
 
     /// The `/metrics` text (Prometheus exposition format 0.0.4).
@@ -221,6 +237,8 @@ impl Status {
                 .map(|e| e.is_some() as u8 as f64)
                 .unwrap_or(0.0),
         );
+        self.bad_input.to_prometheus(&mut out);
+        super::counters::recording_prometheus(self.recording.get(), &mut out);
         out
     }
 }

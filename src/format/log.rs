@@ -25,14 +25,14 @@
 //! boundary and loses at most that interval.
 
 use std::fs::File;
-use std::io::{BufRead, BufReader, Write};
+use std::io::{BufRead, BufReader, Seek, SeekFrom, Write};
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
 use glam::DVec3;
 
 use super::{Format, Recording, RecordingInfo};
-use crate::error::{Error, Result};
+use crate::error::{excerpt, Error, Result};
 use crate::model::frame::{Marker, MarkerFrame};
 
 /// First bytes of every log file; `detect` looks for them.
@@ -53,13 +53,29 @@ pub struct LogHeader {
 
 /// Appends frames to a log file, flushing whole frames at least every
 /// `flush_interval`.
+///
+/// A write that fails (a full disk) may have put part of the buffer in the
+/// file; the file is then cut back to its last whole frame, the frames
+/// after it are counted as lost, and the writer takes no more frames: a
+/// later write could only splice rows into the middle of one. Starting a
+/// new file is the owner's business (`app::recording`).
 pub struct LogWriter {
     path: PathBuf,
     file: File,
     buf: Vec<u8>,
+    /// End of each whole frame in `buf`, to cut a failed write back to.
+    frame_ends: Vec<usize>,
+    /// Bytes of the file that hold whole frames (the header included).
+    written: u64,
     flush_interval: Duration,
     last_flush: Instant,
     samples: u64,
+    /// Frames handed to the OS whole.
+    frames_written: u64,
+    /// Frames cut from the file or refused after a write failed.
+    frames_lost: u64,
+    /// Set by the first failed write; the file then ends at `written`.
+    failed: bool,
 }
 
 impl LogWriter {
@@ -75,21 +91,31 @@ impl LogWriter {
             path: path.to_path_buf(),
             file,
             buf: Vec::with_capacity(BUFFER_LIMIT + 4096),
+            frame_ends: Vec::new(),
+            written: 0,
             flush_interval,
             last_flush: Instant::now(),
             samples: 0,
+            frames_written: 0,
+            frames_lost: 0,
+            failed: false,
         };
         let head = format!(
             "{MAGIC} {VERSION}\n# source: {source}\n# frame_rate: {}\n# units: m\n# up_axis: Y\n{COLUMNS}\n",
             header.frame_rate
         );
         w.buf.extend_from_slice(head.as_bytes());
+        // The header is cut back like a frame (to nothing) if it fails.
         w.flush()?;
         Ok(w)
     }
 
     /// Appends one frame. It reaches the disk at the latest one flush interval later.
     pub fn write_frame(&mut self, frame: &MarkerFrame) -> Result<()> {
+        if self.failed {
+            self.frames_lost += 1;
+            return Err(self.failed_error());
+        }
         // The "frame,time," prefix is the same for every row of the frame:
         // format it once. ryu and itoa give the shortest round-trip text,
         // several times faster than `Display`.
@@ -123,6 +149,7 @@ impl LogWriter {
             }
             buf.push(b'\n');
         }
+        self.frame_ends.push(self.buf.len());
         self.samples += frame.markers.len() as u64;
         if self.buf.len() >= BUFFER_LIMIT || self.last_flush.elapsed() >= self.flush_interval {
             self.flush()?;
@@ -139,21 +166,90 @@ impl LogWriter {
         Ok(())
     }
 
-    /// Hands everything buffered (whole frames only) to the OS.
+    /// Hands everything buffered (whole frames only) to the OS. On a write
+    /// error the file is cut back to its last whole frame (see the type).
     pub fn flush(&mut self) -> Result<()> {
-        if !self.buf.is_empty() {
-            self.file
-                .write_all(&self.buf)
-                .map_err(|e| Error::io(&self.path, e))?;
-            self.buf.clear();
+        if self.failed {
+            return Err(self.failed_error());
         }
+        let mut done = 0;
+        while done < self.buf.len() {
+            match self.file.write(&self.buf[done..]) {
+                Ok(0) => return self.fail(done, std::io::ErrorKind::WriteZero.into()),
+                Ok(n) => done += n,
+                Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
+                Err(e) => return self.fail(done, e),
+            }
+        }
+        self.written += self.buf.len() as u64;
+        self.frames_written += self.frame_ends.len() as u64;
+        self.buf.clear();
+        self.frame_ends.clear();
         self.last_flush = Instant::now();
         Ok(())
+    }
+
+    /// A write failed after `done` bytes of the buffer reached the file:
+    /// keep the whole frames among them, cut the rest off the file, count
+    /// the others as lost.
+    fn fail(&mut self, done: usize, e: std::io::Error) -> Result<()> {
+        let whole = self.frame_ends.partition_point(|&end| end <= done);
+        let keep = if whole == 0 {
+            0
+        } else {
+            self.frame_ends[whole - 1]
+        };
+        self.written += keep as u64;
+        self.frames_written += whole as u64;
+        self.frames_lost += (self.frame_ends.len() - whole) as u64;
+        self.failed = true;
+        self.buf.clear();
+        self.frame_ends.clear();
+        // Cutting a file frees space, so it works on a full disk too; if it
+        // does not, the reader still stops at the cut row with a warning.
+        let cut = self
+            .file
+            .set_len(self.written)
+            .and_then(|()| self.file.seek(SeekFrom::Start(self.written)).map(drop));
+        if let Err(c) = cut {
+            tracing::warn!(
+                "{}: cannot cut back to the last whole frame: {c}",
+                self.path.display()
+            );
+        }
+        Err(Error::io(&self.path, e))
+    }
+
+    fn failed_error(&self) -> Error {
+        Error::Runtime(format!(
+            "{}: an earlier write failed; the file ends at its last whole frame",
+            self.path.display()
+        ))
     }
 
     /// Marker samples written so far.
     pub fn samples(&self) -> u64 {
         self.samples
+    }
+
+    /// Frames handed to the OS whole so far.
+    pub fn frames_written(&self) -> u64 {
+        self.frames_written
+    }
+
+    /// Frames lost to a failed write (cut back, or refused after it).
+    pub fn frames_lost(&self) -> u64 {
+        self.frames_lost
+    }
+
+    /// True once a write failed.
+    pub fn failed(&self) -> bool {
+        self.failed
+    }
+
+    /// The file written.
+    pub fn path(&self) -> &Path {
+        &self.path
     }
 
     /// Flushes and syncs to the disk.
@@ -165,7 +261,9 @@ impl LogWriter {
 
 impl Drop for LogWriter {
     fn drop(&mut self) {
-        let _ = self.flush();
+        if !self.failed {
+            let _ = self.flush();
+        }
     }
 }
 
@@ -179,7 +277,7 @@ pub struct LogReader {
     info: RecordingInfo,
     line_no: u64,
     /// A line read without its newline, completed on the next read.
-    partial: String,
+    partial: Vec<u8>,
     /// The first row of the next frame (or the error found there), read while
     /// finishing the previous frame; the finished frame is returned first.
     pending: Option<Result<Row>>,
@@ -201,13 +299,14 @@ impl LogReader {
         let mut line_no = 0;
         let mut source = String::new();
         let mut frame_rate = None;
-        let mut line = String::new();
+        let mut bytes = Vec::new();
         loop {
-            line.clear();
-            let n = reader
-                .read_line(&mut line)
-                .map_err(|e| Error::io(path, e))?;
+            bytes.clear();
+            let n = read_line_limited(&mut reader, &mut bytes)
+                .map_err(|e| line_error(path, line_no + 1, e))?;
             line_no += 1;
+            let line = line_text(&bytes)
+                .map_err(|(col, msg)| Error::at_line(path, line_no, Some(col), msg))?;
             if n == 0 || !line.ends_with('\n') {
                 return Err(Error::at_line(
                     path,
@@ -224,7 +323,7 @@ impl LogReader {
                 if version.trim() != VERSION {
                     return Err(Error::Unsupported {
                         path: path.into(),
-                        msg: format!("unsupported log version '{}'", version.trim()),
+                        msg: format!("unsupported log version \"{}\"", excerpt(version.trim())),
                     });
                 }
                 continue;
@@ -250,7 +349,7 @@ impl LogReader {
                             path,
                             line_no,
                             None,
-                            format!("frame_rate '{value}' is not a number"),
+                            format!("frame_rate \"{}\" is not a number", excerpt(value)),
                         )
                     })?;
                     if !(rate.is_finite() && rate > 0.0) {
@@ -268,7 +367,7 @@ impl LogReader {
                         path,
                         line_no,
                         None,
-                        format!("units '{value}': logs are in metres ('m')"),
+                        format!("units \"{}\": logs are in metres (\"m\")", excerpt(value)),
                     ))
                 }
                 "up_axis" if value != "Y" => {
@@ -276,7 +375,7 @@ impl LogReader {
                         path,
                         line_no,
                         None,
-                        format!("up_axis '{value}': logs are Y up"),
+                        format!("up_axis \"{}\": logs are Y up", excerpt(value)),
                     ))
                 }
                 _ => {} // unknown header keys are kept for newer writers
@@ -302,7 +401,7 @@ impl LogReader {
                 source,
             },
             line_no,
-            partial: String::new(),
+            partial: Vec::new(),
             pending: None,
             warnings: Vec::new(),
         })
@@ -312,24 +411,32 @@ impl LogReader {
     fn next_row(&mut self) -> Option<Result<Row>> {
         loop {
             let mut line = std::mem::take(&mut self.partial);
-            let start = line.len();
-            match self.reader.read_line(&mut line) {
-                Err(e) => return Some(Err(Error::io(&self.path, e))),
+            match read_line_limited(&mut self.reader, &mut line) {
+                Err(e) => return Some(Err(line_error(&self.path, self.line_no + 1, e))),
                 Ok(0) => {
                     if !line.is_empty() {
                         self.partial = line;
                     }
                     return None;
                 }
-                Ok(_) if !line.ends_with('\n') => {
+                Ok(_) if !line.ends_with(b"\n") => {
                     self.partial = line;
                     return None;
                 }
                 Ok(_) => {}
             }
-            let _ = start;
             self.line_no += 1;
-            let l = line.trim_end_matches(['\r', '\n']);
+            let l = match line_text(&line) {
+                Ok(l) => l.trim_end_matches(['\r', '\n']),
+                Err((col, msg)) => {
+                    return Some(Err(Error::at_line(
+                        &self.path,
+                        self.line_no,
+                        Some(col),
+                        msg,
+                    )))
+                }
+            };
             if l.is_empty() || l.starts_with('#') {
                 continue;
             }
@@ -339,6 +446,52 @@ impl LogReader {
             );
         }
     }
+}
+
+/// Longest line of a log: a row is under 100 bytes and a header line a
+/// source description; a longer line is damage, and must not be read whole.
+const MAX_LINE_BYTES: usize = 64 << 10;
+
+/// Appends one line (with its newline, if it has one) to `line`, reading at
+/// most up to [`MAX_LINE_BYTES`] in all; the bytes appended.
+fn read_line_limited(reader: impl BufRead, line: &mut Vec<u8>) -> std::io::Result<usize> {
+    let room = (MAX_LINE_BYTES + 1).saturating_sub(line.len()) as u64;
+    let n = reader.take(room).read_until(b'\n', line)?;
+    if line.len() > MAX_LINE_BYTES {
+        return Err(std::io::Error::new(
+            std::io::ErrorKind::InvalidData,
+            format!(
+                "a line is longer than {} KiB: not a treemocap log row",
+                MAX_LINE_BYTES >> 10
+            ),
+        ));
+    }
+    Ok(n)
+}
+
+/// A read error, at its line when it is the line's fault (too long).
+fn line_error(path: &Path, line: u64, e: std::io::Error) -> Error {
+    if e.kind() == std::io::ErrorKind::InvalidData {
+        Error::at_line(path, line, None, e.to_string())
+    } else {
+        Error::io(path, e)
+    }
+}
+
+/// A line as text, or the (field, message) of its first invalid byte.
+fn line_text(line: &[u8]) -> std::result::Result<&str, (u64, String)> {
+    std::str::from_utf8(line).map_err(|e| {
+        let valid = &line[..e.valid_up_to()];
+        let field = valid.iter().filter(|&&b| b == b',').count() as u64 + 1;
+        let bad = line.get(e.valid_up_to()).copied().unwrap_or(0);
+        (
+            field,
+            format!(
+                "not UTF-8 text (byte 0x{bad:02X} after \"{}\")",
+                crate::error::excerpt_bytes(&valid[valid.len().saturating_sub(20)..])
+            ),
+        )
+    })
 }
 
 fn parse_row(l: &str) -> std::result::Result<Row, (u64, String)> {
@@ -354,12 +507,15 @@ fn parse_row(l: &str) -> std::result::Result<Row, (u64, String)> {
     if f.next().is_some() {
         return Err((7, "row has more than 6 fields".into()));
     }
-    let frame: i64 = frame_s
-        .parse()
-        .map_err(|_| (1, format!("frame '{frame_s}' is not an integer")))?;
+    let frame: i64 = frame_s.parse().map_err(|_| {
+        (
+            1,
+            format!("frame \"{}\" is not an integer", excerpt(frame_s)),
+        )
+    })?;
     let time: f64 = time_s
         .parse()
-        .map_err(|_| (2, format!("time_s '{time_s}' is not a number")))?;
+        .map_err(|_| (2, format!("time_s \"{}\" is not a number", excerpt(time_s))))?;
     if xs.iter().all(|s| s.is_empty()) {
         return Ok(Row {
             frame,
@@ -369,16 +525,19 @@ fn parse_row(l: &str) -> std::result::Result<Row, (u64, String)> {
     }
     let mut p = [0.0; 3];
     for (i, s) in xs.iter().enumerate() {
-        p[i] = s
-            .parse()
-            .map_err(|_| (4 + i as u64, format!("coordinate '{s}' is not a number")))?;
+        p[i] = s.parse().map_err(|_| {
+            (
+                4 + i as u64,
+                format!("coordinate \"{}\" is not a number", excerpt(s)),
+            )
+        })?;
     }
     let id = if id_s.is_empty() {
         None
     } else {
         Some(
             id_s.parse()
-                .map_err(|_| (3, format!("id '{id_s}' is not an integer")))?,
+                .map_err(|_| (3, format!("id \"{}\" is not an integer", excerpt(id_s))))?,
         )
     };
     Ok(Row {

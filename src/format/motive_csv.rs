@@ -20,15 +20,21 @@ use std::path::{Path, PathBuf};
 
 use glam::DVec3;
 
-use super::csv_rows::RowReader;
+use super::csv_rows::{Row, RowError, RowLimits, RowReader};
 use super::{Channel, ChannelKind, Format, Recording, RecordingInfo};
-use crate::error::{Error, Result};
+use crate::error::{excerpt, excerpt_bytes, Error, Result};
 use crate::model::frame::{Marker, MarkerFrame};
 
 /// Default allowed disagreement of the Time column (s); see `config.replay`.
 /// How far the Time column may disagree with frame / rate by default (s):
 /// Motive quantizes Time to 1 ms at high rates.
 pub const DEFAULT_TIME_TOLERANCE_S: f64 = 0.002;
+/// Keys of row 1 kept at most: Motive writes about 12; thousands mean the
+/// file is not a Motive header, and each key costs memory.
+const MAX_HEADER_KEYS: usize = 1000;
+/// Header rows (Type, Name, ID, Parent, components…) before `Frame,Time`
+/// at most: Motive writes up to 5; each one kept costs a row of memory.
+const MAX_HEADER_ROWS: usize = 16;
 
 /// Where a channel's numbers are in a data row.
 #[derive(Debug, Clone)]
@@ -100,7 +106,7 @@ impl MotiveCsvReader {
         }
         let mut r = MotiveCsvReader {
             path: path.to_path_buf(),
-            rows: RowReader::new(buf),
+            rows: RowReader::new(buf, RowLimits::default()),
             info: RecordingInfo {
                 format: Format::MotiveCsv,
                 version: String::new(),
@@ -131,7 +137,27 @@ impl MotiveCsvReader {
     }
 
     fn read_row(&mut self) -> Result<bool> {
-        self.rows.read().map_err(|e| Error::io(&self.path, e))
+        self.rows.read().map_err(|e| match e {
+            RowError::Io(e) => Error::io(&self.path, e),
+            RowError::TooLong { line, limit } => self.err(
+                line,
+                None,
+                format!(
+                    "row is longer than {} MiB: not a Motive CSV row (a quote left open?)",
+                    limit >> 20
+                ),
+            ),
+            RowError::TooManyFields { line, limit } => self.err(
+                line,
+                Some(limit as u64 + 1),
+                format!("row has more than {limit} fields, more than any Motive export"),
+            ),
+            RowError::UnterminatedQuote { line, column } => self.err(
+                line,
+                Some(column),
+                "a quote opened here is not closed on this line (data rows hold no quotes)",
+            ),
+        })
     }
 
     fn read_header(&mut self) -> Result<()> {
@@ -148,15 +174,24 @@ impl MotiveCsvReader {
             });
         }
         // Row 1: key, value, key, value… Excel adds empty pairs at the end.
-        let cells: Vec<String> = (0..self.rows.len())
-            .map(|i| self.rows.text(i).trim().to_string())
-            .collect();
-        for pair in cells.chunks(2) {
-            let key = pair[0].clone();
-            let value = pair.get(1).cloned().unwrap_or_default();
-            if !key.is_empty() {
-                self.header.push((key, value));
+        // Read in place: a hostile first row of millions of fields must not
+        // become millions of strings.
+        for i in (0..self.rows.len()).step_by(2) {
+            let key = self.rows.text(i).trim();
+            if key.is_empty() {
+                continue;
             }
+            if self.header.len() == MAX_HEADER_KEYS {
+                return Err(self.err(
+                    1,
+                    Some(i as u64 + 1),
+                    format!(
+                        "row 1 has more than {MAX_HEADER_KEYS} keys; a Motive export has about 12"
+                    ),
+                ));
+            }
+            let value = self.rows.text(i + 1).trim().to_string();
+            self.header.push((key.to_string(), value));
         }
         let header = self.header.clone();
         let get = |k: &str| {
@@ -212,7 +247,10 @@ impl MotiveCsvReader {
                 return Err(self.err(
                     1,
                     None,
-                    format!("frame rate '{rate_text}' is not a positive number"),
+                    format!(
+                        "frame rate \"{}\" is not a positive number",
+                        excerpt(&rate_text)
+                    ),
                 ))
             }
         };
@@ -232,7 +270,10 @@ impl MotiveCsvReader {
                 return Err(self.err(
                     1,
                     None,
-                    format!("Length Units '{other}' is not Meters, Centimeters or Millimeters"),
+                    format!(
+                        "Length Units \"{}\" is not Meters, Centimeters or Millimeters",
+                        excerpt(other)
+                    ),
                 ))
             }
         };
@@ -241,10 +282,14 @@ impl MotiveCsvReader {
         self.info.units = units;
         self.info.source = get("Take Name").unwrap_or("").to_string();
 
-        // Descriptor rows up to the axis row `Frame,Time…`.
-        let mut labeled: Vec<(String, Vec<String>)> = Vec::new();
-        let mut unlabeled: Vec<Vec<String>> = Vec::new();
-        let axis_row: Vec<String>;
+        // Only row 1 (Take Notes) may hold a quoted field over several
+        // lines; anywhere else an open quote is an error at its own line.
+        self.rows.multiline = false;
+        // Descriptor rows up to the axis row `Frame,Time…`, kept as compact
+        // copies (bytes plus field ends), never as a string per cell.
+        let mut labeled: Vec<(String, Row)> = Vec::new();
+        let mut unlabeled: Vec<Row> = Vec::new();
+        let axis_row: Row;
         loop {
             if !self.read_row()? {
                 return Err(self.err(
@@ -254,27 +299,34 @@ impl MotiveCsvReader {
                 ));
             }
             let line = self.rows.line();
-            let row: Vec<String> = (0..self.rows.len())
-                .map(|i| self.rows.text(i).to_string())
-                .collect();
-            if row.iter().all(|c| c.is_empty()) {
+            if self.rows.is_blank() {
                 continue; // row 2, plain or Excel's `,,,,`
             }
-            if row[0] == "Frame" {
+            if labeled.len() + unlabeled.len() == MAX_HEADER_ROWS {
+                return Err(self.err(
+                    line,
+                    None,
+                    format!(
+                        "more than {MAX_HEADER_ROWS} header rows before 'Frame,Time': not a Motive CSV header"
+                    ),
+                ));
+            }
+            let row = self.rows.to_row();
+            if row.text(0) == "Frame" {
                 axis_row = row;
                 break;
             }
-            if !row[0].is_empty() {
+            if !self.rows.get(0).is_empty() {
                 return Err(self.err(
                     line,
                     Some(1),
                     format!(
-                        "expected a header row (',Type,…', ',Name,…', ',ID,…' or 'Frame,Time,…'), found '{}'",
-                        row[0]
+                        "expected a header row (',Type,…', ',Name,…', ',ID,…' or 'Frame,Time,…'), found \"{}\"",
+                        excerpt_bytes(self.rows.get(0))
                     ),
                 ));
             }
-            let label = row.get(1).cloned().unwrap_or_default();
+            let label = row.text(1).to_string();
             match label.as_str() {
                 "Type" | "Name" | "ID" | "Parent" => labeled.push((label, row)),
                 "" => unlabeled.push(row),
@@ -282,16 +334,16 @@ impl MotiveCsvReader {
                     return Err(self.err(
                         line,
                         Some(2),
-                        format!("unknown header row label '{other}'"),
+                        format!("unknown header row label \"{}\"", excerpt(other)),
                     ))
                 }
             }
         }
         let axis_line = self.rows.line();
-        if !axis_row.get(1).is_some_and(|t| t.starts_with("Time")) {
+        if !axis_row.text(1).starts_with("Time") {
             return Err(self.err(axis_line, Some(2), "the header row must begin 'Frame,Time'"));
         }
-        self.has_timecode = axis_row.get(2).is_some_and(|t| t == "TimeCode");
+        self.has_timecode = axis_row.text(2) == "TimeCode";
         let data_start = if self.has_timecode { 3 } else { 2 };
         self.width = axis_row.len();
 
@@ -311,14 +363,14 @@ impl MotiveCsvReader {
         };
         let names = row_of("Name");
         let ids = row_of("ID");
-        fn cell(row: Option<&Vec<String>>, i: usize) -> &str {
-            row.and_then(|r| r.get(i)).map(String::as_str).unwrap_or("")
+        fn cell(row: Option<&Row>, i: usize) -> &str {
+            row.map_or("", |r| r.text(i))
         }
 
         let mut i = data_start;
         while i < self.width {
             let key = (cell(Some(types), i), cell(names, i), cell(ids, i));
-            if key.0.is_empty() && axis_row[i].is_empty() {
+            if key.0.is_empty() && axis_row.text(i).is_empty() {
                 i += 1; // Excel's trailing empty columns
                 continue;
             }
@@ -333,9 +385,10 @@ impl MotiveCsvReader {
             if kind.is_marker() {
                 let find = |axis: &str| {
                     (i..end).find(|&c| {
-                        axis_row[c] == axis
+                        axis_row.text(c) == axis
                             && component.as_ref().is_none_or(|r| {
-                                r.get(c).is_none_or(|s| s == "Position" || s.is_empty())
+                                let s = r.text(c);
+                                s == "Position" || s.is_empty()
                             })
                     })
                 };
@@ -345,7 +398,10 @@ impl MotiveCsvReader {
                         return Err(self.err(
                             axis_line,
                             Some(i as u64 + 1),
-                            format!("marker '{}' has no Position X, Y, Z columns", key.1),
+                            format!(
+                                "marker \"{}\" has no Position X, Y, Z columns",
+                                excerpt(key.1)
+                            ),
                         ))
                     }
                 }
@@ -403,13 +459,17 @@ impl MotiveCsvReader {
             self.err(
                 line,
                 Some(1),
-                format!("frame number '{frame_text}' is not an integer"),
+                format!("frame number \"{}\" is not an integer", excerpt(frame_text)),
             )
         })?;
         let time_text = self.rows.text(1);
         if !time_text.is_empty() {
             let t: f64 = time_text.trim().parse().map_err(|_| {
-                self.err(line, Some(2), format!("time '{time_text}' is not a number"))
+                self.err(
+                    line,
+                    Some(2),
+                    format!("time \"{}\" is not a number", excerpt(time_text)),
+                )
             })?;
             let (f0, t0) = *self.time_origin.get_or_insert((frame, t));
             let expected = t0 + (frame - f0) as f64 / self.info.frame_rate;
@@ -450,9 +510,9 @@ impl MotiveCsvReader {
                             line,
                             Some(c as u64 + 1),
                             format!(
-                                "'{}' is not a number (marker '{}')",
-                                String::from_utf8_lossy(raw),
-                                self.channels[ci].name
+                                "\"{}\" is not a number (marker \"{}\")",
+                                excerpt_bytes(raw),
+                                excerpt(&self.channels[ci].name)
                             ),
                         )
                     })?;
@@ -477,10 +537,10 @@ impl MotiveCsvReader {
                             line,
                             Some(c as u64 + 1),
                             format!(
-                                "'{}' is not a number ({} '{}')",
-                                String::from_utf8_lossy(raw),
+                                "\"{}\" is not a number ({} \"{}\")",
+                                excerpt_bytes(raw),
                                 kind_name(self.channels[ci].kind),
-                                self.channels[ci].name
+                                excerpt(&self.channels[ci].name)
                             ),
                         )
                     })?);

@@ -3,63 +3,112 @@
 //!
 //! | route | what |
 //! |---|---|
-//! | `GET /tree.glb` | the latest tree, binary glTF (404 until the first tree) |
+//! | `GET /` | the live view: a page showing markers, tips, noise, tree, wind, status |
+//! | `GET /tree.glb` | the latest tree, binary glTF (404 until the first tree); `X-Tree-Version` names it |
 //! | `GET /tree.json`, `GET /tips.json` | the latest skeleton and tips |
 //! | `GET /status` | JSON: sources, rates, markers, tips, drops, last tree, wind |
 //! | `GET /metrics` | the same counters in Prometheus text format |
 //! | `POST /rebuild` | ask for a new tree now (202 Accepted) |
-//! | `GET /live` | WebSocket: a JSON text message per frame of tips, one per new tree, and the tree's sway (`pose`, `super::pose`) |
+//! | `GET /live` | WebSocket: binary marker frames (at most 60/s), JSON status, tree and wind messages ([`super::live`]) |
 //!
 //! The server only reads shared state handed to it ([`HttpState`]); it never
-//! blocks the pipeline. A WebSocket client too slow for the frame rate skips
-//! frames (it is told how many) instead of holding memory.
+//! blocks the pipeline. GET responses carry `Access-Control-Allow-Origin: *`
+//! so that other web tools can fetch the tree and the JSON.
 
 use std::sync::Arc;
 
-use axum::extract::ws::{Message, WebSocket, WebSocketUpgrade};
-use axum::extract::State;
-use axum::http::{header, StatusCode};
+use axum::extract::ws::WebSocketUpgrade;
+use axum::extract::{Request, State};
+use axum::http::{header, HeaderMap, HeaderValue, Method, StatusCode, Uri};
+use axum::middleware::Next;
 use axum::response::{IntoResponse, Response};
 use axum::routing::{get, post};
 use axum::Router;
-use tokio::sync::{broadcast, watch};
+use tokio::sync::{watch, Semaphore};
 
+use super::limits::HttpLimits;
+use super::live::{self, FrameFormat, LiveHub};
 use super::snapshot::TreeSnapshot;
+use crate::source::bad_input::BadInput;
 
 /// What the HTTP server reads. Cheap to clone.
 #[derive(Clone)]
 pub struct HttpState {
     /// The latest tree, `None` before the first.
     pub tree: watch::Receiver<Option<Arc<TreeSnapshot>>>,
-    /// Live messages for `/live` (JSON text), sent by the pipeline.
-    pub live: broadcast::Sender<Arc<str>>,
+    /// What the pipeline publishes for `/live`: frames and events.
+    pub hub: Arc<LiveHub>,
     /// The `/status` document, computed on request.
     pub status: Arc<dyn Fn() -> serde_json::Value + Send + Sync>,
     /// The `/metrics` text, computed on request.
     pub metrics: Arc<dyn Fn() -> String + Send + Sync>,
-    /// Called by `POST /rebuild`.
-    pub rebuild: Arc<dyn Fn() + Send + Sync>,
+    /// Called by `POST /rebuild`; `None` where nothing can be rebuilt
+    /// (`treemocap view`), and the route answers 405.
+    pub rebuild: Option<Arc<dyn Fn() + Send + Sync>>,
     /// Turns true at shutdown; open WebSockets close on it.
     pub shutdown: watch::Receiver<bool>,
 }
 
 /// The router, for tests and for [`serve`].
 pub fn router(state: HttpState) -> Router {
+    let rebuild_route = if state.rebuild.is_some() {
+        post(rebuild)
+    } else {
+        axum::routing::MethodRouter::new()
+    };
     Router::new()
         .route("/tree.glb", get(tree_glb))
         .route("/tree.json", get(tree_json))
         .route("/tips.json", get(tips_json))
         .route("/status", get(status))
         .route("/metrics", get(metrics))
-        .route("/rebuild", post(rebuild))
+        .route("/rebuild", rebuild_route)
         .route("/live", get(live))
         .with_state(state)
+        .merge(super::web::routes())
+        .layer(axum::middleware::from_fn(cors))
+}
+
+/// `Access-Control-Allow-Origin: *` on GET (and HEAD) responses: the tree and
+/// the JSON are for any web tool on the lab network; POST gets none.
+async fn cors(req: Request, next: Next) -> Response {
+    let read = matches!(*req.method(), Method::GET | Method::HEAD);
+    let mut res = next.run(req).await;
+    if read {
+        res.headers_mut().insert(
+            header::ACCESS_CONTROL_ALLOW_ORIGIN,
+            HeaderValue::from_static("*"),
+        );
+    }
+    res
 }
 
 /// Serves until `shutdown` turns true.
-pub async fn serve(listener: tokio::net::TcpListener, state: HttpState) -> std::io::Result<()> {
+pub async fn serve(
+    listener: tokio::net::TcpListener,
+    state: HttpState,
+    limits: HttpLimits,
+    bad: Arc<BadInput>,
+) -> std::io::Result<()> {
     let shutdown = state.shutdown.clone();
-    axum::serve(listener, router(state))
+    let gate = LiveGate(Arc::new(Semaphore::new(limits.max_websockets)));
+    let app = router(state).layer(axum::Extension(gate));
+    super::limits::serve(listener, app, limits, bad, shutdown).await
+}
+
+/// The `/live` sessions that may still open (`daemon.http_max_websockets`);
+/// without one (`treemocap view`) there is no cap.
+#[derive(Clone)]
+struct LiveGate(Arc<Semaphore>);
+
+/// Serves `router` (e.g. [`router`] merged with `treemocap view`'s routes)
+/// until `shutdown` turns true.
+pub async fn serve_router(
+    listener: tokio::net::TcpListener,
+    router: Router,
+    shutdown: watch::Receiver<bool>,
+) -> std::io::Result<()> {
+    axum::serve(listener, router)
         .with_graceful_shutdown(until_true(shutdown))
         .await
 }
@@ -101,7 +150,17 @@ fn tree_file(
 }
 
 async fn tree_glb(State(s): State<HttpState>) -> Response {
-    tree_file(&s, "model/gltf-binary", |t| t.glb.clone())
+    let mut res = tree_file(&s, "model/gltf-binary", |t| t.glb.clone());
+    if let Some(t) = latest(&s) {
+        res.headers_mut()
+            .insert("x-tree-version", HeaderValue::from(t.version));
+        // The page reads the version of what it loaded.
+        res.headers_mut().insert(
+            header::ACCESS_CONTROL_EXPOSE_HEADERS,
+            HeaderValue::from_static("x-tree-version"),
+        );
+    }
+    res
 }
 
 async fn tree_json(State(s): State<HttpState>) -> Response {
@@ -125,53 +184,68 @@ async fn metrics(State(s): State<HttpState>) -> Response {
         .into_response()
 }
 
-async fn rebuild(State(s): State<HttpState>) -> Response {
-    (s.rebuild)();
+async fn rebuild(State(s): State<HttpState>, headers: HeaderMap) -> Response {
+    if !same_origin(&headers) {
+        return (
+            StatusCode::FORBIDDEN,
+            "POST /rebuild from a page of another site is refused\n",
+        )
+            .into_response();
+    }
+    if let Some(r) = &s.rebuild {
+        r();
+    }
     (StatusCode::ACCEPTED, "rebuild requested\n").into_response()
 }
 
-async fn live(ws: WebSocketUpgrade, State(s): State<HttpState>) -> Response {
-    ws.on_upgrade(move |socket| live_session(socket, s))
+/// False when a browser says the request comes from a page of another site
+/// (its `Origin` names another host than the one asked): a page visited on
+/// the rig's machine must not trigger rebuilds. Scripts, curl and our own
+/// page send no `Origin` or our own.
+fn same_origin(headers: &HeaderMap) -> bool {
+    let Some(origin) = headers.get(header::ORIGIN).and_then(|o| o.to_str().ok()) else {
+        return true;
+    };
+    let host = headers
+        .get(header::HOST)
+        .and_then(|h| h.to_str().ok())
+        .unwrap_or("");
+    let origin_host = origin.split_once("://").map_or(origin, |(_, h)| h);
+    !host.is_empty() && origin_host.eq_ignore_ascii_case(host)
 }
 
-async fn live_session(mut socket: WebSocket, s: HttpState) {
-    let mut rx = s.live.subscribe();
-    let shutdown = until_true(s.shutdown.clone());
-    tokio::pin!(shutdown);
-    if let Some(t) = latest(&s) {
-        let hello = tree_notice(&t);
-        if socket
-            .send(Message::Text(hello.as_ref().into()))
-            .await
-            .is_err()
-        {
-            return;
-        }
-    }
-    loop {
-        tokio::select! {
-            msg = rx.recv() => match msg {
-                Ok(text) => {
-                    if socket.send(Message::Text(text.as_ref().into())).await.is_err() {
-                        return;
-                    }
-                }
-                Err(broadcast::error::RecvError::Lagged(n)) => {
-                    let note = format!("{{\"type\":\"skipped\",\"messages\":{n}}}");
-                    if socket.send(Message::Text(note.into())).await.is_err() {
-                        return;
-                    }
-                }
-                Err(broadcast::error::RecvError::Closed) => break,
-            },
-            incoming = socket.recv() => match incoming {
-                None | Some(Err(_)) | Some(Ok(Message::Close(_))) => return,
-                Some(Ok(_)) => {}
-            },
-            _ = &mut shutdown => break,
-        }
-    }
-    let _ = socket.send(Message::Close(None)).await;
+async fn live(
+    ws: WebSocketUpgrade,
+    uri: Uri,
+    State(s): State<HttpState>,
+    gate: Option<axum::Extension<LiveGate>>,
+) -> Response {
+    let permit = match gate {
+        Some(axum::Extension(LiveGate(g))) => match g.try_acquire_owned() {
+            Ok(p) => Some(p),
+            Err(_) => {
+                return (
+                    StatusCode::SERVICE_UNAVAILABLE,
+                    "too many /live sessions (daemon.http_max_websockets)\n",
+                )
+                    .into_response()
+            }
+        },
+        None => None,
+    };
+    // `/live?format=json`: frames as JSON text, for scripts.
+    let json = uri
+        .query()
+        .is_some_and(|q| q.split('&').any(|kv| kv == "format=json"));
+    let format = if json {
+        FrameFormat::Json
+    } else {
+        FrameFormat::Binary
+    };
+    ws.on_upgrade(move |socket| async move {
+        live::session(socket, s, format).await;
+        drop(permit);
+    })
 }
 
 /// The `/live` message announcing a new tree.
@@ -185,15 +259,4 @@ pub fn tree_notice(t: &TreeSnapshot) -> Arc<str> {
     })
     .to_string()
     .into()
-}
-
-/// The `/live` message for one frame of tips: `[marker, x, y, z]` each.
-pub fn tips_message(frame: i64, time_s: f64, tips: &[(usize, glam::DVec3)]) -> Arc<str> {
-    let list: Vec<serde_json::Value> = tips
-        .iter()
-        .map(|(i, p)| serde_json::json!([i, p.x, p.y, p.z]))
-        .collect();
-    serde_json::json!({"type": "tips", "frame": frame, "time_s": time_s, "tips": list})
-        .to_string()
-        .into()
 }

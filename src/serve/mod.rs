@@ -3,7 +3,11 @@
 //! immutable [`snapshot::TreeSnapshot`]; none of them can slow the pipeline.
 
 pub mod http;
+pub mod limits;
+pub mod live;
 pub mod natnet;
 pub mod osc;
 pub mod pose;
 pub mod snapshot;
+pub mod view;
+mod web;

@@ -303,9 +303,14 @@ fn multicast_inside_a_private_network_namespace() {
             "-n",
             "sh",
             "-c",
-            "ip link set lo up && ip link set lo multicast on && ip route add 224.0.0.0/4 dev lo && exec \"$0\" multicast_inside_a_private_network_namespace --exact --nocapture",
+            "ip link set lo up && ip link set lo multicast on && ip route add 224.0.0.0/4 dev lo && exec \"$0\" \"$1\" --exact --nocapture",
         ])
         .arg(&exe)
+        // This test's full name in the one test binary (`it`).
+        .arg(format!(
+            "{}::multicast_inside_a_private_network_namespace",
+            module_path!().trim_start_matches("it::")
+        ))
         .env("TREEMOCAP_IN_NETNS", "1")
         .output()
         .unwrap();

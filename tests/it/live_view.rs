@@ -1,0 +1,461 @@
+//! The live page in a real browser: Debian's headless Chromium, driven by
+//! playwright-core (`tests/peers/live_page.mjs`), against `treemocap run`
+//! fed frame by frame over OSC from `replays/maple-24.csv`, and against
+//! `treemocap view` on the same recording. What is checked is what an
+//! operator sees, read from the page's own state (`window.treemocap`) and
+//! from a screenshot.
+
+use std::io::{BufRead, BufReader, Write};
+use std::net::{TcpListener, UdpSocket};
+use std::path::{Path, PathBuf};
+use std::process::{Child, ChildStdin, Command, Stdio};
+use std::sync::mpsc::{channel, Receiver};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+use rosc::{OscMessage, OscPacket, OscType};
+use serde_json::{json, Value};
+use treemocap::config::Config;
+use treemocap::model::frame::MarkerFrame;
+use treemocap::model::trace::SampleKind;
+
+fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+fn free_port(udp: bool) -> u16 {
+    if udp {
+        UdpSocket::bind("127.0.0.1:0")
+            .unwrap()
+            .local_addr()
+            .unwrap()
+            .port()
+    } else {
+        TcpListener::bind("127.0.0.1:0")
+            .unwrap()
+            .local_addr()
+            .unwrap()
+            .port()
+    }
+}
+
+/// A child process killed when the test ends, however it ends.
+struct Killed(Child);
+impl Drop for Killed {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+/// Lines a child prints, collected on a thread.
+fn collect_lines(
+    r: impl std::io::Read + Send + 'static,
+) -> (Arc<Mutex<Vec<String>>>, Receiver<String>) {
+    let all = Arc::new(Mutex::new(Vec::new()));
+    let (tx, rx) = channel();
+    let keep = all.clone();
+    std::thread::spawn(move || {
+        for line in BufReader::new(r).lines().map_while(|l| l.ok()) {
+            keep.lock().unwrap().push(line.clone());
+            let _ = tx.send(line);
+        }
+    });
+    (all, rx)
+}
+
+/// The page in headless Chromium, one JSON command a line.
+struct Page {
+    _child: Killed,
+    stdin: ChildStdin,
+    lines: Receiver<String>,
+    _profile: tempfile::TempDir,
+}
+
+impl Page {
+    fn open(url: &str) -> Page {
+        let chromium = std::env::var("CHROMIUM").unwrap_or_else(|_| "/usr/bin/chromium".into());
+        assert!(
+            Path::new(&chromium).exists(),
+            "{chromium} missing: scripts/test.sh installs Debian's chromium"
+        );
+        let profile = tempfile::tempdir().unwrap();
+        let mut child = Command::new("node")
+            .arg(root().join("tests/peers/live_page.mjs"))
+            .arg(url)
+            .arg(profile.path())
+            .env("CHROMIUM", &chromium)
+            .stdin(Stdio::piped())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::inherit())
+            .spawn()
+            .expect("node");
+        let stdin = child.stdin.take().unwrap();
+        let (_, lines) = collect_lines(child.stdout.take().unwrap());
+        let mut page = Page {
+            _child: Killed(child),
+            stdin,
+            lines,
+            _profile: profile,
+        };
+        let ready = page.reply(Duration::from_secs(60));
+        assert_eq!(ready["ready"], true, "{ready}");
+        page
+    }
+
+    fn reply(&mut self, timeout: Duration) -> Value {
+        let line = self
+            .lines
+            .recv_timeout(timeout)
+            .expect("the page driver answers");
+        serde_json::from_str(&line).unwrap()
+    }
+
+    fn cmd(&mut self, c: Value, timeout: Duration) -> Value {
+        writeln!(self.stdin, "{c}").unwrap();
+        self.stdin.flush().unwrap();
+        let v = self.reply(timeout + Duration::from_secs(10));
+        assert!(v.get("error").is_none(), "{c}: {v}");
+        v
+    }
+
+    /// Waits until the JS expression is true; the milliseconds it took.
+    fn wait(&mut self, expr: &str, timeout_ms: u64) -> Option<u64> {
+        let v = self.cmd(
+            json!({"cmd": "wait", "expr": expr, "timeout_ms": timeout_ms}),
+            Duration::from_millis(timeout_ms),
+        );
+        (v["ok"] == true).then(|| v["ms"].as_u64().unwrap())
+    }
+
+    fn state(&mut self) -> Value {
+        self.cmd(json!({"cmd": "state"}), Duration::from_secs(5))["state"].clone()
+    }
+
+    fn errors(&mut self) -> Value {
+        self.cmd(json!({"cmd": "errors"}), Duration::from_secs(5))["errors"].clone()
+    }
+}
+
+fn http_get(url: &str) -> (u16, Vec<u8>) {
+    let script = format!(
+        "import sys, urllib.request, urllib.error\n\
+         req = urllib.request.Request('{url}')\n\
+         try:\n    r = urllib.request.urlopen(req, timeout=5); c, b = r.status, r.read()\n\
+         except urllib.error.HTTPError as e:\n    c, b = e.code, e.read()\n\
+         sys.stdout.write(str(c) + '\\n'); sys.stdout.flush(); sys.stdout.buffer.write(b)\n"
+    );
+    let out = Command::new("python3")
+        .arg("-c")
+        .arg(script)
+        .output()
+        .unwrap();
+    let nl = out.stdout.iter().position(|&b| b == b'\n').unwrap();
+    let code = std::str::from_utf8(&out.stdout[..nl])
+        .unwrap()
+        .parse()
+        .unwrap();
+    (code, out.stdout[nl + 1..].to_vec())
+}
+
+fn status(base: &str) -> Value {
+    serde_json::from_slice(&http_get(&format!("{base}/status")).1).unwrap()
+}
+
+fn maple_frames() -> Vec<MarkerFrame> {
+    let config = Config::load(None, &[]).unwrap();
+    treemocap::app::open::open_recording(&root().join("replays/maple-24.csv"), &config)
+        .unwrap()
+        .collect::<treemocap::Result<Vec<_>>>()
+        .unwrap()
+}
+
+/// One frame as our own OSC message, `/treemocap/markers`.
+fn osc_frame(f: &MarkerFrame) -> Vec<u8> {
+    let mut args = vec![OscType::Int(f.frame as i32), OscType::Double(f.time_s)];
+    for p in f.positions() {
+        args.extend([
+            OscType::Double(p.x),
+            OscType::Double(p.y),
+            OscType::Double(p.z),
+        ]);
+    }
+    rosc::encoder::encode(&OscPacket::Message(OscMessage {
+        addr: "/treemocap/markers".into(),
+        args,
+    }))
+    .unwrap()
+}
+
+/// Triangles of the meshes of a binary glTF, counted from its JSON chunk
+/// (line primitives, such as the skeleton, are not triangles).
+fn glb_triangles(glb: &[u8]) -> u64 {
+    assert_eq!(&glb[..4], b"glTF");
+    let len = u32::from_le_bytes(glb[12..16].try_into().unwrap()) as usize;
+    let doc: Value = serde_json::from_slice(&glb[20..20 + len]).unwrap();
+    let mut n = 0;
+    for mesh in doc["meshes"].as_array().unwrap() {
+        for p in mesh["primitives"].as_array().unwrap() {
+            if p["mode"].as_u64().unwrap_or(4) != 4 {
+                continue;
+            }
+            let acc = match p.get("indices") {
+                Some(i) => i.as_u64().unwrap(),
+                None => p["attributes"]["POSITION"].as_u64().unwrap(),
+            };
+            n += doc["accessors"][acc as usize]["count"].as_u64().unwrap() / 3;
+        }
+    }
+    n
+}
+
+/// Pixels of the bark's colour in a PNG: lit bark is a light brown, red over
+/// green over blue (the background, grid, markers and tips are not).
+fn bark_pixels(path: &Path) -> (usize, usize) {
+    let decoder = png::Decoder::new(BufReader::new(std::fs::File::open(path).unwrap()));
+    let mut reader = decoder.read_info().unwrap();
+    let mut buf = vec![0; reader.output_buffer_size().unwrap()];
+    let info = reader.next_frame(&mut buf).unwrap();
+    let step = info.color_type.samples();
+    let px = &buf[..info.buffer_size()];
+    let brown = px
+        .chunks(step)
+        .filter(|c| {
+            let (r, g, b) = (c[0] as i32, c[1] as i32, c[2] as i32);
+            r > 60 && r >= g + 8 && g >= b + 6
+        })
+        .count();
+    (brown, px.len() / step)
+}
+
+#[test]
+fn the_live_page_shows_markers_tips_and_the_tree() {
+    let out_dir = tempfile::tempdir().unwrap();
+    let (osc_port, http_port) = (free_port(true), free_port(false));
+    let base = format!("http://127.0.0.1:{http_port}");
+    let mut daemon = Command::new(env!("CARGO_BIN_EXE_treemocap"))
+        .arg("run")
+        .arg("--out")
+        .arg(out_dir.path())
+        .args(["--set", "daemon.source=osc"])
+        .arg("--set")
+        .arg(format!("osc.bind=127.0.0.1:{osc_port}"))
+        .arg("--set")
+        .arg(format!("daemon.http=127.0.0.1:{http_port}"))
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let (console, console_rx) = collect_lines(daemon.stderr.take().unwrap());
+    let _daemon = Killed(daemon);
+    // The console's first line names the source and the page.
+    let first = console_rx.recv_timeout(Duration::from_secs(30)).unwrap();
+    assert!(
+        first.contains(&format!("live view at {base}/")) && first.contains("osc"),
+        "{first}"
+    );
+
+    let mut page = Page::open(&format!("{base}/"));
+    assert!(page.wait("window.treemocap.connected", 10_000).is_some());
+    let frames = maple_frames();
+    let osc = UdpSocket::bind("127.0.0.1:0").unwrap();
+    let send = |f: &MarkerFrame| {
+        osc.send_to(&osc_frame(f), ("127.0.0.1", osc_port)).unwrap();
+    };
+
+    // The first frame: on the page within a second, every marker a point.
+    let sent = Instant::now();
+    send(&frames[0]);
+    let expr = format!(
+        "treemocap.last?.frame === {} && treemocap.shown.markers === {}",
+        frames[0].frame,
+        frames[0].markers.len()
+    );
+    let shown = page.wait(&expr, 3_000);
+    let elapsed = sent.elapsed();
+    assert!(shown.is_some(), "first frame not shown: {}", page.state());
+    assert!(
+        elapsed < Duration::from_secs(1),
+        "first frame shown after {elapsed:?}"
+    );
+
+    // 12 s of the still phase at 4× speed; the page then shows the last
+    // frame's markers, every one.
+    let last = 1200;
+    for f in &frames[1..=last] {
+        send(f);
+        std::thread::sleep(Duration::from_micros(2500));
+    }
+    let expr = format!(
+        "treemocap.last?.frame === {} && treemocap.shown.markers === {}",
+        frames[last].frame,
+        frames[last].markers.len()
+    );
+    assert!(page.wait(&expr, 3_000).is_some(), "{}", page.state());
+
+    // The first tree: the page loads it with every triangle of /tree.glb.
+    let mut next = last + 1;
+    let start = Instant::now();
+    while status(&base)["trees"].as_u64() == Some(0) {
+        assert!(start.elapsed() < Duration::from_secs(60), "no tree");
+        for f in &frames[next..next + 50] {
+            send(f);
+            std::thread::sleep(Duration::from_micros(2500));
+        }
+        next += 50;
+    }
+    assert!(
+        page.wait("treemocap.tree?.version === 1", 20_000).is_some(),
+        "{}",
+        page.state()
+    );
+    let (code, glb) = http_get(&format!("{base}/tree.glb"));
+    assert_eq!(code, 200);
+    let st = page.state();
+    assert_eq!(st["tree"]["triangles"].as_u64(), Some(glb_triangles(&glb)));
+    assert!(glb_triangles(&glb) > 1000);
+    // With a tree, the frames carry its 24 tips, each with a state.
+    for f in &frames[next..next + 20] {
+        send(f);
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    next += 20;
+    assert!(
+        page.wait("treemocap.last?.tips === 24", 5_000).is_some(),
+        "{}",
+        page.state()
+    );
+    let st = page.state();
+    let states = &st["last"]["states"];
+    let total: u64 = ["measured", "filled", "unseen"]
+        .iter()
+        .map(|k| states[k].as_u64().unwrap())
+        .sum();
+    assert_eq!(total, 24, "{st}");
+    assert!(states["measured"].as_u64().unwrap() >= 20, "{st}");
+    assert_eq!(st["status"]["still"]["needed_s"], 5.0, "{st}");
+
+    // The rebuild button: a new tree version on /status, then on the page.
+    page.cmd(
+        json!({"cmd": "click", "selector": "#rebuild"}),
+        Duration::from_secs(5),
+    );
+    let start = Instant::now();
+    while status(&base)["tree_version"].as_u64() != Some(2) {
+        assert!(start.elapsed() < Duration::from_secs(30), "no rebuild");
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    assert!(page.wait("treemocap.tree?.version === 2", 20_000).is_some());
+
+    // A screenshot with the tree in it (bark-coloured pixels).
+    let shot = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("live-view.png");
+    page.cmd(
+        json!({"cmd": "screenshot", "path": shot}),
+        Duration::from_secs(30),
+    );
+    let (brown, all) = bark_pixels(&shot);
+    assert!(
+        brown * 100 > all,
+        "{brown} bark pixels of {all} in {}",
+        shot.display()
+    );
+
+    assert_eq!(page.errors(), json!([]), "console errors");
+    assert_eq!(page.state()["errors"], json!([]));
+    let _ = next;
+
+    // The operator's console, plain text on a pipe.
+    let lines = console.lock().unwrap().clone();
+    let text = lines.join("\n");
+    assert!(text.contains("source: receiving frames"), "{text}");
+    assert!(text.contains("of 5 s needed"), "{text}");
+    assert!(text.contains("tree 1: first still phase"), "{text}");
+    assert!(text.contains("tree 2: requested"), "{text}");
+    assert!(!text.contains('\u{1b}'), "colour codes on a pipe: {text}");
+}
+
+#[test]
+fn view_scrubs_a_recording_frame_by_frame() {
+    let replay = root().join("replays/maple-24.csv");
+    let mut view = Command::new(env!("CARGO_BIN_EXE_treemocap"))
+        .arg("view")
+        .arg(&replay)
+        .args(["--http", "127.0.0.1:0"])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::inherit())
+        .spawn()
+        .unwrap();
+    let (_, lines) = collect_lines(view.stdout.take().unwrap());
+    let _view = Killed(view);
+    let line = lines.recv_timeout(Duration::from_secs(60)).unwrap();
+    let url = line
+        .split_whitespace()
+        .find(|w| w.starts_with("http://"))
+        .unwrap_or_else(|| panic!("{line}"))
+        .to_string();
+
+    // What the marker stage says of one frame with a filled gap.
+    let config = Config::load(None, &[]).unwrap();
+    let mut rec = treemocap::app::open::open_recording(&replay, &config).unwrap();
+    let (tips, _) = treemocap::track::process(rec.as_mut(), &config.tracking).unwrap();
+    let samples: Vec<Vec<treemocap::model::trace::Sample>> = tips
+        .tips
+        .iter()
+        .map(|tip| tip.trace.samples().collect())
+        .collect();
+    let kind_at = |t: i64| -> Vec<SampleKind> {
+        samples
+            .iter()
+            .map(|s| {
+                s.iter()
+                    .find(|x| x.frame == t)
+                    .map_or(SampleKind::Missing, |x| x.kind)
+            })
+            .collect()
+    };
+    let t = (0..tips.timeline.len() as i64)
+        .step_by(7)
+        .find(|&t| kind_at(t).contains(&SampleKind::Filled))
+        .expect("a frame with a filled sample");
+    let kinds = kind_at(t);
+    let filled = kinds.iter().filter(|k| **k == SampleKind::Filled).count();
+    let number = tips.timeline.source_frame(t).unwrap();
+    let markers = maple_frames()
+        .iter()
+        .find(|f| f.frame == number)
+        .unwrap()
+        .markers
+        .len();
+
+    let mut page = Page::open(&url);
+    assert!(page.wait("treemocap.viewFrame === 0", 10_000).is_some());
+    // Scrub as a person does: move the slider.
+    page.cmd(
+        json!({"cmd": "eval", "expr": format!(
+            "(() => {{ const s = document.getElementById('scrub'); s.value = '{t}'; \
+             s.dispatchEvent(new Event('input')); }})()"
+        )}),
+        Duration::from_secs(5),
+    );
+    assert!(
+        page.wait(&format!("treemocap.viewFrame === {t}"), 10_000)
+            .is_some(),
+        "{}",
+        page.state()
+    );
+    let st = page.state();
+    assert_eq!(st["last"]["frame"].as_i64(), Some(number), "{st}");
+    assert_eq!(st["last"]["markers"].as_u64(), Some(markers as u64), "{st}");
+    assert_eq!(
+        st["shown"]["markers"].as_u64(),
+        Some(markers as u64),
+        "{st}"
+    );
+    assert_eq!(st["last"]["tips"].as_u64(), Some(tips.tips.len() as u64));
+    assert_eq!(
+        st["last"]["states"]["filled"].as_u64(),
+        Some(filled as u64),
+        "{st}"
+    );
+    assert_eq!(page.errors(), json!([]), "console errors");
+}
