@@ -13,10 +13,11 @@
 //!
 //! Whether to trust it is decided by the same model, on the marker's own
 //! data: gaps of the same length are cut out of its measured stretches next
-//! to the real gap, filled both ways, and compared with what was measured.
-//! - The method with the smaller error there fills the gap (PCHIP, the
-//!   cubic Hermite with Fritsch–Carlson slopes, never overshoots and is
-//!   hard to beat on a few frames; the neighbours win on longer gaps).
+//! to the real gap, filled by the model and compared with what was measured.
+//! - Gaps up to `max_pchip_s` are filled by PCHIP (the cubic Hermite with
+//!   Fritsch–Carlson slopes, which never overshoots): on the stress sweep
+//!   the neighbours' model did not beat it there. Longer gaps, up to
+//!   `max_fill_s`, are filled from the neighbours.
 //! - A gap whose far end misses the neighbours' prediction by far more than
 //!   the model misses on those test gaps (`PLAUSIBLE` × their RMS end error,
 //!   at least `MIN_MISMATCH_M`) is left open: its two ends are most likely
@@ -322,7 +323,10 @@ fn fill_one(
             return (None, st);
         }
     }
-    let use_pchip = pchip_ok && test.as_ref().is_none_or(|t| t.pchip <= t.model);
+    // Where PCHIP may fill, it does: on the stress sweep the neighbours'
+    // model did not beat it on gaps up to 0.5 s (test gaps chose it too
+    // often); the model fills the longer gaps PCHIP cannot.
+    let use_pchip = pchip_ok;
     st.filled = 1;
     st.filled_frames = missing;
     if use_pchip {

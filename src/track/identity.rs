@@ -125,6 +125,8 @@ pub(crate) struct Identities {
     owner: HashMap<usize, Owner>,
     /// By trace id (ordered, so that ties are broken the same every run).
     candidates: BTreeMap<usize, Candidate>,
+    /// Candidates whose trace ended this frame, before they were judged.
+    dying: Vec<(usize, Candidate)>,
     /// Identities whose trace ended, joinable for `keep_lost_frames`.
     lost: Vec<usize>,
     /// Position of each identity measured in the current frame.
@@ -148,6 +150,7 @@ impl Identities {
             idents: Vec::new(),
             owner: HashMap::new(),
             candidates: BTreeMap::new(),
+            dying: Vec::new(),
             lost: Vec::new(),
             cur: Vec::new(),
             active: Vec::new(),
@@ -220,7 +223,13 @@ impl Identities {
                 }
             }
             Some(Owner::Candidate) => {
-                self.candidates.remove(&trace);
+                // A short piece between two occlusions: judged at the end
+                // of the frame, so its samples are not lost.
+                if let Some(c) = self.candidates.remove(&trace) {
+                    if c.samples.len() >= 3 {
+                        self.dying.push((trace, c));
+                    }
+                }
             }
             None => {}
         }
@@ -247,6 +256,7 @@ impl Identities {
         self.note_gaps();
         self.predict(t);
         self.learn();
+        self.judge_dying();
         self.evaluate(false);
         if t >= self.next_refresh {
             self.refresh_neighbours(t);
@@ -501,6 +511,34 @@ impl Identities {
             }
         }
         self.lost.retain(|i| !joined_ids.contains(i));
+    }
+
+    /// Short pieces that ended go to the lost identity whose predicted path
+    /// they follow best (within its radius); the identity stays lost.
+    fn judge_dying(&mut self) {
+        for (trace, cand) in std::mem::take(&mut self.dying) {
+            let born = cand.samples[0].0;
+            let best = self
+                .lost
+                .iter()
+                .filter_map(|&i| {
+                    let g = self.idents[i].gap.as_ref()?;
+                    if g.from >= born {
+                        return None;
+                    }
+                    path_cost(&cand.samples, g, &self.s).map(|c| (c, i))
+                })
+                .min_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+            if let Some((_, i)) = best {
+                let id = &mut self.idents[i];
+                id.pieces.push(trace);
+                if let Some(&last) = cand.samples.last() {
+                    id.prev = id.last;
+                    id.last = last;
+                }
+                self.joins += 1;
+            }
+        }
     }
 
     /// Candidate `trace` is the next piece of identity `i`.
