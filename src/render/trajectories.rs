@@ -12,8 +12,9 @@
 //!
 //! Flags and ids per format (see docs/tracking.md):
 //! - C3D (float, Intel, millimetres, Z up as is usual in C3D; POINT:Y_SCREEN
-//!   says `+Z`): the fourth word of a point is its residual: `1` (× |SCALE|)
-//!   for a measured sample, `0` for a filled one (the C3D convention for
+//!   says `+Z`): the fourth word of a point is its residual: `257` (0x0101:
+//!   a residual of 1 × |SCALE| whichever byte a reader takes for it) for a
+//!   measured sample, `0` for a filled one (the C3D convention for
 //!   interpolated data), `−1` for a missing one (coordinates 0).
 //!   POINT:LABELS are `tip_01`…, POINT:DESCRIPTIONS list each tip's marker
 //!   ids.
@@ -215,8 +216,11 @@ pub fn to_trc(tips: &Tips, name: &str) -> Vec<u8> {
     out.into_bytes()
 }
 
-/// Residual written for a measured sample (× |POINT:SCALE|).
-pub const C3D_MEASURED: f32 = 1.0;
+/// Fourth word of a measured sample: 0x0101. Readers disagree on which
+/// byte is the residual and which the camera mask (py-c3d: low byte
+/// residual; ezc3d: high byte), so both bytes are 1: every reader sees a
+/// residual of 1 × |POINT:SCALE| > 0.
+pub const C3D_MEASURED: f32 = 257.0;
 /// Residual of a filled sample: 0, the C3D convention for interpolated data.
 pub const C3D_FILLED: f32 = 0.0;
 /// Residual of a missing sample.

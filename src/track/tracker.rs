@@ -333,13 +333,16 @@ impl Tracker {
         let r2 = self.gate_m * self.gate_m;
         let g2 = self.gate_sigma * self.gate_sigma;
         let r = self.params.r.max(1e-12);
+        // Within a fifth of the gate a marker is always a candidate, however
+        // sure the prediction: real markers jitter in ways no model expects.
+        let floor2 = r2 / 25.0;
         let edge = |row: usize, col: usize, l: &Live, d2: f64| -> Option<Edge> {
             let s = l.variance.max(r);
             let m = d2 / s;
-            (d2 <= r2 && m <= g2).then(|| Edge {
+            (d2 <= r2 && (m <= g2 || d2 <= floor2)).then(|| Edge {
                 row,
                 col,
-                cost: m + (s / r).ln().min(LOG_VARIANCE_ALLOWANCE),
+                cost: m.min(g2) + (s / r).ln().min(LOG_VARIANCE_ALLOWANCE),
             })
         };
         if self.points.len() * self.live.len() <= DIRECT_SCAN_MAX {
