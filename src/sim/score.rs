@@ -49,6 +49,7 @@ pub struct Score {
     pub missed_tips: usize,
     /// Distance of each output tip's rest position from its true tip's (m).
     pub rest_errors: Vec<f64>,
+    /// Every wind-phase gap of a followed tip, ours beside PCHIP.
     pub fills: Vec<FillScore>,
     /// Fills whose two ends are samples of different markers.
     pub bridged: usize,

@@ -141,10 +141,10 @@ impl Motion {
         let gain = [pp[0][0] / s, pp[1][0] / s, pp[2][0] / s];
         self.p = p + y * gain[0];
         self.v = v + y * gain[1];
-        self.a = self.a + y * gain[2];
-        for i in 0..3 {
-            for j in 0..3 {
-                self.cov[i][j] = pp[i][j] - gain[i] * pp[0][j];
+        self.a += y * gain[2];
+        for (i, row) in self.cov.iter_mut().enumerate() {
+            for (j, c) in row.iter_mut().enumerate() {
+                *c = pp[i][j] - gain[i] * pp[0][j];
             }
         }
         self.t = t;
