@@ -322,7 +322,7 @@ fn main() {
         .as_deref()
         .and_then(|a| a.split_once("\r\n\r\n"))
         .and_then(|(_, b)| serde_json::from_str::<serde_json::Value>(b).ok())
-        .map(|v| v["bad_input_by_source"].to_string())
+        .map(|v| v["bad_input"].to_string())
         .unwrap_or_default();
     let rss = peak_rss_mb(pid);
     let _ = Command::new("kill")

@@ -155,7 +155,7 @@ impl Status {
                 "p99": self.latency_hist.quantile_us(0.99),
                 "max": get(&self.latency_us_max),
             },
-            "bad_input_by_source": self.bad_input.to_json(),
+            "bad_input": self.bad_input.to_json(),
             "recording": super::counters::recording_json(self.recording.get()),
         });
         if let (Some(doc), serde_json::Value::Object(more)) =

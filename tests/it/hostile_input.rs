@@ -90,7 +90,7 @@ fn flood(from: &str, to: u16, datagram: &[u8], n: usize) {
 }
 
 fn bad(status: &serde_json::Value, source: &str, kind: &str) -> u64 {
-    status["bad_input_by_source"][source][kind]
+    status["bad_input"][source][kind]
         .as_u64()
         .unwrap_or(u64::MAX)
 }

@@ -94,7 +94,7 @@ fn slowloris_and_idle_floods_are_cut_and_status_still_answers() {
         let t0 = Instant::now();
         let body = d.get("/status").expect("/status under load");
         ms.push(t0.elapsed().as_secs_f64() * 1000.0);
-        assert!(body.contains("\"bad_input_by_source\""));
+        assert!(body.contains("\"bad_input\""));
         std::thread::sleep(Duration::from_millis(50));
     }
     ms.sort_by(f64::total_cmp);
@@ -113,7 +113,7 @@ fn slowloris_and_idle_floods_are_cut_and_status_still_answers() {
     trickle.join().unwrap();
     assert_eq!((open_silent, open_slow), (0, 0), "{}", d.log());
     let s = d.status();
-    let incomplete = s["bad_input_by_source"]["http"]["incomplete"].as_u64().unwrap();
+    let incomplete = s["bad_input"]["http"]["incomplete"].as_u64().unwrap();
     assert!(incomplete >= 290, "{s:#}");
 
     // A keep-alive connection that goes quiet after its answer is closed too.
@@ -158,7 +158,7 @@ fn clients_outside_the_allow_list_and_cross_site_posts_are_refused() {
     assert!(answer.starts_with("HTTP/1.1 202"), "{answer}");
 
     let s = d.status();
-    assert_eq!(s["bad_input_by_source"]["http"]["not_allowed"], 2, "{s:#}");
+    assert_eq!(s["bad_input"]["http"]["not_allowed"], 2, "{s:#}");
     let (_, log) = d.stop();
     assert!(log.contains("not in daemon.http_allow"), "{log}");
 }
