@@ -133,7 +133,7 @@ fn nested_arrays(depth: usize) -> Vec<u8> {
     b.extend(std::iter::repeat_n(b'[', depth));
     b.extend(std::iter::repeat_n(b']', depth));
     b.push(0);
-    while b.len() % 4 != 0 {
+    while !b.len().is_multiple_of(4) {
         b.push(0);
     }
     b

@@ -50,6 +50,10 @@ pub struct Config {
 pub struct ReplayConfig {
     /// Allowed disagreement between a file's Time column and frame / rate (s).
     pub time_tolerance_s: f64,
+    /// The NatNet bitstream of a capture that holds no SERVERINFO (it
+    /// started after the client connected); `""` (None): from the capture.
+    #[serde(with = "crate::protocol::natnet::version::unset_if_empty")]
+    pub natnet_version: Option<crate::protocol::natnet::Version>,
     /// Refuse recordings readable only in part (`--strict`).
     pub strict: bool,
 }

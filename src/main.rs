@@ -69,8 +69,13 @@ enum Command {
     /// tips.json, tree.glb, tree.json and tree.png to --out (default:
     /// output.dir of the config, "out").
     Replay {
-        /// A Motive CSV export or a treemocap log (detected by content).
+        /// A Motive CSV export, a C3D file, a NatNet capture (pcap/pcapng)
+        /// or a treemocap log (detected by content).
         file: PathBuf,
+        /// The NatNet bitstream of a capture (.pcap/.pcapng) that holds
+        /// no SERVERINFO (overrides replay.natnet_version).
+        #[arg(long, value_name = "X.Y")]
+        natnet_version: Option<natnet::Version>,
         #[command(flatten)]
         config: ConfigArgs,
         /// Output folder (overrides output.dir).
@@ -81,8 +86,13 @@ enum Command {
     /// drop noise, average each marker over the still phase. Prints a table
     /// of tips and a summary.
     Tips {
-        /// A Motive CSV export or a treemocap log (detected by content).
+        /// A Motive CSV export, a C3D file, a NatNet capture (pcap/pcapng)
+        /// or a treemocap log (detected by content).
         file: PathBuf,
+        /// The NatNet bitstream of a capture (.pcap/.pcapng) that holds
+        /// no SERVERINFO (overrides replay.natnet_version).
+        #[arg(long, value_name = "X.Y")]
+        natnet_version: Option<natnet::Version>,
         #[command(flatten)]
         config: ConfigArgs,
         /// Write the tips as JSON (tips.json, what reconstruction reads).
@@ -94,8 +104,13 @@ enum Command {
     },
     /// Describe a recording: format, rate, units, frames, markers, gaps.
     Inspect {
-        /// A Motive CSV export or a treemocap log (detected by content).
+        /// A Motive CSV export, a C3D file, a NatNet capture (pcap/pcapng)
+        /// or a treemocap log (detected by content).
         file: PathBuf,
+        /// The NatNet bitstream of a capture (.pcap/.pcapng) that holds
+        /// no SERVERINFO (overrides replay.natnet_version).
+        #[arg(long, value_name = "X.Y")]
+        natnet_version: Option<natnet::Version>,
         /// Print one JSON object instead of the table.
         #[arg(long)]
         json: bool,
@@ -207,7 +222,8 @@ struct NatNetArgs {
 /// Options of `treemocap serve`.
 #[derive(clap::Args, Debug)]
 struct ServeArgs {
-    /// A Motive CSV export or a treemocap log (detected by content).
+    /// A recording: Motive CSV, C3D, a NatNet capture (pcap/pcapng) or a
+    /// treemocap log (detected by content).
     file: PathBuf,
     /// NatNet bitstream version to stream (2.5 … 4.x); unicast clients
     /// may switch theirs with a `Bitstream,X.Y` request.
@@ -421,8 +437,14 @@ fn run(command: Command) -> Result<()> {
                 );
             })
         }
-        Command::Replay { file, config, out } => {
-            let config = config.load()?;
+        Command::Replay {
+            file,
+            config,
+            out,
+            natnet_version,
+        } => {
+            let mut config = config.load()?;
+            config.replay.natnet_version = natnet_version.or(config.replay.natnet_version);
             let out = out.unwrap_or_else(|| PathBuf::from(&config.output.dir));
             let report = treemocap::app::replay::run(&file, &config, &out)?;
             say!("{report}")?;
@@ -433,8 +455,10 @@ fn run(command: Command) -> Result<()> {
             config,
             json,
             plot,
+            natnet_version,
         } => {
-            let config = config.load()?;
+            let mut config = config.load()?;
+            config.replay.natnet_version = natnet_version.or(config.replay.natnet_version);
             let (_, _, text) = treemocap::app::tips::tips_command(
                 &file,
                 &config,
@@ -444,8 +468,14 @@ fn run(command: Command) -> Result<()> {
             say!("{text}")?;
             Ok(())
         }
-        Command::Inspect { file, json, strict } => {
+        Command::Inspect {
+            file,
+            json,
+            natnet_version,
+            strict,
+        } => {
             let mut options = treemocap::app::open::ReplayOptions::default();
+            options.pcap.version = natnet_version;
             options.c3d.strict = strict;
             let report = treemocap::app::inspect::inspect_with(&file, &options)?;
             if json {
@@ -567,7 +597,10 @@ fn serve(args: ServeArgs) -> Result<()> {
         ..Default::default()
     };
     let (rt, shutdown) = runtime()?;
-    let open = || treemocap::app::open::open(&args.file);
+    // A capture without SERVERINFO is read in the bitstream it is served in.
+    let mut options = treemocap::app::open::ReplayOptions::default();
+    options.pcap.version = Some(args.natnet_version);
+    let open = || treemocap::app::open::open_with(&args.file, &options);
     let report = rt.block_on(server::serve(open, &opts, shutdown.receiver()))?;
     use std::io::Write;
     let _ = writeln!(

@@ -11,6 +11,7 @@ use crate::error::{Error, Location, Result};
 use crate::format::c3d::{C3dOptions, C3dReader};
 use crate::format::log::LogReader;
 use crate::format::motive_csv::MotiveCsvReader;
+use crate::format::pcap::{PcapOptions, PcapRecording};
 use crate::model::recording::{Format, Recording};
 
 /// Opens a recording with the settings of `config` that change how files
@@ -39,13 +40,15 @@ pub fn detect(path: &Path) -> Result<Format> {
         })
     } else if crate::format::c3d::looks_like_c3d(head) {
         Ok(Format::C3d)
+    } else if crate::format::pcap::looks_like_pcap(head) {
+        Ok(Format::Pcap)
     } else if n == 0 {
         Err(Error::parse(path, Location::Offset(0), "file is empty"))
     } else {
         Err(Error::Unsupported {
             path: path.into(),
             msg: "not a recording treemocap knows (expected a Motive CSV export starting with \
-                  'Format Version', a C3D file or a treemocap log)"
+                  'Format Version', a C3D file, a pcap/pcapng capture or a treemocap log)"
                 .into(),
         })
     }
@@ -69,6 +72,8 @@ pub struct ReplayOptions {
     pub time_tolerance_s: f64,
     /// `c3d.up_axis`.
     pub c3d: crate::format::c3d::C3dOptions,
+    /// `replay.natnet_version`, `natnet.markers` and `natnet.up_axis`.
+    pub pcap: PcapOptions,
 }
 
 impl Default for ReplayOptions {
@@ -86,6 +91,11 @@ impl ReplayOptions {
                 up_axis: config.c3d.up_axis,
                 strict: config.replay.strict,
             },
+            pcap: PcapOptions {
+                version: config.replay.natnet_version,
+                markers: config.natnet.markers,
+                up_axis: config.natnet.up_axis,
+            },
         }
     }
 }
@@ -102,6 +112,7 @@ pub fn open_with(path: &Path, options: &ReplayOptions) -> Result<Box<dyn Recordi
         Format::MotiveCsv => Ok(Box::new(motive_csv_with(path, options.time_tolerance_s)?)),
         Format::Log => Ok(Box::new(log(path)?)),
         Format::C3d => Ok(Box::new(c3d(path, &options.c3d)?)),
+        Format::Pcap => Ok(Box::new(pcap(path, options.pcap)?)),
     }
 }
 
@@ -122,6 +133,11 @@ pub fn motive_csv_with(path: &Path, time_tolerance_s: f64) -> Result<MotiveCsvRe
 /// A treemocap log.
 pub fn log(path: &Path) -> Result<LogReader> {
     LogReader::from_file(open_file(path)?, path)
+}
+
+/// A Wireshark/tcpdump capture of NatNet traffic.
+pub fn pcap(path: &Path, options: PcapOptions) -> Result<PcapRecording> {
+    PcapRecording::new(Box::new(open_file(path)?), path.to_path_buf(), options)
 }
 
 /// A C3D file.

@@ -38,11 +38,6 @@ pub(crate) fn start_source(
     };
     *lock(&shared.status.source) = source.describe();
     let counted = source.clone();
-    shared
-        .status
-        .progress
-        .set_losses(Box::new(move || counted.losses()));
-    let counted = source.clone();
     let name = match d.source {
         DaemonSource::Natnet => "natnet",
         _ => "osc",
