@@ -162,7 +162,7 @@ impl InputCounters {
             .collect()
     }
 
-    /// `{"osc": {"invalid": 0, …}, …}` for `/status`.
+    /// `{"osc": {"invalid": 0, …}, …}`: `bad_input` of `/status`.
     pub fn to_json(&self) -> Value {
         let mut all = Map::new();
         for (name, counts) in self.read() {
