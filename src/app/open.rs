@@ -4,7 +4,7 @@
 
 use std::fs::File;
 use std::io::Read;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use crate::config::Config;
 use crate::error::{Error, Location, Result};
@@ -27,7 +27,9 @@ pub fn detect(path: &Path) -> Result<Format> {
     let n = read_up_to(&mut file, &mut head).map_err(|e| Error::io(path, e))?;
     let head = &head[..n];
     let text = head.strip_prefix(b"\xEF\xBB\xBF").unwrap_or(head);
-    if text.starts_with(crate::format::log::MAGIC.as_bytes()) {
+    if text.starts_with(crate::format::log::MAGIC.as_bytes())
+        || text.starts_with(crate::format::log::COLUMNS.as_bytes())
+    {
         Ok(Format::Log)
     } else if text.starts_with(b"Format Version") {
         Ok(Format::MotiveCsv)
@@ -104,6 +106,39 @@ impl ReplayOptions {
 /// default options.
 pub fn open(path: &Path) -> Result<Box<dyn Recording>> {
     open_with(path, &ReplayOptions::default())
+}
+
+/// Finds a recording named by a setting (`daemon.replay_file`): as given
+/// (absolute, or relative to the current folder), else relative to the
+/// program's folder and its parents, so the replay shipped in the
+/// repository's `replays/` is found when the program runs from anywhere
+/// (`target/release/treemocap`, a copy in `bin/` beside `replays/`).
+/// Otherwise the error says where it looked and what to set.
+pub fn locate(path: &Path, setting: &str) -> Result<PathBuf> {
+    if path.exists() || path.is_absolute() {
+        return Ok(path.to_path_buf());
+    }
+    let exe = std::env::current_exe().ok();
+    let beside: Vec<PathBuf> = exe
+        .iter()
+        .flat_map(|e| e.ancestors().skip(1).take(4))
+        .map(|dir| dir.join(path))
+        .collect();
+    if let Some(found) = beside.iter().find(|p| p.exists()) {
+        tracing::info!("{}: using {}", path.display(), found.display());
+        return Ok(found.clone());
+    }
+    let cwd = std::env::current_dir().map_or_else(|_| "?".into(), |d| d.display().to_string());
+    let program = exe
+        .as_deref()
+        .and_then(Path::parent)
+        .map_or_else(|| "?".into(), |d| d.display().to_string());
+    Err(Error::Runtime(format!(
+        "{}: no such file in the current folder ({cwd}) nor beside the program ({program} \
+         and its parent folders); set {setting} to a recording (--set {setting}=PATH), \
+         or daemon.source to \"natnet\" or \"osc\" for a live source",
+        path.display()
+    )))
 }
 
 /// Opens a recording of any supported format, detected by content.

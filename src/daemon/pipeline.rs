@@ -7,13 +7,14 @@ use std::sync::atomic::Ordering;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use crossbeam_channel::{select, Receiver, Sender, TrySendError};
+use crossbeam_channel::{select, Receiver};
 use glam::DVec3;
 
 use super::follow::TipFollower;
+use super::handoff::{AnalysisHandoff, Job};
 use super::live_tips::LiveTips;
 use super::shared::{lock, Shared};
-use super::window::{FrameWindow, WindowRecording};
+use super::window::FrameWindow;
 use crate::error::Result;
 use crate::format::log::LogHeader;
 use crate::model::frame::MarkerFrame;
@@ -24,9 +25,6 @@ use crate::wind::pca::SwayPca;
 /// How often the pipeline wakes with no frame: the recording's flush and a
 /// rebuild asked for while the source is quiet must not wait for a frame.
 const TICK: Duration = Duration::from_millis(50);
-
-/// A window of frames and the capture time it ends at, for the analysis.
-pub(crate) type AnalysisJob = (WindowRecording, f64);
 
 /// The pipeline's state.
 pub(crate) struct Pipeline {
@@ -42,7 +40,9 @@ pub(crate) struct Pipeline {
     osc: Option<OscSender>,
     /// The recording (`daemon.record`), which survives a full disk.
     recorder: Option<crate::app::recording::Recorder>,
-    analysis_tx: Sender<AnalysisJob>,
+    /// Where the window goes for analysis: a snapshot (shared chunks, no
+    /// copy), offered only when the analysis is free.
+    handoff: Arc<AnalysisHandoff>,
 }
 
 /// A smoothed estimate of the source's frame rate. Until two frames have
@@ -73,7 +73,7 @@ impl RateEstimate {
 impl Pipeline {
     /// The pipeline's state from the settings; opens the recording when
     /// `daemon.record` asks for one.
-    pub(crate) fn new(shared: Arc<Shared>, analysis_tx: Sender<AnalysisJob>) -> Result<Self> {
+    pub(crate) fn new(shared: Arc<Shared>, handoff: Arc<AnalysisHandoff>) -> Result<Self> {
         let c = &shared.config;
         let d = &c.daemon;
         let rate = RateEstimate {
@@ -105,7 +105,7 @@ impl Pipeline {
             rate,
             osc: super::osc_sender(&d.osc_targets)?,
             recorder,
-            analysis_tx,
+            handoff,
             shared,
         })
     }
@@ -119,14 +119,13 @@ impl Pipeline {
         tips_rx: Receiver<Vec<(usize, DVec3)>>,
     ) {
         let stop = self.shared.shutdown.gate();
-        let frames: &Receiver<MarkerFrame> = &rx;
+        let frames = rx.receiver();
         loop {
             select! {
                 recv(frames) -> frame => match frame {
-                    Ok(frame) => {
-                        if !self.on_frame(frame, sink) {
-                            break;
-                        }
+                    Ok((frame, arrived)) => {
+                        self.shared.status.record_backlog(rx.len(), arrived.elapsed());
+                        self.on_frame(frame, arrived, sink);
                     }
                     Err(_) => break,
                 },
@@ -159,10 +158,7 @@ impl Pipeline {
     /// requested rebuild waiting for the next frame.
     fn on_quiet(&mut self) {
         if self.shared.rebuild.load(Ordering::Relaxed) && !self.window.is_empty() {
-            let snapshot = self
-                .window
-                .to_recording(self.rate.hz.round().max(1.0), "live");
-            let _ = self.analysis_tx.try_send((snapshot, self.window.now_s()));
+            self.offer_window();
         }
     }
 
@@ -172,9 +168,9 @@ impl Pipeline {
         }
     }
 
-    /// One frame through the pipeline; false when the analysis has gone.
-    fn on_frame(&mut self, frame: MarkerFrame, sink: &FrameSink) -> bool {
-        let arrived = Instant::now();
+    /// One frame through the pipeline; `arrived` is when the source handed
+    /// it over (the latency counts from there, queueing included).
+    fn on_frame(&mut self, frame: MarkerFrame, arrived: Instant, sink: &FrameSink) {
         self.shared.status.progress.frame_arrived();
         self.count(&frame, sink);
         if let Some(w) = self.recorder.as_mut() {
@@ -190,14 +186,14 @@ impl Pipeline {
             let live = self.live_tips.frame(&frame, self.follower.claimed());
             self.shared.hub.publish_frame(live);
         }
-        self.window.push(frame);
-        let alive = self.maybe_analyse(now);
+        self.window.push(&frame);
+        drop(frame);
+        self.maybe_analyse(now);
         let us = arrived.elapsed().as_micros() as u64;
         let status = &self.shared.status;
         status.latency_us_last.store(us, Ordering::Relaxed);
         status.latency_us_max.fetch_max(us, Ordering::Relaxed);
         status.latency_hist.record(us);
-        alive
     }
 
     fn count(&mut self, frame: &MarkerFrame, sink: &FrameSink) {
@@ -247,20 +243,27 @@ impl Pipeline {
     }
 
     /// Hands the window to the analysis when one is due (or the clock went
-    /// back: a restarted source); false when the analysis has gone.
-    fn maybe_analyse(&mut self, now: f64) -> bool {
+    /// back: a restarted source) and the analysis is free; while it is busy
+    /// this costs two atomic loads per frame and nothing is copied.
+    fn maybe_analyse(&mut self, now: f64) {
         let interval = self.shared.config.daemon.analysis_interval_s;
         if now < self.next_analysis && now >= self.next_analysis - 2.0 * interval {
-            return true;
+            return;
         }
-        let snapshot = self
-            .window
-            .to_recording(self.rate.hz.round().max(1.0), "live");
-        match self.analysis_tx.try_send((snapshot, now)) {
-            Ok(()) => self.next_analysis = now + interval,
-            Err(TrySendError::Full(_)) => {} // analysis still busy: next frame
-            Err(TrySendError::Disconnected(_)) => return false,
+        if self.offer_window() {
+            self.next_analysis = now + interval;
         }
+    }
+
+    /// Offers a snapshot of the window if the analysis is free; true if it was.
+    fn offer_window(&mut self) -> bool {
+        if !self.handoff.wants() {
+            return false;
+        }
+        self.handoff.offer(Job {
+            snapshot: self.window.snapshot(),
+            frame_rate: self.rate.hz.round().max(1.0),
+        });
         true
     }
 }

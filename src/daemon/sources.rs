@@ -9,7 +9,7 @@ use std::time::Duration;
 use super::shared::{lock, Shared};
 use super::spawn;
 use crate::app::live::{natnet_source, osc_source};
-use crate::app::open::{open_with, ReplayOptions};
+use crate::app::open::{locate, open_with, ReplayOptions};
 use crate::config::DaemonSource;
 use crate::error::{Error, Result};
 use crate::source::allow::AllowList;
@@ -61,7 +61,7 @@ pub(crate) fn start_source(
 /// rig. The file is opened here so that a missing file fails the start.
 fn start_replay(shared: &Arc<Shared>, sink: FrameSink) -> Result<JoinHandle<()>> {
     let d = &shared.config.daemon;
-    let path = PathBuf::from(&d.replay_file);
+    let path = locate(&PathBuf::from(&d.replay_file), "daemon.replay_file")?;
     let opts = ReplayOptions::from_config(&shared.config);
     let first = open_with(&path, &opts)?;
     *lock(&shared.status.source) = format!("replay {} at {}×", path.display(), d.replay_speed);

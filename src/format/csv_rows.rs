@@ -68,6 +68,9 @@ pub(crate) struct RowReader<R> {
     lines_read: u64,
     /// Line on which the current row starts.
     row_line: u64,
+    /// Bytes the current row may still take (continuation lines of a
+    /// quoted field count against the row's limit).
+    budget_left: usize,
     raw: Vec<u8>,
     data: Vec<u8>,
     /// End of each field in `data`. u32: a row is far below 4 GB, and the
@@ -83,6 +86,7 @@ impl<R: BufRead> RowReader<R> {
             multiline: true,
             lines_read: 0,
             row_line: 0,
+            budget_left: 0,
             raw: Vec::with_capacity(4096),
             data: Vec::with_capacity(4096),
             ends: Vec::with_capacity(256),
@@ -91,7 +95,7 @@ impl<R: BufRead> RowReader<R> {
 
     /// Reads one line into `raw` (replacing it), at most `budget` bytes;
     /// the number of bytes read, 0 at the end of the input.
-    fn read_line(&mut self, budget: usize) -> Result<usize, RowError> {
+    fn fill(&mut self, budget: usize) -> Result<usize, RowError> {
         self.raw.clear();
         let n = (&mut self.reader)
             .take(budget as u64 + 1)
@@ -118,16 +122,48 @@ impl<R: BufRead> RowReader<R> {
 
     /// Reads the next row; `Ok(false)` at the end of the input.
     pub(crate) fn read(&mut self) -> Result<bool, RowError> {
+        if !self.read_line()? {
+            return Ok(false);
+        }
+        self.split()?;
+        Ok(true)
+    }
+
+    /// Reads the next line without splitting it into fields (see
+    /// [`Self::line_bytes`]); `Ok(false)` at the end of the input. Data rows
+    /// are read this way and scanned in place; [`Self::split`] makes fields
+    /// of the line when needed.
+    pub(crate) fn read_line(&mut self) -> Result<bool, RowError> {
         self.data.clear();
         self.ends.clear();
         self.row_line = self.lines_read + 1;
-        let mut budget = self.limits.max_bytes;
-        let n = self.read_line(budget)?;
+        let budget = self.limits.max_bytes;
+        let n = self.fill(budget)?;
         if n == 0 {
             return Ok(false);
         }
-        budget -= n;
+        self.budget_left = budget - n;
         self.lines_read += 1;
+        Ok(true)
+    }
+
+    /// The line just read by [`Self::read_line`], without its line end.
+    pub(crate) fn line_bytes(&self) -> &[u8] {
+        &self.raw[..trim_eol(&self.raw)]
+    }
+
+    /// The line just read with its line end: word-at-a-time readers may look
+    /// a few bytes past a field's end.
+    pub(crate) fn line_buffer(&self) -> &[u8] {
+        &self.raw
+    }
+
+    /// Splits the line just read into fields; a quoted field running over
+    /// the line end pulls in the following lines (while `multiline`).
+    pub(crate) fn split(&mut self) -> Result<(), RowError> {
+        self.data.clear();
+        self.ends.clear();
+        let mut budget = self.budget_left;
         let line_end = trim_eol(&self.raw);
         if !self.raw[..line_end].contains(&b'"') {
             // Every data row of an export: no quotes, so fields are the
@@ -145,7 +181,7 @@ impl<R: BufRead> RowReader<R> {
                 }
                 start = end + 1;
             }
-            return Ok(true);
+            return Ok(());
         }
         let mut in_quotes = false;
         let mut quote_field = 0u64;
@@ -191,7 +227,7 @@ impl<R: BufRead> RowReader<R> {
             // A quoted field runs over the line end: keep the newline, go on.
             self.data.push(b'\n');
             pos = 0;
-            let n = self.read_line(budget)?;
+            let n = self.fill(budget)?;
             if n == 0 {
                 break; // unterminated quote at EOF: take what there is
             }
@@ -199,7 +235,8 @@ impl<R: BufRead> RowReader<R> {
             self.lines_read += 1;
         }
         self.end_field()?;
-        Ok(true)
+        self.budget_left = budget;
+        Ok(())
     }
 
     /// The line the current row starts on.
@@ -219,6 +256,20 @@ impl<R: BufRead> RowReader<R> {
         };
         let start = if i == 0 { 0 } else { self.ends[i - 1] };
         &self.data[start as usize..end as usize]
+    }
+
+    /// Where field `i` lies in [`Self::data_buffer`] (empty if out of range).
+    pub(crate) fn field_range(&self, i: usize) -> (usize, usize) {
+        let Some(&end) = self.ends.get(i) else {
+            return (0, 0);
+        };
+        let start = if i == 0 { 0 } else { self.ends[i - 1] };
+        (start as usize, end as usize)
+    }
+
+    /// The fields of the current row, one after another (see [`Self::field_range`]).
+    pub(crate) fn data_buffer(&self) -> &[u8] {
+        &self.data
     }
 
     /// Field `i` as text (empty if out of range or not UTF-8).
