@@ -20,8 +20,8 @@ use std::path::{Path, PathBuf};
 
 use glam::DVec3;
 
-use super::csv_rows::{Row, RowError, RowLimits, RowReader};
 use super::cells::{self, Scan};
+use super::csv_rows::{Row, RowError, RowLimits, RowReader};
 
 use super::{Channel, ChannelKind, Format, Recording, RecordingInfo};
 use crate::error::{excerpt, excerpt_bytes, Error, Result};
