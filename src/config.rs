@@ -109,7 +109,8 @@ pub struct DaemonConfig {
     pub wind_turn_deg: f64,
     /// 0 disables the periodic rebuild.
     pub period_s: f64,
-    /// Gate of the live tip follower (mm).
+    /// Radius matching a tracked marker to the tree's tip (mm); see
+    /// `track::live`.
     pub follow_gate_mm: f64,
     /// Frames queued between the sources and the pipeline; when full, the
     /// oldest is dropped and counted, so a slow pipeline never blocks a socket.

@@ -98,9 +98,26 @@ enum Command {
         /// Write the tips as JSON (tips.json, what reconstruction reads).
         #[arg(long, value_name = "OUT")]
         json: Option<PathBuf>,
+        /// With --json: include each tip's cleaned trajectory (one position
+        /// or null per frame, filled frames listed; see docs/tracking.md).
+        #[arg(long, requires = "json")]
+        traces: bool,
         /// Draw each marker's x, y, z over time, with gaps and fills, as PNG.
         #[arg(long, value_name = "OUT.png")]
         plot: Option<PathBuf>,
+    },
+    /// Write the cleaned, labelled tip trajectories (tip_01, … with their
+    /// marker ids; filled samples flagged) as C3D, CSV or TRC, chosen by the
+    /// extension of --out.
+    Export {
+        /// A Motive CSV export, a C3D file, a NatNet capture (pcap/pcapng)
+        /// or a treemocap log (detected by content).
+        session: PathBuf,
+        /// Output file: .c3d, .csv (pandas reads it as is) or .trc (OpenSim).
+        #[arg(long, value_name = "FILE")]
+        out: PathBuf,
+        #[command(flatten)]
+        config: ConfigArgs,
     },
     /// Describe a recording: format, rate, units, frames, markers, gaps.
     Inspect {
@@ -456,6 +473,7 @@ fn run(command: Command) -> Result<()> {
             file,
             config,
             json,
+            traces,
             plot,
             natnet_version,
         } => {
@@ -465,9 +483,21 @@ fn run(command: Command) -> Result<()> {
                 &file,
                 &config,
                 json.as_deref(),
+                traces,
                 plot.as_deref(),
             )?;
             say!("{text}")?;
+            Ok(())
+        }
+        Command::Export {
+            session,
+            out,
+            config,
+        } => {
+            let config = config.load()?;
+            let summary = treemocap::app::export::export_command(&session, &out, &config)?;
+            say!("{summary}\n")?;
+            say!("wrote {} ({} tips)\n", out.display(), summary.tips)?;
             Ok(())
         }
         Command::Inspect {

@@ -1,6 +1,7 @@
 //! One module per command of `treemocap`. With `daemon`, the only place that
 //! names files: the stages below take and return values.
 
+pub mod export;
 pub mod files;
 pub mod inspect;
 pub mod live;

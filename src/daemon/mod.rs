@@ -23,7 +23,6 @@ mod analysis;
 mod builder;
 mod console;
 pub mod counters;
-pub mod follow;
 pub mod handoff;
 mod live_tips;
 mod osc_control;

@@ -10,9 +10,8 @@ use std::time::{Duration, Instant};
 use crossbeam_channel::{select, Receiver};
 use glam::DVec3;
 
-use super::follow::TipFollower;
 use super::handoff::{AnalysisHandoff, Job};
-use super::live_tips::LiveTips;
+use super::live_tips::LiveTips as ViewerTips;
 use super::shared::{lock, Shared};
 use super::window::FrameWindow;
 use crate::error::Result;
@@ -20,6 +19,7 @@ use crate::format::log::LogHeader;
 use crate::model::frame::MarkerFrame;
 use crate::serve::osc::{tips_datagram, wind_datagram, OscSender};
 use crate::source::channel::{FrameReceiver, FrameSink};
+use crate::track::live::LiveTips;
 use crate::wind::pca::SwayPca;
 
 /// How often the pipeline wakes with no frame: the recording's flush and a
@@ -30,9 +30,14 @@ const TICK: Duration = Duration::from_millis(50);
 pub(crate) struct Pipeline {
     shared: Arc<Shared>,
     window: FrameWindow,
-    follower: TipFollower,
+    /// The tracker itself, frame by frame: live tips are the replay's tips.
+    follower: LiveTips,
     /// The tips' states for the live page (measured, filled, not seen).
-    live_tips: LiveTips,
+    live_tips: ViewerTips,
+    /// Per marker of the current frame: a tip's (reused buffer).
+    claimed: Vec<bool>,
+    /// The frame's markers by the bits of x (reused buffer of `mark_claimed`).
+    by_x: Vec<(u64, usize)>,
     pca: SwayPca,
     next_pca: f64,
     next_analysis: f64,
@@ -97,8 +102,10 @@ impl Pipeline {
         };
         Ok(Pipeline {
             window: FrameWindow::new(d.window_s),
-            follower: TipFollower::new(d.follow_gate_mm / 1000.0),
-            live_tips: LiveTips::new(c.tracking.max_fill_s),
+            follower: LiveTips::new(&c.tracking, None, d.follow_gate_mm / 1000.0),
+            live_tips: ViewerTips::new(c.tracking.max_fill_s),
+            claimed: Vec::new(),
+            by_x: Vec::new(),
             pca: SwayPca::new(c.wind.pca_window_s, c.wind.pca_min_sway_mm / 1000.0),
             next_pca: f64::NEG_INFINITY,
             next_analysis: f64::NEG_INFINITY,
@@ -177,13 +184,15 @@ impl Pipeline {
             w.write_frame(&frame);
         }
         let now = frame.time_s;
+        let seen = self.follower.update(&frame);
         if !self.follower.is_empty() {
-            self.follow(&frame);
+            self.follow(&frame, &seen);
         }
         // The viewers' frame: built only while someone watches, published
         // into a latest-wins slot (never a wait on a viewer).
         if self.shared.hub.has_viewers() {
-            let live = self.live_tips.frame(&frame, self.follower.claimed());
+            mark_claimed(&frame, &seen, &mut self.claimed, &mut self.by_x);
+            let live = self.live_tips.frame(&frame, &self.claimed);
             self.shared.hub.publish_frame(live);
         }
         self.window.push(&frame);
@@ -217,19 +226,17 @@ impl Pipeline {
     }
 
     /// The live tips of this frame → viewers, OSC, and the sway PCA.
-    fn follow(&mut self, frame: &MarkerFrame) {
+    fn follow(&mut self, frame: &MarkerFrame, seen: &[(usize, DVec3)]) {
         let now = frame.time_s;
-        let positions: Vec<DVec3> = frame.positions().collect();
-        let seen = self.follower.update(&positions);
         let shared = &self.shared;
         shared
             .status
             .tips_live
             .store(seen.len() as u64, Ordering::Relaxed);
-        self.pca.push(now, self.follower.displacements(&seen));
-        self.live_tips.update(now, &seen);
+        self.pca.push(now, self.follower.displacements(seen));
+        self.live_tips.update(now, seen);
         if let Some(o) = self.osc.as_mut() {
-            o.send(&tips_datagram(frame.frame, now, &seen));
+            o.send(&tips_datagram(frame.frame, now, seen));
         }
         if now >= self.next_pca {
             self.next_pca = now + shared.config.wind.pca_window_s;
@@ -265,5 +272,38 @@ impl Pipeline {
             frame_rate: self.rate.hz.round().max(1.0),
         });
         true
+    }
+}
+
+/// Which markers of `frame` are the tips `seen`: the tracker reports a tip
+/// measured in this frame at exactly its marker's position, so the markers
+/// are found by equal coordinates (sorted by x, not a search per tip over
+/// all markers: 1 000 tips among 1 000 markers stay cheap).
+fn mark_claimed(
+    frame: &MarkerFrame,
+    seen: &[(usize, DVec3)],
+    claimed: &mut Vec<bool>,
+    by_x: &mut Vec<(u64, usize)>,
+) {
+    claimed.clear();
+    claimed.resize(frame.markers.len(), false);
+    by_x.clear();
+    by_x.extend(
+        frame
+            .markers
+            .iter()
+            .enumerate()
+            .map(|(i, m)| (m.position.x.to_bits(), i)),
+    );
+    by_x.sort_unstable();
+    for (_, p) in seen {
+        let x = p.x.to_bits();
+        let start = by_x.partition_point(|e| e.0 < x);
+        for &(_, i) in by_x[start..].iter().take_while(|e| e.0 == x) {
+            if frame.markers[i].position == *p && !claimed[i] {
+                claimed[i] = true;
+                break;
+            }
+        }
     }
 }

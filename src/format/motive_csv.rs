@@ -10,9 +10,11 @@
 //!   taken in order as Type, Name, ID, …, the last one being the component row.
 //! - Columns are grouped into channels by consecutive runs of equal
 //!   (Type, Name, ID), never by blocks of three.
-//! - Time is frame / export rate. The Time column is only a check (it is
-//!   quantized to 1 ms by some builds): a disagreement beyond
-//!   `time_tolerance_s` is a warning, never an error.
+//! - Time is the Time column's clock: its value in the first row that has
+//!   one, plus (frame − that frame) / export rate (the column is quantized
+//!   to 1 ms by some builds). So `tracking.rest_window_s` means what the
+//!   user reads in the Time column even when the first frame is not 0. A
+//!   row disagreeing beyond `time_tolerance_s` is a warning, never an error.
 
 use std::fs::File;
 use std::io::{BufRead, BufReader};
@@ -667,11 +669,15 @@ impl MotiveCsvReader {
                 self.channels[*ci].present += 1;
             }
         }
-        Ok(Some(MarkerFrame::new(
-            frame,
-            frame as f64 / self.info.frame_rate,
-            markers,
-        )))
+        // The Time column's clock, anchored on the first row that has one
+        // (a take whose first frame is not 0 keeps its own Time), advanced
+        // by frame / rate so that a 1 ms quantized column adds no jitter.
+        let rate = self.info.frame_rate;
+        let time = match self.time_origin {
+            Some((f0, t0)) => t0 + (frame - f0) as f64 / rate,
+            None => frame as f64 / rate,
+        };
+        Ok(Some(MarkerFrame::new(frame, time, markers)))
     }
 }
 

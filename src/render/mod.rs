@@ -9,3 +9,4 @@ pub mod outputs;
 pub mod picture;
 pub mod plot;
 pub mod raster;
+pub mod trajectories;

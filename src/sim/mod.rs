@@ -16,6 +16,8 @@
 pub mod capture;
 pub mod motion;
 pub mod motive_writer;
+pub mod score;
+pub mod stress;
 pub mod tree;
 pub mod truth;
 
@@ -34,13 +36,14 @@ use crate::rng::Rng;
 
 pub use motive_writer::write_motive_csv;
 pub use tree::{CrownShape, TreeNode, TreeTruth};
-pub use truth::{ColumnTruth, GapTruth, Sinusoid, SpuriousTruth, TipTruth, Truth};
+pub use truth::{ColumnTruth, GapTruth, GustTruth, Sinusoid, SpuriousTruth, TipTruth, Truth};
 
 /// Stream labels under the session seed.
 const TREE: u64 = 1;
 const MOTION: u64 = 2;
 const WIND: u64 = 3;
 const CAPTURE: u64 = 4;
+const GUSTS: u64 = 5;
 
 /// Longest session `generate` makes (frames).
 pub const MAX_FRAMES: usize = 360_000;
@@ -95,6 +98,39 @@ pub struct SynthOptions {
     pub min_spacing_mm: f64,
     /// `Take Name` in the CSV header; empty = the output file's stem.
     pub take_name: String,
+    /// Stress: the band `[low, high]` (Hz) of the tree-like sway model
+    /// (see `motion`): limb modes near `low`, twigs near `high`, with the
+    /// modes shared by every tip on a limb and on a fork, as on a real
+    /// tree. Empty (default) keeps the original three-mode sway.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub sway_hz: Vec<f64>,
+    /// Stress: mean number of gusts per minute in the wind phase (each
+    /// raises the wind's strength by 30–100 % for 1–5 s); 0 = steady wind.
+    #[serde(skip_serializing_if = "is_zero")]
+    pub gusts_per_min: f64,
+    /// Stress: pairs of neighbouring tips made to swing towards each other
+    /// in the wind, so that their markers pass close (see `close_mm`).
+    #[serde(skip_serializing_if = "is_zero_usize")]
+    pub close_pairs: usize,
+    /// Closest approach the swing of a close pair aims at (mm); the other
+    /// modes move them too, so the truth's actual spacing is what counts.
+    #[serde(skip_serializing_if = "is_default_close")]
+    pub close_mm: f64,
+}
+
+/// Default of `SynthOptions::close_mm`.
+const CLOSE_MM: f64 = 20.0;
+
+// Stress options at their defaults are left out of the truth file, so the
+// shipped replays' truth stays byte-identical.
+fn is_zero(v: &f64) -> bool {
+    *v == 0.0
+}
+fn is_zero_usize(v: &usize) -> bool {
+    *v == 0
+}
+fn is_default_close(v: &f64) -> bool {
+    *v == CLOSE_MM
 }
 
 impl Default for SynthOptions {
@@ -119,6 +155,10 @@ impl Default for SynthOptions {
             spurious_max_frames: 50,
             min_spacing_mm: 60.0,
             take_name: String::new(),
+            sway_hz: Vec::new(),
+            gusts_per_min: 0.0,
+            close_pairs: 0,
+            close_mm: CLOSE_MM,
         }
     }
 }
@@ -156,6 +196,20 @@ impl SynthOptions {
             10_000.0,
         )?;
         check("min_spacing_mm", self.min_spacing_mm, 0.0, 1000.0)?;
+        match self.sway_hz[..] {
+            [] => {}
+            [lo, hi] if lo.is_finite() && hi.is_finite() && 0.05 <= lo && lo < hi && hi <= 20.0 => {
+            }
+            _ => {
+                return Err(Error::config(
+                    "sway_hz",
+                    "must be [] or [low, high] with 0.05 <= low < high <= 20 (Hz)",
+                ))
+            }
+        }
+        check("gusts_per_min", self.gusts_per_min, 0.0, 60.0)?;
+        check("close_pairs", self.close_pairs as f64, 0.0, 35.0)?;
+        check("close_mm", self.close_mm, 1.0, 500.0)?;
         // The whole session is held in memory (about 1 kB per frame at 35
         // tips), so the length is capped at an hour at 100 Hz.
         let frames = ((self.still_s + self.wind_s) * self.frame_rate).round();
@@ -198,13 +252,37 @@ pub fn generate(opts: &SynthOptions) -> Result<Synthetic> {
     let fan = crown_centre - wind_direction * 2.0;
     let fan_position = DVec3::new(tree::q9(fan.x), tree::q9(fan.y), tree::q9(fan.z));
 
-    let tips = motion::tips(
+    let motion_rng = motion::stream(&root, MOTION);
+    let mut tips = match opts.sway_hz[..] {
+        [lo, hi] => motion::tree_tips(
+            &tree,
+            &nodes,
+            wind_direction,
+            opts.still_motion_mm / 1000.0,
+            opts.sway_scale,
+            (lo, hi),
+            &motion_rng,
+        ),
+        _ => motion::tips(
+            &tree,
+            &nodes,
+            wind_direction,
+            opts.still_motion_mm / 1000.0,
+            opts.sway_scale,
+            &motion_rng,
+        ),
+    };
+    motion::close_pairs(
+        &mut tips,
+        opts.close_pairs,
+        opts.close_mm / 1000.0,
         &tree,
-        &nodes,
-        wind_direction,
-        opts.still_motion_mm / 1000.0,
-        opts.sway_scale,
-        &motion::stream(&root, MOTION),
+        &motion::stream(&motion_rng, 3),
+    );
+    let gusts = motion::gusts(
+        opts.gusts_per_min,
+        (opts.still_s + opts.wind_ramp_s, opts.still_s + opts.wind_s),
+        &motion::stream(&root, GUSTS),
     );
     let frames = ((opts.still_s + opts.wind_s) * opts.frame_rate).round() as usize;
     let capture_rng = motion::stream(&root, CAPTURE);
@@ -223,6 +301,7 @@ pub fn generate(opts: &SynthOptions) -> Result<Synthetic> {
         fan_position,
         tree,
         tips,
+        gusts,
         gaps,
         columns: Vec::new(),
         spurious,
