@@ -471,6 +471,7 @@ impl Identities {
                     continue;
                 };
                 let born = cand.samples[0].0;
+                let recent = recent(&cand.samples, confirm_frames);
                 for (col, &i) in self.lost.iter().enumerate() {
                     let Some(g) = self.idents[i].gap.as_ref() else {
                         continue;
@@ -478,7 +479,7 @@ impl Identities {
                     if g.from >= born {
                         continue;
                     }
-                    if let Some(cost) = path_cost(&cand.samples, g, &self.s) {
+                    if let Some(cost) = path_cost(recent, g, &self.s) {
                         self.edges.push(Edge { row, col, cost });
                     }
                 }
@@ -499,8 +500,9 @@ impl Identities {
                     continue;
                 };
                 self.join(*trace, cand, i);
-            } else if cand.samples.len() >= confirm_frames
-                || (all && cand.samples.len() >= confirm_frames / 2)
+            } else if (cand.samples.len() >= confirm_frames
+                || (all && cand.samples.len() >= confirm_frames / 2))
+                && (all || !follows_coasting(&self.idents, &self.active, cand, &self.s))
             {
                 let Some(cand) = self.candidates.remove(trace) else {
                     continue;
@@ -589,6 +591,40 @@ impl Identities {
     }
 }
 
+/// The latest `n` samples of a candidate: the stretch the predicted paths
+/// of the lost identities still cover (they keep `confirm_frames + 2`
+/// predictions), also for a candidate whose confirmation was put off.
+fn recent(samples: &[(i64, DVec3)], n: usize) -> &[(i64, DVec3)] {
+    &samples[samples.len().saturating_sub(n.max(1))..]
+}
+
+/// Whether a candidate follows the predicted path of an identity whose
+/// trace is still coasting through a gap that began before the candidate
+/// did. Such a trace ends only when its own prediction grows too unsure or
+/// after `max_gap` frames, which for a marker that was still when it was
+/// hidden can be longer than `confirm_frames`: confirming the candidate
+/// then would make one marker two identities, the second without a rest
+/// position. Its confirmation waits until the coasting trace has ended (the
+/// identity is then lost and the candidate is joined to it) or found its
+/// marker again.
+fn follows_coasting(
+    idents: &[Ident],
+    active: &[usize],
+    cand: &Candidate,
+    s: &IdentitySettings,
+) -> bool {
+    let born = cand.samples[0].0;
+    let samples = recent(&cand.samples, s.confirm_frames);
+    active.iter().any(|&i| {
+        let id = &idents[i];
+        id.trace.is_some()
+            && id
+                .gap
+                .as_ref()
+                .is_some_and(|g| !g.ended && g.from < born && path_cost(samples, g, s).is_some())
+    })
+}
+
 /// RMS distance between a candidate's samples and a lost identity's
 /// predicted path, in units of the join radius; `None` beyond it or when
 /// the prediction does not cover the samples.
@@ -608,4 +644,61 @@ fn path_cost(samples: &[(i64, DVec3)], g: &Gap, s: &IdentitySettings) -> Option<
     let radius = (s.link_min_m + 3.0 * g.spread + MOVED_ERROR * g.moved).min(s.link_max_m);
     let cost = rms / radius;
     (cost <= 1.0).then_some(cost)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn settings() -> IdentitySettings {
+        IdentitySettings {
+            link_frames: 3,
+            confirm_frames: 10,
+            link_min_m: 0.005,
+            link_max_m: 0.06,
+            keep_lost_frames: 1000,
+            alpha: 1.0 / 200.0,
+        }
+    }
+
+    /// A still marker hidden for a while comes back as a new trace while
+    /// its old trace still coasts on a prediction that learnt stillness
+    /// (longer than `confirm_frames`). The new trace must wait and become
+    /// the marker's next piece, not a second marker (which would have no
+    /// rest position); a new marker elsewhere is confirmed as usual.
+    #[test]
+    fn a_candidate_waits_for_the_coasting_trace_it_follows() {
+        let p = DVec3::new(0.1, 1.0, 0.0);
+        let q = DVec3::new(0.3, 1.0, 0.0);
+        let mut ids = Identities::new(settings());
+        let mut seen_during_coast = 0;
+        for t in 0..70 {
+            ids.begin(t);
+            if t == 50 {
+                // The old trace's gate grew too wide, or max_gap: it ends.
+                ids.ended(0);
+            }
+            match t {
+                0 => ids.started(0, p),
+                1..30 => ids.measured(0, p),
+                35 => {
+                    ids.started(1, p + DVec3::X * 0.0004);
+                    ids.started(2, q);
+                }
+                36.. => {
+                    ids.measured(1, p + DVec3::X * 0.0004);
+                    ids.measured(2, q);
+                }
+                _ => {}
+            }
+            ids.end();
+            if t == 48 {
+                seen_during_coast = ids.current().count();
+            }
+        }
+        // At frame 48 both new traces have 14 samples: the one far away is
+        // a marker of its own, the one on the coasting marker's path waits.
+        assert_eq!(seen_during_coast, 1);
+        assert_eq!(ids.finish(), vec![vec![0, 1], vec![2]]);
+    }
 }
