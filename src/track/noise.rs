@@ -193,7 +193,9 @@ mod tests {
 /// neighbourhood they occupy: the host is not measured while the fragment
 /// is, and on each side where the host has data the mean of its `context`
 /// measurements nearest the fragment lies within `radius_m` of the mean of
-/// the fragment's `context` measurements on that side. Tips are
+/// the fragment's `context` measurements on that side. The fragment may
+/// interleave with the host's pieces (no frame measured by both): then
+/// every hand-over between them is checked the same way ([`switch_cost`]). Tips are
 /// placed further apart than their sway, so the neighbourhood decides;
 /// fragments shorter than `min_len` measurements (spurious reflections live
 /// shorter) are left alone. Pairs are chosen by global assignment, repeated
@@ -213,43 +215,28 @@ pub fn join_into_gaps(
         .collect();
     let mut joins = 0;
     loop {
-        let fragments: Vec<(usize, i64, i64, DVec3, DVec3)> = slots
+        let fragments: Vec<usize> = slots
             .iter()
             .enumerate()
             .filter(|(i, _)| !has_rest.get(*i).copied().unwrap_or(false))
-            .filter_map(|(i, t)| {
-                let t = t.as_ref()?;
-                if t.measured() < min_len {
-                    return None;
-                }
-                let (head, tail) = end_means(t.measurements(), context as usize);
-                Some((i, t.first_frame(), t.last_frame(), head?, tail?))
-            })
+            .filter(|(_, t)| t.as_ref().is_some_and(|t| t.measured() >= min_len))
+            .map(|(i, _)| i)
+            .collect();
+        let host_runs: Vec<Option<Measured>> = hosts
+            .iter()
+            .map(|&h| slots[h].as_ref().map(Measured::of))
             .collect();
         let mut edges = Vec::new();
-        for (row, &(_, s, e, head, tail)) in fragments.iter().enumerate() {
-            for (col, &h) in hosts.iter().enumerate() {
-                let Some(host) = slots[h].as_ref() else {
+        for (row, &f) in fragments.iter().enumerate() {
+            let Some(frag) = slots[f].as_ref().map(Measured::of) else {
+                continue;
+            };
+            for (col, host) in host_runs.iter().enumerate() {
+                let Some(host) = host.as_ref() else {
                     continue;
                 };
-                if host.measured_between(s, e) > 0 {
+                let Some(cost) = switch_cost(host, &frag, context as usize) else {
                     continue;
-                }
-                let before = end_means(
-                    host.measurements().take_while(|m| m.0 < s),
-                    context as usize,
-                )
-                .1;
-                let after = end_means(
-                    host.measurements().skip_while(|m| m.0 <= e),
-                    context as usize,
-                )
-                .0;
-                let cost = match (before, after) {
-                    (Some(b), Some(a)) => b.distance(head).max(a.distance(tail)),
-                    (Some(b), None) => b.distance(head),
-                    (None, Some(a)) => a.distance(tail),
-                    (None, None) => continue,
                 };
                 if cost <= radius_m {
                     edges.push(Edge { row, col, cost });
@@ -260,7 +247,7 @@ pub fn join_into_gaps(
         assigner.solve(fragments.len(), hosts.len(), &edges, radius_m, &mut out);
         let mut joined_now = 0;
         for (row, col) in out.iter().enumerate() {
-            let (Some(col), Some(&(frag, ..))) = (*col, fragments.get(row)) else {
+            let (Some(col), Some(&frag)) = (*col, fragments.get(row)) else {
                 continue;
             };
             let h = hosts[col];
@@ -281,39 +268,121 @@ pub fn join_into_gaps(
     (slots.into_iter().flatten().collect(), joins)
 }
 
-/// Means of the first and of the last `n` positions of a sequence.
-fn end_means(
-    items: impl Iterator<Item = (i64, DVec3)>,
-    n: usize,
-) -> (Option<DVec3>, Option<DVec3>) {
-    let n = n.max(1);
-    let mut head = (0usize, DVec3::ZERO);
-    let mut tail = std::collections::VecDeque::with_capacity(n + 1);
-    let mut tail_sum = DVec3::ZERO;
-    for (_, p) in items {
-        if head.0 < n {
-            head = (head.0 + 1, head.1 + p);
+/// A trace's measurements with prefix sums of their positions, so the mean
+/// of any run of them costs O(1).
+struct Measured {
+    samples: Vec<(i64, DVec3)>,
+    prefix: Vec<DVec3>,
+}
+
+impl Measured {
+    fn of(t: &Trace) -> Self {
+        let samples: Vec<(i64, DVec3)> = t.measurements().collect();
+        let mut prefix = Vec::with_capacity(samples.len() + 1);
+        let mut acc = DVec3::ZERO;
+        prefix.push(acc);
+        for s in &samples {
+            acc += s.1;
+            prefix.push(acc);
         }
-        tail.push_back(p);
-        tail_sum += p;
-        if tail.len() > n {
-            if let Some(old) = tail.pop_front() {
-                tail_sum -= old;
+        Measured { samples, prefix }
+    }
+
+    /// Mean of measurements `[lo, hi)` (clamped; `None` when empty).
+    fn mean(&self, lo: usize, hi: usize) -> Option<DVec3> {
+        let hi = hi.min(self.samples.len());
+        (hi > lo).then(|| (self.prefix[hi] - self.prefix[lo]) / (hi - lo) as f64)
+    }
+}
+
+/// How far apart a host and a fragment are where one hands over to the
+/// other: walking both in frame order, at every switch from one to the
+/// other the mean of the last `context` measurements of the one that
+/// stops is compared with the mean of the next `context` measurements of
+/// the one that goes on; the largest distance is the cost. A fragment
+/// inside one gap of the host has two such switches (the host's data
+/// before the gap against the fragment's head, its tail against the host's
+/// data after). The fragment may also interleave with the host's pieces
+/// (the identity layer can hand the later pieces of one marker to two
+/// identities): every hand-over is checked the same way. `None` when both
+/// are measured in one frame (two markers) or there is no hand-over.
+fn switch_cost(host: &Measured, frag: &Measured, context: usize) -> Option<f64> {
+    let (a, b) = (&host.samples, &frag.samples);
+    let (mut i, mut j) = (0usize, 0usize);
+    let mut last: Option<bool> = None;
+    let mut worst: Option<f64> = None;
+    loop {
+        let from_host = match (a.get(i), b.get(j)) {
+            (Some(x), Some(y)) if x.0 == y.0 => return None,
+            (Some(x), Some(y)) => x.0 < y.0,
+            (Some(_), None) => true,
+            (None, Some(_)) => false,
+            (None, None) => break,
+        };
+        if last.is_some_and(|l| l != from_host) {
+            let (before, after) = if from_host {
+                (
+                    frag.mean(j.saturating_sub(context), j),
+                    host.mean(i, i + context),
+                )
+            } else {
+                (
+                    host.mean(i.saturating_sub(context), i),
+                    frag.mean(j, j + context),
+                )
+            };
+            if let (Some(x), Some(y)) = (before, after) {
+                let d = x.distance(y);
+                worst = Some(worst.map_or(d, |w: f64| w.max(d)));
             }
         }
+        last = Some(from_host);
+        if from_host {
+            i += 1;
+        } else {
+            j += 1;
+        }
     }
-    if head.0 == 0 {
-        return (None, None);
-    }
-    (
-        Some(head.1 / head.0 as f64),
-        Some(tail_sum / tail.len() as f64),
-    )
+    worst
 }
 
 #[cfg(test)]
 mod gap_join_tests {
     use super::*;
+
+    /// One marker whose later pieces the identity layer gave to two
+    /// identities: the one with a rest position (host) got a piece in the
+    /// middle of the other's span. The other (no rest position) still goes
+    /// into the host's gaps; a marker 100 mm away does not.
+    #[test]
+    fn fragment_interleaving_with_its_host_joins_it() {
+        let at = |x: f64| move |n: i64| DVec3::new(x + 0.02 * (n as f64 / 30.0).sin(), 1.0, 0.0);
+        let mut host = Trace::new(0, 0, at(0.0)(0), None);
+        for n in (1..1000).chain(1300..1350) {
+            host.push(n, at(0.0)(n), None);
+        }
+        let mut frag = Trace::new(1, 1030, at(0.0)(1030), None);
+        for n in (1031..1280).chain(1380..1600) {
+            frag.push(n, at(0.0)(n), None);
+        }
+        let mut other = Trace::new(2, 1010, at(0.1)(1010), None);
+        for n in (1011..1290).chain(1360..1600) {
+            other.push(n, at(0.1)(n), None);
+        }
+        let mut asg = Assigner::default();
+        let (out, joins) = join_into_gaps(
+            vec![host, frag, other],
+            &[true, false, false],
+            100,
+            100,
+            0.04,
+            &mut asg,
+        );
+        assert_eq!(joins, 1);
+        assert_eq!(out.len(), 2);
+        assert_eq!(out[0].pieces, vec![0, 1]);
+        assert_eq!(out[0].measured(), 1000 + 50 + 250 + 220);
+    }
 
     #[test]
     fn long_fragment_goes_into_the_gap_of_its_neighbourhood() {
