@@ -24,7 +24,8 @@
 //!   assignment. So a piece is joined only when its motion over a tenth of
 //!   a second and its neighbours agree.
 //! - A candidate that nobody claims becomes a new identity once it has been
-//!   measured in `confirm_frames` frames. Ghost reflections live shorter
+//!   measured in `confirm_frames` frames, unless it follows the predicted
+//!   path of an identity whose trace still coasts (see `follows_coasting`). Ghost reflections live shorter
 //!   (they are never confirmed, and a static ghost does not follow the
 //!   predicted sway, so it is not joined); they stay loose traces and are
 //!   dropped as noise.
