@@ -279,7 +279,8 @@ fn the_live_page_shows_markers_tips_and_the_tree() {
         "first frame shown after {elapsed:?}"
     );
 
-    // 12 s of the still phase at 2× speed (a debug build's tracker on a busy machine keeps up); the page then shows the last
+    // 12 s of the still phase at 2× speed (what a debug build's tracker
+    // keeps up with on a busy machine); the page then shows the last
     // frame's markers, every one.
     let last = 1200;
     for f in &frames[1..=last] {
