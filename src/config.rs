@@ -8,6 +8,7 @@ use std::path::Path;
 
 use serde::{Deserialize, Serialize};
 
+use crate::animate::AnimateSettings;
 use crate::error::{check_range, excerpt, Error, Result};
 use crate::reconstruct::ReconstructSettings;
 use crate::source::natnet::settings::NatNetSettings;
@@ -42,6 +43,8 @@ pub struct Config {
     pub c3d: C3dConfig,
     /// `[reconstruct]`: the particle flow (docs/particle-flow.md).
     pub reconstruct: ReconstructSettings,
+    /// `[animate]`: the captured motion on the tree (docs/animation.md).
+    pub animate: AnimateSettings,
 }
 
 /// Reading recorded sessions.
@@ -276,6 +279,7 @@ impl Config {
         }
         self.tracking.validate()?;
         self.reconstruct.validate()?;
+        self.animate.validate()?;
         Ok(())
     }
 

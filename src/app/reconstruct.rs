@@ -8,7 +8,8 @@ use crate::app::files::write_atomic;
 use crate::config::Config;
 use crate::error::{Error, Result};
 use crate::model::tips::parse_tips;
-use crate::render::outputs::{build_outputs, Outputs, Report};
+use crate::model::tips_traces::parse_traces;
+use crate::render::outputs::{build_outputs, Motion, Outputs, Report};
 
 /// Writes tree.glb, tree.json and tree.png of `outputs` into `out_dir`
 /// (created if missing), each atomically, and returns the report with the
@@ -29,19 +30,35 @@ pub fn write_tree_files(outputs: &Outputs, out_dir: &Path) -> Result<Report> {
 }
 
 /// Reconstructs from `tips` and the wind vector with `config.reconstruct`
-/// (and its seed) and writes the tree files into `out_dir`.
+/// (and its seed) and writes the tree files into `out_dir`; `motion` says
+/// whether tree.glb is still, rigged or animated.
 pub fn run_and_write(
     tips: &[crate::model::tips::CapturedTip],
     wind: glam::DVec3,
     config: &Config,
+    motion: Motion<'_>,
     out_dir: &Path,
 ) -> Result<Report> {
-    write_tree_files(&build_outputs(tips, wind, &config.reconstruct)?, out_dir)
+    write_tree_files(
+        &build_outputs(tips, wind, &config.reconstruct, motion)?,
+        out_dir,
+    )
 }
 
 /// The command: reads `tips_path`, reconstructs, writes into `out_dir`.
-pub fn command(tips_path: &Path, config: &Config, out_dir: &Path) -> Result<Report> {
+/// When the file carries the tips' trajectories (`tips --json --traces`)
+/// tree.glb is animated with them, unless `still`.
+pub fn command(tips_path: &Path, config: &Config, still: bool, out_dir: &Path) -> Result<Report> {
     let text = std::fs::read_to_string(tips_path).map_err(|e| Error::io(tips_path, e))?;
     let input = parse_tips(&text, tips_path)?;
-    run_and_write(&input.tips, input.wind, config, out_dir)
+    let traces = if still {
+        None
+    } else {
+        parse_traces(&text, tips_path)?
+    };
+    let motion = match &traces {
+        Some(t) => Motion::Traces(t, &config.animate),
+        None => Motion::Still,
+    };
+    run_and_write(&input.tips, input.wind, config, motion, out_dir)
 }

@@ -10,8 +10,9 @@ use crossbeam_channel::Sender;
 use glam::DVec3;
 
 use super::shared::{lock, Shared, TreeRequest};
+use crate::animate::Rig;
 use crate::app::files::write_atomic;
-use crate::render::outputs::{build_model, Outputs};
+use crate::render::outputs::{build_model, Motion, Outputs};
 use crate::serve::http;
 use crate::serve::osc::{tree_datagrams, OscSender};
 use crate::serve::snapshot::{SnapshotNode, TreeSnapshot};
@@ -29,8 +30,11 @@ pub(crate) fn run(shared: &Arc<Shared>, tips_tx: Sender<Vec<(usize, DVec3)>>) {
     };
     while let Some(request) = shared.requests.take() {
         let started = Instant::now();
-        let settings = lock(&shared.recon_config).reconstruct.clone();
-        let outputs = match build_model(&request.tips, request.wind, &settings) {
+        let (settings, animate) = {
+            let c = lock(&shared.recon_config);
+            (c.reconstruct.clone(), c.animate.clone())
+        };
+        let outputs = match build_model(&request.tips, request.wind, &settings, Motion::Rigged) {
             Ok(o) => o,
             Err(e) => {
                 tracing::error!("reconstruction: {e}");
@@ -38,11 +42,13 @@ pub(crate) fn run(shared: &Arc<Shared>, tips_tx: Sender<Vec<(usize, DVec3)>>) {
                 continue;
             }
         };
+        // How the tree sways with the live tips (daemon::pose).
+        let rig = Rig::new(&outputs.tree, &animate).ok().map(Arc::new);
         version += 1;
         publish(
             shared,
             request,
-            outputs,
+            (outputs, rig),
             version,
             started,
             &tips_tx,
@@ -54,7 +60,7 @@ pub(crate) fn run(shared: &Arc<Shared>, tips_tx: Sender<Vec<(usize, DVec3)>>) {
 fn publish(
     shared: &Shared,
     request: TreeRequest,
-    outputs: Outputs,
+    (outputs, rig): (Outputs, Option<Arc<Rig>>),
     version: u64,
     started: Instant,
     tips_tx: &Sender<Vec<(usize, DVec3)>>,
@@ -68,6 +74,7 @@ fn publish(
         glb: outputs.glb,
         tree_json: outputs.tree_json,
         tips_json: request.tips_json,
+        rig,
     });
     let _ = shared.tree_tx.send(Some(snapshot.clone()));
     let tips = request
@@ -83,7 +90,7 @@ fn publish(
     }
     // A picture that cannot be drawn is reported, and no empty tree.png is
     // written in its place.
-    let png = crate::render::picture::tree_png(&outputs.tree)
+    let png = crate::render::picture::tree_png(&outputs.tree, None)
         .map_err(|e| tracing::error!("tree.png: {e}"))
         .ok();
     write_files(shared, &snapshot, png.as_deref(), version);

@@ -2,7 +2,9 @@
 //! the traces as a plot. Pure functions; writing the bytes somewhere is the
 //! caller's business (`app`, `daemon`, `serve`).
 
+mod animation;
 pub mod error;
+pub mod frames;
 pub mod gltf;
 pub mod json;
 pub mod outputs;

@@ -24,6 +24,8 @@ pub struct TreeSnapshot {
     pub tips_json: String,
     /// The skeleton for OSC: node id is the index.
     pub nodes: Vec<SnapshotNode>,
+    /// How the tree sways with the live tips (`None` when it cannot).
+    pub rig: Option<std::sync::Arc<crate::animate::Rig>>,
 }
 
 /// One node of the skeleton.
