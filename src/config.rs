@@ -9,6 +9,7 @@ use std::path::Path;
 use serde::{Deserialize, Serialize};
 
 use crate::error::{check_range, Error, Result};
+use crate::reconstruct::forest::{ConfiguredTree, ForestSettings};
 use crate::reconstruct::ReconstructSettings;
 use crate::source::natnet::settings::NatNetSettings;
 use crate::source::osc::OscSettings;
@@ -22,6 +23,8 @@ pub const DEFAULT_TOML: &str = include_str!("../config/default.toml");
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Config {
+    /// `[[trees]]`: trunk bases the operator pinned (docs/forest.md).
+    pub trees: Vec<ConfiguredTree>,
     /// `[replay]`: reading recorded sessions.
     pub replay: ReplayConfig,
     /// `[record]`: writing our log format.
@@ -42,6 +45,8 @@ pub struct Config {
     pub c3d: C3dConfig,
     /// `[reconstruct]`: the particle flow (docs/particle-flow.md).
     pub reconstruct: ReconstructSettings,
+    /// `[forest]`: several trees in one capture (docs/forest.md).
+    pub forest: ForestSettings,
 }
 
 /// Reading recorded sessions.
@@ -187,6 +192,12 @@ impl Default for ReconstructSettings {
     }
 }
 
+impl Default for ForestSettings {
+    fn default() -> Self {
+        Config::default().forest
+    }
+}
+
 impl Default for Config {
     fn default() -> Self {
         Config::from_table(default_table()).expect("config/default.toml is valid")
@@ -249,6 +260,8 @@ impl Config {
         }
         self.tracking.validate()?;
         self.reconstruct.validate()?;
+        self.forest.validate()?;
+        crate::reconstruct::forest::settings::validate_trees(&self.trees)?;
         Ok(())
     }
 
