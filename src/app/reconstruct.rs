@@ -8,7 +8,9 @@ use crate::app::files::write_atomic;
 use crate::config::Config;
 use crate::error::{Error, Result};
 use crate::model::tips::parse_tips;
-use crate::render::outputs::{build_outputs, Outputs, Report};
+use crate::reconstruct::forest::{self, SwayLink};
+use crate::render::forest::forest_outputs;
+use crate::render::outputs::{Outputs, Report};
 
 /// Writes tree.glb, tree.json and tree.png of `outputs` into `out_dir`
 /// (created if missing), each atomically, and returns the report with the
@@ -29,19 +31,30 @@ pub fn write_tree_files(outputs: &Outputs, out_dir: &Path) -> Result<Report> {
 }
 
 /// Reconstructs from `tips` and the wind vector with `config.reconstruct`
-/// (and its seed) and writes the tree files into `out_dir`.
+/// (and its seed) and writes the tree files into `out_dir`: one tree, or
+/// several (`[[trees]]`, or found from the tips; docs/forest.md). `links`
+/// are the tips that sway together (empty without a wind phase).
 pub fn run_and_write(
     tips: &[crate::model::tips::CapturedTip],
+    links: &[SwayLink],
     wind: glam::DVec3,
     config: &Config,
     out_dir: &Path,
 ) -> Result<Report> {
-    write_tree_files(&build_outputs(tips, wind, &config.reconstruct)?, out_dir)
+    let plan = forest::plan(
+        tips,
+        links,
+        &config.trees,
+        &config.forest,
+        &config.reconstruct,
+    )?;
+    write_tree_files(&forest_outputs(&plan, wind, &config.reconstruct)?, out_dir)
 }
 
 /// The command: reads `tips_path`, reconstructs, writes into `out_dir`.
+/// tips.json holds no sway, so several trees are split by shape alone.
 pub fn command(tips_path: &Path, config: &Config, out_dir: &Path) -> Result<Report> {
     let text = std::fs::read_to_string(tips_path).map_err(|e| Error::io(tips_path, e))?;
     let input = parse_tips(&text, tips_path)?;
-    run_and_write(&input.tips, input.wind, config, out_dir)
+    run_and_write(&input.tips, &[], input.wind, config, out_dir)
 }

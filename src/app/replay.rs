@@ -14,6 +14,7 @@ use crate::config::Config;
 use crate::error::Result;
 use crate::model::tips::Tips;
 use crate::model::wind::{WindEstimate, WindSource};
+use crate::reconstruct::forest::sway;
 use crate::render::outputs::Report;
 use crate::track::{self, Summary};
 use crate::wind::{fan::configured_fan_wind, pca::SwayPca, WindSelector};
@@ -45,7 +46,12 @@ pub fn run(file: &Path, config: &Config, out_dir: &Path) -> Result<ReplayReport>
     std::fs::create_dir_all(out_dir).map_err(|e| crate::Error::io(out_dir, e))?;
     let tips_path = out_dir.join("tips.json");
     write_atomic(&tips_path, tips.to_json().as_bytes())?;
-    let tree = run_and_write(&tips.captured(), wind_vector, config, out_dir)?;
+    let links = if config.forest.sway_weight_m > 0.0 {
+        sway::links(&tips, config.forest.sway_correlation)
+    } else {
+        Vec::new()
+    };
+    let tree = run_and_write(&tips.captured(), &links, wind_vector, config, out_dir)?;
     let mut files = vec![tips_path];
     files.extend(tree.files.iter().cloned());
     Ok(ReplayReport {
@@ -99,6 +105,9 @@ impl fmt::Display for ReplayReport {
                     .unwrap_or_default()
             )?,
             None => writeln!(f, "wind: none (the tree did not sway; no fan configured)")?,
+        }
+        if let Some(forest) = &self.tree.forest {
+            write!(f, "{forest}")?;
         }
         writeln!(f, "{}", self.tree.counts())?;
         for file in &self.files {

@@ -133,6 +133,7 @@ impl Analysis {
         self.triggers
             .built(now, &positions, wind.map(|w| w.direction));
         let tips_json = built.to_json();
+        let links = sway_links(&shared, &built);
         self.last_build = Some(built);
         tracing::info!("new tree: {reason}");
         shared.requests.put(TreeRequest {
@@ -142,6 +143,18 @@ impl Analysis {
             tips: captured,
             tips_json,
             wind: wind.map_or(DVec3::ZERO, |w| w.flow_vector()),
+            links,
         });
+    }
+}
+
+/// The tips of `tips` that sway together in the window (docs/forest.md),
+/// for telling several trees apart; none when the sway is turned off.
+fn sway_links(shared: &Shared, tips: &Tips) -> Vec<crate::reconstruct::forest::SwayLink> {
+    let f = &lock(&shared.recon_config).forest;
+    if f.sway_weight_m > 0.0 {
+        crate::reconstruct::forest::sway::links(tips, f.sway_correlation)
+    } else {
+        Vec::new()
     }
 }

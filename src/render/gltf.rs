@@ -19,33 +19,48 @@ const CHUNK_BIN: u32 = 0x004E_4942; // "BIN\0"
 /// Encodes the tree and its meshes as a .glb file's bytes.
 pub fn to_glb(tree: &Tree, branches: &Mesh, leaves: Option<&Mesh>) -> Result<Vec<u8>> {
     let mut b = Builder::default();
-    let bark = b.material("bark", [0.40, 0.29, 0.20, 1.0], false);
-    let mut scene_nodes = Vec::new();
-    if let Some(mesh) = b.triangle_mesh("branches", branches, bark)? {
-        scene_nodes.push(b.node("branches", mesh));
+    let scene_nodes = b.tree_nodes(tree, branches, leaves)?;
+    b.finish_scene("tree", scene_nodes)
+}
+
+/// One tree of a forest: its name, skeleton and meshes.
+pub struct ForestTree<'a> {
+    /// The node's name: the tree's name.
+    pub name: &'a str,
+    /// The skeleton.
+    pub tree: &'a Tree,
+    /// The branch surface.
+    pub branches: &'a Mesh,
+    /// The leaves, when there are any.
+    pub leaves: Option<&'a Mesh>,
+}
+
+/// Several trees in one .glb (docs/forest.md): one scene node per tree,
+/// named as the tree, holding its branches, leaves and skeleton; the
+/// materials are shared.
+pub fn forest_glb(trees: &[ForestTree<'_>]) -> Result<Vec<u8>> {
+    let mut b = Builder::default();
+    let mut scene_nodes = Vec::with_capacity(trees.len());
+    for t in trees {
+        let children = b.tree_nodes(t.tree, t.branches, t.leaves)?;
+        scene_nodes.push(b.root.push(json::Node {
+            children: (!children.is_empty()).then_some(children),
+            name: Some(t.name.into()),
+            ..Default::default()
+        }));
     }
-    if let Some(leaves) = leaves.filter(|m| !m.indices.is_empty()) {
-        let leaf = b.material("leaf", [0.27, 0.52, 0.16, 1.0], true);
-        if let Some(mesh) = b.triangle_mesh("leaves", leaves, leaf)? {
-            scene_nodes.push(b.node("leaves", mesh));
-        }
-    }
-    if let Some(mesh) = b.skeleton(tree)? {
-        scene_nodes.push(b.node("skeleton", mesh));
-    }
-    let scene = b.root.push(json::Scene {
-        extensions: None,
-        extras: Default::default(),
-        name: Some("tree".into()),
-        nodes: scene_nodes,
-    });
-    b.root.scene = Some(scene);
-    b.finish()
+    b.finish_scene("forest", scene_nodes)
 }
 
 struct Builder {
     root: json::Root,
     bin: Vec<u8>,
+    /// Shared by every tree's branches, made before the first mesh.
+    bark: Option<json::Index<json::Material>>,
+    /// Shared by every tree's leaves, made with the first leaves.
+    leaf: Option<json::Index<json::Material>>,
+    /// Shared by every tree's skeleton, made with the first skeleton.
+    skeleton: Option<json::Index<json::Material>>,
 }
 
 impl Default for Builder {
@@ -64,11 +79,64 @@ impl Default for Builder {
         Builder {
             root,
             bin: Vec::new(),
+            bark: None,
+            leaf: None,
+            skeleton: None,
         }
     }
 }
 
 impl Builder {
+    /// The nodes of one tree: branches, leaves (when any), skeleton.
+    fn tree_nodes(
+        &mut self,
+        tree: &Tree,
+        branches: &Mesh,
+        leaves: Option<&Mesh>,
+    ) -> Result<Vec<json::Index<json::Node>>> {
+        let bark = match self.bark {
+            Some(m) => m,
+            None => {
+                let m = self.material("bark", [0.40, 0.29, 0.20, 1.0], false);
+                self.bark = Some(m);
+                m
+            }
+        };
+        let mut nodes = Vec::new();
+        if let Some(mesh) = self.triangle_mesh("branches", branches, bark)? {
+            nodes.push(self.node("branches", mesh));
+        }
+        if let Some(leaves) = leaves.filter(|m| !m.indices.is_empty()) {
+            let leaf = match self.leaf {
+                Some(m) => m,
+                None => {
+                    let m = self.material("leaf", [0.27, 0.52, 0.16, 1.0], true);
+                    self.leaf = Some(m);
+                    m
+                }
+            };
+            if let Some(mesh) = self.triangle_mesh("leaves", leaves, leaf)? {
+                nodes.push(self.node("leaves", mesh));
+            }
+        }
+        if let Some(mesh) = self.skeleton(tree)? {
+            nodes.push(self.node("skeleton", mesh));
+        }
+        Ok(nodes)
+    }
+
+    /// The scene of `nodes`, then the file.
+    fn finish_scene(mut self, name: &str, nodes: Vec<json::Index<json::Node>>) -> Result<Vec<u8>> {
+        let scene = self.root.push(json::Scene {
+            extensions: None,
+            extras: Default::default(),
+            name: Some(name.into()),
+            nodes,
+        });
+        self.root.scene = Some(scene);
+        self.finish()
+    }
+
     fn material(
         &mut self,
         name: &str,
@@ -224,7 +292,14 @@ impl Builder {
         if lines.is_empty() {
             return Ok(None);
         }
-        let material = self.material("skeleton", [0.85, 0.12, 0.10, 1.0], false);
+        let material = match self.skeleton {
+            Some(m) => m,
+            None => {
+                let m = self.material("skeleton", [0.85, 0.12, 0.10, 1.0], false);
+                self.skeleton = Some(m);
+                m
+            }
+        };
         let pos = self.vec3(&positions, true);
         let idx = self.indices(&lines);
         let mut attributes = std::collections::BTreeMap::new();

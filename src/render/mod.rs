@@ -3,6 +3,7 @@
 //! caller's business (`app`, `daemon`, `serve`).
 
 pub mod error;
+pub mod forest;
 pub mod gltf;
 pub mod json;
 pub mod outputs;
