@@ -57,7 +57,11 @@ pub(crate) fn run(shared: &Arc<Shared>, tips_tx: Sender<Vec<(usize, DVec3)>>) {
 
 /// The trees of a request (one, or several: docs/forest.md), grown where
 /// their inputs changed since the last request.
-fn build_forest(shared: &Shared, request: &TreeRequest, cache: &mut ForestCache) -> Result<Outputs> {
+fn build_forest(
+    shared: &Shared,
+    request: &TreeRequest,
+    cache: &mut ForestCache,
+) -> Result<Outputs> {
     let config = lock(&shared.recon_config).clone();
     let plan = forest::plan(
         &request.tips,
@@ -127,9 +131,13 @@ fn publish(
     }
     // A picture that cannot be drawn is reported, and no empty tree.png is
     // written in its place.
-    let png = forest_picture(&outputs.tree, &outputs.trees, outputs.report.forest.is_some())
-        .map_err(|e| tracing::error!("tree.png: {e}"))
-        .ok();
+    let png = forest_picture(
+        &outputs.tree,
+        &outputs.trees,
+        outputs.report.forest.is_some(),
+    )
+    .map_err(|e| tracing::error!("tree.png: {e}"))
+    .ok();
     write_files(shared, &snapshot, png.as_deref(), version);
     let st = &shared.status;
     st.trees.fetch_add(1, Ordering::Relaxed);

@@ -111,7 +111,11 @@ fn run_with(
     threads.extend(sources::start_source(&shared, rt, sink.clone())?);
     if console {
         let start = console::start_line(&shared.status, d.http);
-        threads.push(console::spawn(start, shared.status.clone(), shutdown.flag()));
+        threads.push(console::spawn(
+            start,
+            shared.status.clone(),
+            shutdown.flag(),
+        ));
     }
     if !shared.config.wind.sensor_port.is_empty() {
         threads.push(sources::start_serial(&shared));

@@ -157,8 +157,7 @@ pub fn forest_model(
                 tree: &m.tree,
             })
             .collect::<Vec<_>>(),
-        serde_json::to_value(&report.forest.as_ref().map(|f| &f.ambiguous))
-            .unwrap_or(json!([])),
+        serde_json::to_value(&report.forest.as_ref().map(|f| &f.ambiguous)).unwrap_or(json!([])),
         wind.to_array(),
         cfg,
     )?;
@@ -173,7 +172,11 @@ pub fn forest_model(
 }
 
 /// [`forest_model`] and its picture.
-pub fn forest_outputs(plan: &ForestPlan, wind: DVec3, cfg: &ReconstructSettings) -> Result<Outputs> {
+pub fn forest_outputs(
+    plan: &ForestPlan,
+    wind: DVec3,
+    cfg: &ReconstructSettings,
+) -> Result<Outputs> {
     let mut out = forest_model(plan, wind, cfg, None)?;
     out.png = forest_picture(&out.tree, &out.trees, out.report.forest.is_some())?;
     Ok(out)
@@ -211,7 +214,11 @@ fn source_name(s: BaseSource) -> &'static str {
 }
 
 /// The summed counts and the forest's lines.
-fn forest_report(plan: &ForestPlan, members: &[Member], meshes: &[(mesh::Mesh, Option<mesh::Mesh>)]) -> Report {
+fn forest_report(
+    plan: &ForestPlan,
+    members: &[Member],
+    meshes: &[(mesh::Mesh, Option<mesh::Mesh>)],
+) -> Report {
     let name_of = |id: usize| {
         plan.trees
             .iter()
@@ -310,12 +317,21 @@ impl fmt::Display for ForestReport {
             let list: Vec<String> = self
                 .ambiguous
                 .iter()
-                .map(|a| format!("marker {} ({} {:.3}, {} {:.3})", a.marker, a.tree, a.costs[0], a.other, a.costs[1]))
+                .map(|a| {
+                    format!(
+                        "marker {} ({} {:.3}, {} {:.3})",
+                        a.marker, a.tree, a.costs[0], a.other, a.costs[1]
+                    )
+                })
                 .collect();
             writeln!(f, "ambiguous tips: {}", list.join("; "))?;
         }
         if self.beyond_planes > 0 {
-            writeln!(f, "{} captured tips lie beyond their tree's planes", self.beyond_planes)?;
+            writeln!(
+                f,
+                "{} captured tips lie beyond their tree's planes",
+                self.beyond_planes
+            )?;
         }
         Ok(())
     }

@@ -149,7 +149,13 @@ fn render_trees(trees: &[(&str, &Tree)], labelled: bool) -> Canvas {
 }
 
 /// `name` centred above the highest node of `tree`.
-fn label(canvas: &mut Canvas, tree: &Tree, name: &str, to_px: &dyn Fn(DVec3) -> (f64, f64), colour: Rgb) {
+fn label(
+    canvas: &mut Canvas,
+    tree: &Tree,
+    name: &str,
+    to_px: &dyn Fn(DVec3) -> (f64, f64),
+    colour: Rgb,
+) {
     let Some(top) = tree
         .nodes
         .iter()

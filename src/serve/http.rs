@@ -194,15 +194,27 @@ async fn one_tree(
     let Some(t) = latest(&s) else {
         return no_tree();
     };
-    let id = file.strip_suffix(".json").unwrap_or(&file).parse::<usize>().ok();
+    let id = file
+        .strip_suffix(".json")
+        .unwrap_or(&file)
+        .parse::<usize>()
+        .ok();
     let body = match id {
         Some(0) if t.trees.is_empty() => Some(t.tree_json.clone()),
-        Some(id) => t.trees.iter().find(|x| x.id == id).map(|x| x.tree_json.clone()),
+        Some(id) => t
+            .trees
+            .iter()
+            .find(|x| x.id == id)
+            .map(|x| x.tree_json.clone()),
         None => None,
     };
     match body {
         Some(b) => ([(header::CONTENT_TYPE, "application/json")], b).into_response(),
-        None => (StatusCode::NOT_FOUND, format!("no tree '{file}'; GET /trees lists them\n")).into_response(),
+        None => (
+            StatusCode::NOT_FOUND,
+            format!("no tree '{file}'; GET /trees lists them\n"),
+        )
+            .into_response(),
     }
 }
 

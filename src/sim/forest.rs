@@ -89,7 +89,12 @@ pub struct ForestTruth {
 
 /// Grows and places `opts.trees` trees and picks their marked tips:
 /// `(trees, (tree, node) of every tip)`.
-pub(crate) fn place(opts: &SynthOptions, root: &Rng, tree_stream: u64, layout_stream: u64) -> Result<(Vec<PlacedTree>, Vec<(usize, usize)>)> {
+pub(crate) fn place(
+    opts: &SynthOptions,
+    root: &Rng,
+    tree_stream: u64,
+    layout_stream: u64,
+) -> Result<(Vec<PlacedTree>, Vec<(usize, usize)>)> {
     let mut layout = stream(root, layout_stream);
     let trees_rng = stream(root, tree_stream);
     let mut placed: Vec<PlacedTree> = Vec::with_capacity(opts.trees);
@@ -137,7 +142,10 @@ fn site(placed: &[PlacedTree], t: &TreeTruth, opts: &SynthOptions, rng: &mut Rng
     for _ in 0..500 {
         let (from, angle) = match opts.layout {
             Layout::Row => (last, rng.range(-0.3, 0.3)),
-            Layout::Cluster => (&placed[rng.int(0, placed.len() as i64 - 1) as usize], rng.range(0.0, TAU)),
+            Layout::Cluster => (
+                &placed[rng.int(0, placed.len() as i64 - 1) as usize],
+                rng.range(0.0, TAU),
+            ),
         };
         let d = spacing(&from.tree);
         let at = from.base + DVec3::new(angle.cos() * d, 0.0, angle.sin() * d);
@@ -152,7 +160,10 @@ fn site(placed: &[PlacedTree], t: &TreeTruth, opts: &SynthOptions, rng: &mut Rng
     }
     Err(Error::config(
         "overlap",
-        format!("no place found for tree {} with this overlap; use fewer trees or another seed", placed.len()),
+        format!(
+            "no place found for tree {} with this overlap; use fewer trees or another seed",
+            placed.len()
+        ),
     ))
 }
 

@@ -313,7 +313,12 @@ fn forest_tips(
         trees: placed,
     };
     let first = forest.trees[0].tree.clone();
-    Ok((first, tips, Some(forest), DVec3::new(centre.x, mid_height, centre.z)))
+    Ok((
+        first,
+        tips,
+        Some(forest),
+        DVec3::new(centre.x, mid_height, centre.z),
+    ))
 }
 
 /// The truth file that belongs beside `csv`: `replays/x.csv` →

@@ -40,7 +40,9 @@ const INSET: f64 = 1e-9;
 impl Cell {
     /// True when `p` is inside (or on) every plane.
     pub fn contains(&self, p: DVec3) -> bool {
-        self.sides.iter().all(|s| s.normal.dot(p) <= s.offset + 1e-7)
+        self.sides
+            .iter()
+            .all(|s| s.normal.dot(p) <= s.offset + 1e-7)
     }
 
     /// `p` moved into the cell: clamped to `bounds`, then projected onto
@@ -82,7 +84,8 @@ pub fn cells(trees: &[Vec<DVec3>], margin: f64) -> Vec<Cell> {
             let (Some(a), Some(b)) = (boxes[i], boxes[j]) else {
                 continue;
             };
-            let apart = (0..3).any(|k| a.min[k] - margin > b.max[k] || b.min[k] - margin > a.max[k]);
+            let apart =
+                (0..3).any(|k| a.min[k] - margin > b.max[k] || b.min[k] - margin > a.max[k]);
             if apart {
                 continue;
             }

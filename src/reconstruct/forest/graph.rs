@@ -95,7 +95,12 @@ impl PartialOrd for Queued {
 }
 
 /// Cheapest path cost from tree `b`'s column to every node.
-fn dijkstra(nodes: &[DVec3], owner: &[Option<usize>], adjacency: &[Vec<usize>], b: usize) -> Vec<f64> {
+fn dijkstra(
+    nodes: &[DVec3],
+    owner: &[Option<usize>],
+    adjacency: &[Vec<usize>],
+    b: usize,
+) -> Vec<f64> {
     let mut dist = vec![f64::INFINITY; nodes.len()];
     let mut queue = BinaryHeap::new();
     for (i, o) in owner.iter().enumerate() {
@@ -131,7 +136,11 @@ mod tests {
         let mut tips = Vec::new();
         for i in 0..10 {
             let a = i as f64 * 0.6;
-            tips.push(DVec3::new(0.3 * a.cos(), 1.0 + 0.05 * i as f64, 0.3 * a.sin()));
+            tips.push(DVec3::new(
+                0.3 * a.cos(),
+                1.0 + 0.05 * i as f64,
+                0.3 * a.sin(),
+            ));
             tips.push(DVec3::new(3.0 + 0.3 * a.cos(), 1.2, 0.3 * a.sin()));
         }
         let bases = [DVec3::ZERO, DVec3::new(3.0, 0.0, 0.0)];

@@ -31,7 +31,12 @@ pub fn grow(plan: &ForestPlan, wind: DVec3, cfg: &ReconstructSettings) -> Result
 
 /// One tree of the plan: a tree alone exactly as always, one among several
 /// at its base and inside its cell.
-fn grow_one(plan: &ForestPlan, t: &TreePlan, wind: DVec3, cfg: &ReconstructSettings) -> Result<Tree> {
+fn grow_one(
+    plan: &ForestPlan,
+    t: &TreePlan,
+    wind: DVec3,
+    cfg: &ReconstructSettings,
+) -> Result<Tree> {
     let place = if plan.is_single() {
         Placement::default()
     } else {

@@ -130,8 +130,16 @@ pub fn plan(
     let positions: Vec<DVec3> = tips.iter().map(|t| t.position).collect();
     let (bases, names, source, fits, fits_well) = if configured.is_empty() {
         let found = detect::find(&positions, s);
-        let names: Vec<String> = (0..found.centres.len()).map(settings::default_name).collect();
-        (found.centres, names, BaseSource::Detected, found.rms, found.fits)
+        let names: Vec<String> = (0..found.centres.len())
+            .map(settings::default_name)
+            .collect();
+        (
+            found.centres,
+            names,
+            BaseSource::Detected,
+            found.rms,
+            found.fits,
+        )
     } else {
         let bases = configured.iter().map(ConfiguredTree::base).collect();
         let names = (0..configured.len())

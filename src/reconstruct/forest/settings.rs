@@ -53,7 +53,8 @@ pub struct ForestSettings {
 impl ForestSettings {
     /// Range checks, each naming its key.
     pub fn validate(&self) -> Result<()> {
-        let r = |key: &str, v: f64, lo: f64, hi: f64| check_range(&format!("forest.{key}"), v, lo, hi);
+        let r =
+            |key: &str, v: f64, lo: f64, hi: f64| check_range(&format!("forest.{key}"), v, lo, hi);
         r("max_trees", self.max_trees as f64, 1.0, 20.0)?;
         r("min_spacing_m", self.min_spacing_m, 0.05, 100.0)?;
         r("min_tips", self.min_tips as f64, 3.0, 1000.0)?;
