@@ -21,7 +21,11 @@ fn session(seed: u64, trees: usize, overlap: f64) -> Truth {
         overlap,
         tips: 14 + (seed as usize * 7) % 17,
         mixed: true,
-        layout: if seed % 2 == 0 { Layout::Row } else { Layout::Cluster },
+        layout: if seed % 2 == 0 {
+            Layout::Row
+        } else {
+            Layout::Cluster
+        },
         still_s: 5.0,
         wind_s: 15.0,
         gap_fraction: 0.0,
@@ -47,19 +51,36 @@ fn links(t: &Truth, threshold: f64) -> Vec<sway::SwayLink> {
 }
 
 fn main() {
-    let n: u64 = std::env::args().nth(1).and_then(|a| a.parse().ok()).unwrap_or(40);
+    let n: u64 = std::env::args()
+        .nth(1)
+        .and_then(|a| a.parse().ok())
+        .unwrap_or(40);
     let recon = ReconstructSettings::default();
-    let crown = ForestSettings::default();
+    // Settings to try, from the environment: SWAY_WEIGHT, SWAY_CORRELATION,
+    // FIT_TOLERANCE; OVERLAPS (comma separated) limits the sweep.
+    let env = |k: &str| std::env::var(k).ok().and_then(|v| v.parse::<f64>().ok());
+    let d = ForestSettings::default();
+    let crown = ForestSettings {
+        sway_weight_m: env("SWAY_WEIGHT").unwrap_or(d.sway_weight_m),
+        sway_correlation: env("SWAY_CORRELATION").unwrap_or(d.sway_correlation),
+        fit_tolerance_m: env("FIT_TOLERANCE").unwrap_or(d.fit_tolerance_m),
+        min_spacing_m: env("MIN_SPACING").unwrap_or(d.min_spacing_m),
+        ..d
+    };
+    let overlaps: Vec<f64> = std::env::var("OVERLAPS")
+        .ok()
+        .map(|v| v.split(',').filter_map(|x| x.parse().ok()).collect())
+        .unwrap_or_else(|| vec![-0.1, 0.0, 1.0 / 6.0, 0.25, 1.0 / 3.0]);
     let livny = ForestSettings {
         rule: AssignRule::Livny,
         ..ForestSettings::default()
     };
     let shape_only = ForestSettings {
         sway_weight_m: 0.0,
-        ..ForestSettings::default()
+        ..crown.clone()
     };
     println!("overlap  sessions  tips   livny            crown, no sway   crown + sway     count right (trunks >= 1 m)");
-    for overlap in [-0.1, 0.0, 1.0 / 6.0, 0.25, 1.0 / 3.0] {
+    for overlap in overlaps {
         let mut acc = [(0usize, 0usize, 1.0f64); 3];
         let (mut counted, mut right) = (0, 0);
         let mut tips_total = 0;
@@ -93,7 +114,35 @@ fn main() {
                 let plan = forest::plan(&tips, links, &bases, s, &recon).expect("plan");
                 let mut good = 0;
                 for tree in &plan.trees {
-                    good += tree.tips.iter().filter(|c| f.tip_tree[c.marker] == tree.id).count();
+                    good += tree
+                        .tips
+                        .iter()
+                        .filter(|c| f.tip_tree[c.marker] == tree.id)
+                        .count();
+                }
+                if k == 2 && std::env::var("DEBUG").is_ok() {
+                    for tree in &plan.trees {
+                        for c in &tree.tips {
+                            let truth_tree = f.tip_tree[c.marker];
+                            if truth_tree != tree.id {
+                                let nl = links
+                                    .iter()
+                                    .filter(|l| l.a == c.marker || l.b == c.marker)
+                                    .count();
+                                let amb = plan
+                                    .ambiguous
+                                    .iter()
+                                    .find(|a| a.marker == c.marker)
+                                    .map(|a| a.costs);
+                                eprintln!(
+                                    "seed {} tip {} ({:?} tree {truth_tree}) -> tree {} ({:?}); links {nl}; ambiguous {amb:?}; h from true base {:.2}, from given {:.2}",
+                                    1000 + seed, c.marker, f.trees[truth_tree].tree.shape, tree.id, f.trees[tree.id].tree.shape,
+                                    ((c.position - f.trees[truth_tree].base) * glam::DVec3::new(1.0, 0.0, 1.0)).length(),
+                                    ((c.position - f.trees[tree.id].base) * glam::DVec3::new(1.0, 0.0, 1.0)).length(),
+                                );
+                            }
+                        }
+                    }
                 }
                 acc[k].0 += good;
                 acc[k].1 += tips.len();
@@ -109,11 +158,22 @@ fn main() {
                 if plan.trees.len() == trees {
                     right += 1;
                 } else {
-                    eprintln!("seed {}: {} trees found of {trees} (fits {:?})", 1000 + seed, plan.trees.len(), plan.fits);
+                    eprintln!(
+                        "seed {}: {} trees found of {trees} (fits {:?})",
+                        1000 + seed,
+                        plan.trees.len(),
+                        plan.fits
+                    );
                 }
             }
         }
-        let pct = |a: (usize, usize, f64)| format!("{:5.1} % (min {:5.1})", 100.0 * a.0 as f64 / a.1 as f64, 100.0 * a.2);
+        let pct = |a: (usize, usize, f64)| {
+            format!(
+                "{:5.1} % (min {:5.1})",
+                100.0 * a.0 as f64 / a.1 as f64,
+                100.0 * a.2
+            )
+        };
         println!(
             "{overlap:+.3}  {n:8}  {tips_total:5}  {}  {}  {}  {right}/{counted}",
             pct(acc[0]),

@@ -8,6 +8,7 @@ mod common;
 mod c3d;
 mod cli;
 mod daemon;
+mod forest;
 mod live_view;
 mod log_format;
 mod motive_csv;

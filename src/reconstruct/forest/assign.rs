@@ -27,6 +27,7 @@ const CLEAR_FIT: f64 = 0.5;
 const ANCHORED: FitOptions = FitOptions {
     offset_ridge: 1.0,
     lean: true,
+    weighted: true,
 };
 /// Fewest clear tips a crown is fitted to; with fewer, all its tips.
 const MIN_FIT: usize = 6;
@@ -93,15 +94,15 @@ pub fn assign(tips: &[DVec3], bases: &[DVec3], links: &[Link], s: &ForestSetting
 }
 
 /// The crown rule; `None` when some tree has too few tips for a surface.
-fn crowns(tips: &[DVec3], bases: &[DVec3], links: &[Link], s: &ForestSettings) -> Option<Assignment> {
+fn crowns(
+    tips: &[DVec3],
+    bases: &[DVec3],
+    links: &[Link],
+    s: &ForestSettings,
+) -> Option<Assignment> {
     let horizontal: Vec<Vec<f64>> = tips
         .iter()
-        .map(|p| {
-            bases
-                .iter()
-                .map(|b| (p.x - b.x).hypot(p.z - b.z))
-                .collect()
-        })
+        .map(|p| bases.iter().map(|b| (p.x - b.x).hypot(p.z - b.z)).collect())
         .collect();
     let start: Vec<usize> = horizontal.iter().map(|c| argmin(c)).collect();
     let sure = clear(&horizontal, CLEAR_START);
@@ -126,7 +127,12 @@ fn crowns(tips: &[DVec3], bases: &[DVec3], links: &[Link], s: &ForestSettings) -
 /// Each tip's distance from every tree's crown surface, the crowns fitted
 /// to the tips of `tree` that are `clear` (all of a tree's tips when fewer
 /// than [`MIN_FIT`] of them are).
-fn surface_costs(tips: &[DVec3], bases: &[DVec3], tree: &[usize], clear: &[bool]) -> Option<Vec<Vec<f64>>> {
+fn surface_costs(
+    tips: &[DVec3],
+    bases: &[DVec3],
+    tree: &[usize],
+    clear: &[bool],
+) -> Option<Vec<Vec<f64>>> {
     let mut crowns = Vec::with_capacity(bases.len());
     for (t, base) in bases.iter().enumerate() {
         let pick = |only_clear: bool| -> Vec<DVec3> {

@@ -39,6 +39,9 @@ pub struct FitOptions {
     pub offset_ridge: f64,
     /// Let the axis lean (needs at least 8 tips; fewer fit upright).
     pub lean: bool,
+    /// Weight each tip by 1/its distance from the axis, so the fit
+    /// minimises distances rather than squared radii (see [`weight`]).
+    pub weighted: bool,
 }
 
 impl Crown {
@@ -70,10 +73,19 @@ impl Crown {
                 2.0 * q.z * q.y,
             ];
             let rhs = q.x * q.x + q.z * q.z;
+            // The residual of a row is in m² (≈ 2·r·δr): weighting it by
+            // 1/r makes it a distance, so the narrow top of a cone counts
+            // as much as its wide base (ours; without it the fit sacrifices
+            // a pine's top, and tips there go to a neighbour).
+            let w = if opts.weighted {
+                weight(rhs.sqrt())
+            } else {
+                1.0
+            };
             for i in 0..k {
-                atb[i] += row[i] * rhs;
+                atb[i] += w * w * row[i] * rhs;
                 for j in 0..k {
-                    ata[i][j] += row[i] * row[j];
+                    ata[i][j] += w * w * row[i] * row[j];
                 }
             }
         }
@@ -119,6 +131,15 @@ impl Crown {
         };
         radial.hypot(r.y - yc)
     }
+}
+
+/// Below this distance from the axis (m) a row's weight stops growing, so
+/// a tip on the axis (a pine's top) does not outweigh the whole crown.
+const WEIGHT_FLOOR: f64 = 0.3;
+
+/// Weight of a row whose tip lies `r` from the anchor's axis.
+fn weight(r: f64) -> f64 {
+    1.0 / r.max(WEIGHT_FLOOR)
 }
 
 /// Solves the `k`×`k` system by Gaussian elimination with partial pivoting;
@@ -179,6 +200,7 @@ mod tests {
         let opts = FitOptions {
             offset_ridge: 0.0,
             lean: false,
+            weighted: true,
         };
         // Anchored 0.3 m off: the fit finds the axis anyway.
         let crown = Crown::fit(&tips, c + DVec3::new(0.3, 0.0, 0.0), opts).unwrap();
@@ -190,9 +212,12 @@ mod tests {
         // 0.2 m outside at the equator, 0.2 m inside towards the axis.
         assert!((crown.distance(c + DVec3::new(1.0, 0.0, 0.0)) - 0.2).abs() < 1e-9);
         assert!((crown.distance(c + DVec3::new(0.0, 0.0, 0.6)) - 0.2).abs() < 1e-9);
-        // Above the crown: the height beyond it counts.
+        // Above the crown: the height beyond the highest tip counts, with
+        // the distance from the crown's rim at that height.
+        let top = tips.iter().map(|t| t.y - c.y).fold(f64::MIN, f64::max);
+        let rim = 0.8 * (1.0 - (top / 0.6).powi(2)).sqrt();
         let above = crown.distance(c + DVec3::new(0.0, 1.0, 0.0));
-        assert!((above - 0.4).abs() < 1e-6, "{above}");
+        assert!((above - rim.hypot(1.0 - top)).abs() < 1e-6, "{above}");
     }
 
     #[test]
@@ -213,6 +238,7 @@ mod tests {
             FitOptions {
                 offset_ridge: 0.0,
                 lean: false,
+                weighted: true,
             },
         )
         .unwrap();
@@ -222,6 +248,7 @@ mod tests {
             FitOptions {
                 offset_ridge: 0.0,
                 lean: true,
+                weighted: true,
             },
         )
         .unwrap();
@@ -235,6 +262,7 @@ mod tests {
         let opts = FitOptions {
             offset_ridge: 1.0,
             lean: true,
+            weighted: true,
         };
         assert!(Crown::fit(&[DVec3::ZERO; 3], DVec3::ZERO, opts).is_none());
         assert!(Crown::fit(&[DVec3::ONE; 10], DVec3::ZERO, opts).is_none());

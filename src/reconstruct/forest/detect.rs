@@ -6,8 +6,9 @@
 //! positions (several deterministic starts), then crowns are fitted with a
 //! free axis and every tip goes to the nearest surface, until the split
 //! stands; a split counts when every tree has `min_tips` tips and every two
-//! axes stand `min_spacing_m` apart. The first K whose RMS surface distance
-//! is within `fit_tolerance_m` is taken; when none is, one tree.
+//! axes stand `min_spacing_m` apart. The first K whose worst tree's RMS
+//! surface distance is within `fit_tolerance_m` is taken; when none is, one
+//! tree.
 
 use glam::DVec3;
 
@@ -18,6 +19,7 @@ use super::settings::ForestSettings;
 const FREE: FitOptions = FitOptions {
     offset_ridge: 0.01,
     lean: false,
+    weighted: true,
 };
 /// Deterministic k-means starts per K.
 const STARTS: usize = 5;
@@ -39,7 +41,9 @@ pub struct Detection {
 pub fn find(tips: &[DVec3], s: &ForestSettings) -> Detection {
     let mut rms = Vec::new();
     let one = Crown::fit(tips, centroid(tips), FREE);
-    let one_rms = one.as_ref().map(|c| rms_of(tips, &[c.clone()], &vec![0; tips.len()]));
+    let one_rms = one
+        .as_ref()
+        .map(|c| rms_of(tips, &[c.clone()], &vec![0; tips.len()]));
     let single = Detection {
         centres: vec![one.map_or(centroid(tips), |c| c.axis_at(0.0))],
         rms: one_rms.map(|r| vec![(1, r)]).unwrap_or_default(),
@@ -48,7 +52,10 @@ pub fn find(tips: &[DVec3], s: &ForestSettings) -> Detection {
     if let Some(r) = one_rms {
         rms.push((1, r));
         if r <= s.fit_tolerance_m {
-            return Detection { fits: true, ..single };
+            return Detection {
+                fits: true,
+                ..single
+            };
         }
     }
     for k in 2..=s.max_trees {
@@ -89,12 +96,20 @@ fn best_split(tips: &[DVec3], k: usize, s: &ForestSettings) -> Option<(f64, Vec<
 
 /// Crowns with free axes fitted to the split until it stands; `None` when
 /// a tree ends with too few tips or two axes too close.
-fn refine(tips: &[DVec3], mut centres: Vec<DVec3>, mut labels: Vec<usize>, s: &ForestSettings) -> Option<(f64, Vec<DVec3>)> {
+fn refine(
+    tips: &[DVec3],
+    mut centres: Vec<DVec3>,
+    mut labels: Vec<usize>,
+    s: &ForestSettings,
+) -> Option<(f64, Vec<DVec3>)> {
     let mut crowns = Vec::new();
     for _ in 0..ROUNDS {
         crowns.clear();
         for (t, c) in centres.iter_mut().enumerate() {
-            let own: Vec<DVec3> = (0..tips.len()).filter(|&i| labels[i] == t).map(|i| tips[i]).collect();
+            let own: Vec<DVec3> = (0..tips.len())
+                .filter(|&i| labels[i] == t)
+                .map(|i| tips[i])
+                .collect();
             if own.len() < s.min_tips {
                 return None;
             }
@@ -134,7 +149,15 @@ fn kmeans(tips: &[DVec3], k: usize, first: usize) -> (Vec<DVec3>, Vec<usize>) {
         let far = tips
             .iter()
             .enumerate()
-            .map(|(i, p)| (i, centres.iter().map(|c| flat(*p).distance(*c)).fold(f64::INFINITY, f64::min)))
+            .map(|(i, p)| {
+                (
+                    i,
+                    centres
+                        .iter()
+                        .map(|c| flat(*p).distance(*c))
+                        .fold(f64::INFINITY, f64::min),
+                )
+            })
             .fold((0, -1.0), |a, b| if b.1 > a.1 { b } else { a })
             .0;
         centres.push(flat(tips[far]));
@@ -146,7 +169,10 @@ fn kmeans(tips: &[DVec3], k: usize, first: usize) -> (Vec<DVec3>, Vec<usize>) {
             .map(|p| nearest(centres.iter().map(|c| flat(*p).distance(*c))))
             .collect();
         for (t, c) in centres.iter_mut().enumerate() {
-            let own: Vec<DVec3> = (0..tips.len()).filter(|&i| next[i] == t).map(|i| flat(tips[i])).collect();
+            let own: Vec<DVec3> = (0..tips.len())
+                .filter(|&i| next[i] == t)
+                .map(|i| flat(tips[i]))
+                .collect();
             if !own.is_empty() {
                 *c = own.iter().sum::<DVec3>() / own.len() as f64;
             }
@@ -159,14 +185,20 @@ fn kmeans(tips: &[DVec3], k: usize, first: usize) -> (Vec<DVec3>, Vec<usize>) {
     (centres, labels)
 }
 
-/// Root mean square distance of every tip from its own crown.
+/// The worst tree's root mean square distance of its tips from its crown:
+/// two trees taken for one make one bad crown among good ones, which the
+/// RMS over all tips would hide.
 fn rms_of(tips: &[DVec3], crowns: &[Crown], labels: &[usize]) -> f64 {
-    let sum: f64 = tips
-        .iter()
-        .zip(labels)
-        .map(|(p, &l)| crowns[l].distance(*p).powi(2))
-        .sum();
-    (sum / tips.len().max(1) as f64).sqrt()
+    let mut sum = vec![0.0; crowns.len()];
+    let mut count = vec![0usize; crowns.len()];
+    for (p, &l) in tips.iter().zip(labels) {
+        sum[l] += crowns[l].distance(*p).powi(2);
+        count[l] += 1;
+    }
+    sum.iter()
+        .zip(&count)
+        .map(|(s, &n)| (s / n.max(1) as f64).sqrt())
+        .fold(0.0, f64::max)
 }
 
 fn centroid(tips: &[DVec3]) -> DVec3 {
@@ -177,6 +209,9 @@ fn centroid(tips: &[DVec3]) -> DVec3 {
 fn nearest(values: impl Iterator<Item = f64>) -> usize {
     values
         .enumerate()
-        .fold((0, f64::INFINITY), |a, (i, v)| if v < a.1 { (i, v) } else { a })
+        .fold(
+            (0, f64::INFINITY),
+            |a, (i, v)| if v < a.1 { (i, v) } else { a },
+        )
         .0
 }
