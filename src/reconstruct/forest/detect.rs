@@ -7,8 +7,9 @@
 //! free axis and every tip goes to the nearest surface, until the split
 //! stands; a split counts when every tree has `min_tips` tips and every two
 //! axes stand `min_spacing_m` apart. The first K whose worst tree's RMS
-//! surface distance is within `fit_tolerance_m` is taken; when none is, one
-//! tree.
+//! surface distance is within `fit_tolerance_m` is taken; when none is, the
+//! K with the least RMS + `count_penalty_m`·K (one crown of a forest that
+//! fits badly must not make the search give up and take one tree).
 
 use glam::DVec3;
 
@@ -58,6 +59,11 @@ pub fn find(tips: &[DVec3], s: &ForestSettings) -> Detection {
             };
         }
     }
+    // Every valid split tried, for the fallback: (K, RMS, axis feet).
+    let mut splits: Vec<(usize, f64, Vec<DVec3>)> = Vec::new();
+    if let Some(r) = one_rms {
+        splits.push((1, r, single.centres.clone()));
+    }
     for k in 2..=s.max_trees {
         if tips.len() < k * s.min_tips {
             break;
@@ -66,16 +72,30 @@ pub fn find(tips: &[DVec3], s: &ForestSettings) -> Detection {
             continue;
         };
         rms.push((k, r));
+        centres.sort_by(|a, b| a.x.total_cmp(&b.x).then(a.z.total_cmp(&b.z)));
         if r <= s.fit_tolerance_m {
-            centres.sort_by(|a, b| a.x.total_cmp(&b.x).then(a.z.total_cmp(&b.z)));
             return Detection {
                 centres,
                 rms,
                 fits: true,
             };
         }
+        splits.push((k, r, centres));
     }
-    Detection { rms, ..single }
+    // Nothing fitted within the tolerance: the least penalised RMS (the
+    // first on a tie, so fewer trees win).
+    let penalised = |&(k, r, _): &(usize, f64, Vec<DVec3>)| r + s.count_penalty_m * k as f64;
+    let best = splits
+        .iter()
+        .min_by(|a, b| penalised(a).total_cmp(&penalised(b)).then(a.0.cmp(&b.0)));
+    match best {
+        Some((_, _, centres)) => Detection {
+            centres: centres.clone(),
+            rms,
+            fits: false,
+        },
+        None => Detection { rms, ..single },
+    }
 }
 
 /// The best valid split into `k` crowns over the starts: (RMS, axis feet).

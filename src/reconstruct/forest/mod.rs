@@ -91,7 +91,8 @@ pub struct ForestPlan {
     /// (empty when the trees are configured).
     pub fits: Vec<(usize, f64)>,
     /// False when the search found no number of trees that fits the tips
-    /// within `forest.fit_tolerance_m`, and took them for one tree.
+    /// within `forest.fit_tolerance_m`, and took the number with the least
+    /// penalised RMS (`forest.count_penalty_m`).
     pub fits_well: bool,
     /// Captured tips lying beyond one of their tree's planes (measured data
     /// is never moved; their first branch segment crosses the plane).

@@ -35,9 +35,14 @@ pub struct ForestSettings {
     /// Fewest tips a found tree may have: a crown surface needs a few tips
     /// to be fitted at all.
     pub min_tips: usize,
-    /// RMS distance (m) of the tips from their crown surfaces that counts as
-    /// explained: the smallest number of trees that reaches it is taken.
+    /// RMS distance (m) of the tips from their crown surfaces (the worst
+    /// tree's) that counts as explained: the smallest number of trees that
+    /// reaches it is taken.
     pub fit_tolerance_m: f64,
+    /// When no number of trees reaches `fit_tolerance_m`: the number taken
+    /// is the one with the least RMS + this × the number (m per tree), so a
+    /// tree more must buy a clearly better fit.
+    pub count_penalty_m: f64,
     /// Neighbours of each tip in the shortest-path graph.
     pub neighbours: usize,
     /// A tip whose best cost is more than this fraction of its second best
@@ -59,6 +64,7 @@ impl ForestSettings {
         r("min_spacing_m", self.min_spacing_m, 0.05, 100.0)?;
         r("min_tips", self.min_tips as f64, 3.0, 1000.0)?;
         r("fit_tolerance_m", self.fit_tolerance_m, 0.001, 10.0)?;
+        r("count_penalty_m", self.count_penalty_m, 0.0, 10.0)?;
         r("neighbours", self.neighbours as f64, 1.0, 100.0)?;
         r("ambiguous_ratio", self.ambiguous_ratio, 0.0, 1.0)?;
         r("sway_correlation", self.sway_correlation, 0.0, 1.0)?;
