@@ -21,7 +21,7 @@ fn session(seed: u64, trees: usize, overlap: f64) -> Truth {
         overlap,
         tips: 14 + (seed as usize * 7) % 17,
         mixed: true,
-        layout: if seed % 2 == 0 {
+        layout: if seed.is_multiple_of(2) {
             Layout::Row
         } else {
             Layout::Cluster

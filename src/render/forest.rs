@@ -157,7 +157,7 @@ pub fn forest_model(
                 tree: &m.tree,
             })
             .collect::<Vec<_>>(),
-        serde_json::to_value(&report.forest.as_ref().map(|f| &f.ambiguous)).unwrap_or(json!([])),
+        serde_json::to_value(report.forest.as_ref().map(|f| &f.ambiguous)).unwrap_or(json!([])),
         wind.to_array(),
         cfg,
     )?;

@@ -87,14 +87,16 @@ pub struct ForestTruth {
     pub tip_tree: Vec<usize>,
 }
 
-/// Grows and places `opts.trees` trees and picks their marked tips:
-/// `(trees, (tree, node) of every tip)`.
+/// The trees placed, and the `(tree, node)` of every marked tip.
+pub(crate) type Placed = (Vec<PlacedTree>, Vec<(usize, usize)>);
+
+/// Grows and places `opts.trees` trees and picks their marked tips.
 pub(crate) fn place(
     opts: &SynthOptions,
     root: &Rng,
     tree_stream: u64,
     layout_stream: u64,
-) -> Result<(Vec<PlacedTree>, Vec<(usize, usize)>)> {
+) -> Result<Placed> {
     let mut layout = stream(root, layout_stream);
     let trees_rng = stream(root, tree_stream);
     let mut placed: Vec<PlacedTree> = Vec::with_capacity(opts.trees);

@@ -28,7 +28,7 @@ fn forest(seed: u64, trees: usize, overlap: f64) -> Truth {
         overlap,
         tips: 14 + (seed as usize * 7) % 17,
         mixed: true,
-        layout: if seed % 2 == 0 {
+        layout: if seed.is_multiple_of(2) {
             Layout::Row
         } else {
             Layout::Cluster
@@ -291,7 +291,14 @@ fn validate(path: &Path) -> (u64, u64) {
         .arg(&script)
         .arg(path)
         .output()
-        .expect("node (install Node.js and `npm install --prefix tests/peers`)");
+        .unwrap_or_else(|e| {
+            panic!(
+                "cannot run node ({e}): install Node.js, then `npm install --prefix tests/peers`"
+            )
+        });
+    if out.status.code() == Some(3) {
+        panic!("the glTF validator is missing: run `npm install --prefix tests/peers`");
+    }
     assert!(
         out.status.success(),
         "{}",
@@ -304,25 +311,60 @@ fn validate(path: &Path) -> (u64, u64) {
     )
 }
 
+/// The README's command for the shipped three-tree replay.
+const SHIPPED: &[&str] = &[
+    "synth",
+    "--seed",
+    "6",
+    "--trees",
+    "3",
+    "--tips",
+    "16",
+    "--overlap",
+    "0.3",
+    "--mixed",
+    "--rate",
+    "50",
+    "--still",
+    "8",
+    "--wind",
+    "10",
+];
+
 #[test]
-fn replay_splits_a_forest_session_into_trees() {
+fn the_shipped_forest_replay_regenerates_byte_identically() {
     let dir = tempfile::tempdir().unwrap();
-    let csv = dir.path().join("forest.csv");
-    let opts = SynthOptions {
-        seed: 7,
-        trees: 3,
-        tips: 16,
-        overlap: 0.2,
-        mixed: true,
-        still_s: 6.0,
-        wind_s: 8.0,
-        ..SynthOptions::default()
-    };
-    treemocap::app::synth::write_session(&opts, &csv).unwrap();
-    let truth: Truth = serde_json::from_str(
-        &std::fs::read_to_string(dir.path().join("forest.truth.json")).unwrap(),
-    )
-    .unwrap();
+    let out = dir.path().join("forest-3.csv");
+    let run = Command::new(env!("CARGO_BIN_EXE_treemocap"))
+        .args(SHIPPED)
+        .arg("--out")
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("replays");
+    for name in ["forest-3.csv", "forest-3.truth.json"] {
+        let shipped = std::fs::read(root.join(name)).unwrap();
+        assert!(shipped.len() < 3_000_000, "{name} is too big");
+        assert!(
+            std::fs::read(dir.path().join(name)).unwrap() == shipped,
+            "{name} differs from its synth command"
+        );
+    }
+}
+
+#[test]
+fn replay_splits_the_shipped_forest_replay_into_trees() {
+    let dir = tempfile::tempdir().unwrap();
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("replays");
+    let csv = root.join("forest-3.csv");
+    let truth: Truth =
+        serde_json::from_str(&std::fs::read_to_string(root.join("forest-3.truth.json")).unwrap())
+            .unwrap();
     let out = dir.path().join("out");
     let config = Config {
         reconstruct: ReconstructSettings {

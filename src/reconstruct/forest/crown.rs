@@ -150,7 +150,7 @@ fn solve(
     k: usize,
 ) -> Option<[f64; UNKNOWNS]> {
     let scale = (0..k).map(|i| a[i][i].abs()).fold(0.0, f64::max);
-    if !(scale > 0.0) || !scale.is_finite() {
+    if !scale.is_finite() || scale <= 0.0 {
         return None;
     }
     for col in 0..k {
@@ -160,10 +160,11 @@ fn solve(
         }
         a.swap(col, pivot);
         b.swap(col, pivot);
+        let pivot_row = a[col];
         for row in col + 1..k {
-            let f = a[row][col] / a[col][col];
-            for j in col..k {
-                a[row][j] -= f * a[col][j];
+            let f = a[row][col] / pivot_row[col];
+            for (x, p) in a[row][col..k].iter_mut().zip(&pivot_row[col..k]) {
+                *x -= f * p;
             }
             b[row] -= f * b[col];
         }

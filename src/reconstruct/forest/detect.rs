@@ -44,7 +44,7 @@ pub fn find(tips: &[DVec3], s: &ForestSettings) -> Detection {
     let one = Crown::fit(tips, centroid(tips), FREE);
     let one_rms = one
         .as_ref()
-        .map(|c| rms_of(tips, &[c.clone()], &vec![0; tips.len()]));
+        .map(|c| rms_of(tips, std::slice::from_ref(c), &vec![0; tips.len()]));
     let single = Detection {
         centres: vec![one.map_or(centroid(tips), |c| c.axis_at(0.0))],
         rms: one_rms.map(|r| vec![(1, r)]).unwrap_or_default(),

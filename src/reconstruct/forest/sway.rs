@@ -53,7 +53,7 @@ pub fn links(tips: &Tips, threshold: f64) -> Vec<SwayLink> {
             let mut s = vec![None; frames.div_ceil(stride)];
             for (f, p) in t.trace.measurements() {
                 let f = f.max(0) as usize;
-                if f % stride == 0 {
+                if f.is_multiple_of(stride) {
                     if let Some(slot) = s.get_mut(f / stride) {
                         *slot = Some(p - t.rest);
                     }
