@@ -89,5 +89,22 @@ fn growth_few_merges(c: &mut Criterion) {
     growth_group(c, "growth_few_merges", &[500, 5000, 50_000], Some(0.001));
 }
 
-criterion_group!(benches, targets, growth, growth_few_merges);
+/// tree.png of the 70 + 50 000 tip tree: drawing and encoding, to hold
+/// against the growth figure above (target ≤ 20 % of it, issue 15).
+fn picture(c: &mut Criterion) {
+    let tips = crowns::crown_tips(crowns::Shape::Maple, 70, 2);
+    let cfg = ReconstructSettings {
+        total_tips: 50_000,
+        ..Default::default()
+    };
+    let tree = reconstruct(&tips, DVec3::new(2.0, 0.0, 0.0), &cfg, cfg.seed).expect("reconstruct");
+    let mut group = c.benchmark_group("picture");
+    group.sample_size(10);
+    group.bench_function("tree_png_maple_70_50000", |b| {
+        b.iter(|| black_box(treemocap::render::picture::tree_png(&tree).expect("png")))
+    });
+    group.finish();
+}
+
+criterion_group!(benches, targets, growth, growth_few_merges, picture);
 criterion_main!(benches);

@@ -26,5 +26,14 @@ if [ -f tests/peers/package.json ]; then
   fi
 fi
 
+# tcpdump records our own NatNet server and client on loopback for the
+# capture (pcap) tests in tests/it/natnet_pcap.rs. Debian's package; apt is
+# shared with other jobs on the machine, hence the lock.
+if ! command -v tcpdump >/dev/null; then
+  echo "== installing tcpdump (NatNet capture tests)"
+  flock /tmp/apt.lock apt-get update -qq
+  flock /tmp/apt.lock apt-get install -y -qq tcpdump >/dev/null
+fi
+
 echo "== cargo test"
 cargo test --all-targets "$@"

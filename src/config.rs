@@ -8,7 +8,7 @@ use std::path::Path;
 
 use serde::{Deserialize, Serialize};
 
-use crate::error::{check_range, Error, Result};
+use crate::error::{check_range, excerpt, Error, Result};
 use crate::reconstruct::forest::{ConfiguredTree, ForestSettings};
 use crate::reconstruct::ReconstructSettings;
 use crate::source::natnet::settings::NatNetSettings;
@@ -55,6 +55,12 @@ pub struct Config {
 pub struct ReplayConfig {
     /// Allowed disagreement between a file's Time column and frame / rate (s).
     pub time_tolerance_s: f64,
+    /// The NatNet bitstream of a capture that holds no SERVERINFO (it
+    /// started after the client connected); `""` (None): from the capture.
+    #[serde(with = "crate::protocol::natnet::version::unset_if_empty")]
+    pub natnet_version: Option<crate::protocol::natnet::Version>,
+    /// Refuse recordings readable only in part (`--strict`).
+    pub strict: bool,
 }
 
 /// Writing our own recording format.
@@ -108,7 +114,8 @@ pub struct DaemonConfig {
     pub wind_turn_deg: f64,
     /// 0 disables the periodic rebuild.
     pub period_s: f64,
-    /// Gate of the live tip follower (mm).
+    /// Radius matching a tracked marker to the tree's tip (mm); see
+    /// `track::live`.
     pub follow_gate_mm: f64,
     /// Frames queued between the sources and the pipeline; when full, the
     /// oldest is dropped and counted, so a slow pipeline never blocks a socket.
@@ -118,6 +125,16 @@ pub struct DaemonConfig {
     /// HTTP and WebSocket address; `""` in the config (None) turns it off.
     #[serde(with = "optional_addr")]
     pub http: Option<SocketAddr>,
+    /// IP addresses or CIDR ranges HTTP accepts.
+    pub http_allow: Vec<String>,
+    /// HTTP connections open at once.
+    pub http_max_connections: u32,
+    /// `/live` WebSocket sessions open at once.
+    pub http_max_websockets: u32,
+    /// Longest wait for a request's headers (s).
+    pub http_header_timeout_s: f64,
+    /// Longest time a connection may move no byte (s).
+    pub http_idle_timeout_s: f64,
     /// Where the tree, tips and wind are sent as OSC.
     pub osc_targets: Vec<SocketAddr>,
     /// Keep every tree as `tree-0001.glb`, `tree-0001.json`, … as well.
@@ -215,13 +232,23 @@ impl Config {
     pub fn load(path: Option<&Path>, sets: &[String]) -> Result<Config> {
         let mut table = default_table();
         if let Some(path) = path {
-            let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
-            let user: toml::Table = text.parse().map_err(|e: toml::de::Error| {
+            // A config that cannot be read is a usage error (exit 2), like
+            // one that does not parse.
+            let name = path.display().to_string();
+            let bytes = std::fs::read(path).map_err(|e| {
+                Error::config("--config", format!("cannot read {}: {e}", excerpt(&name)))
+            })?;
+            let text = String::from_utf8(bytes).map_err(|e| {
+                let valid = &e.as_bytes()[..e.utf8_error().valid_up_to()];
+                let (line, column) = line_column(&String::from_utf8_lossy(valid), valid.len());
                 Error::config(
-                    path.display().to_string(),
-                    format!("not valid TOML: {}", e.message()),
+                    name.clone(),
+                    format!("line {line}, column {column}: not UTF-8 text"),
                 )
             })?;
+            let user: toml::Table = text
+                .parse()
+                .map_err(|e: toml::de::Error| toml_error(&name, &text, &e))?;
             merge(&mut table, user, "")?;
         }
         for set in sets {
@@ -235,7 +262,7 @@ impl Config {
     pub fn from_toml_str(text: &str) -> Result<Config> {
         let user: toml::Table = text
             .parse()
-            .map_err(|e: toml::de::Error| Error::config("<text>", e.message().to_string()))?;
+            .map_err(|e: toml::de::Error| toml_error("<text>", text, &e))?;
         let mut table = default_table();
         merge(&mut table, user, "")?;
         Config::from_table(table)
@@ -288,6 +315,32 @@ impl Config {
         check_range("osc.frame_rate", self.osc.frame_rate, 1.0, 10000.0)?;
         crate::source::osc::OscOptions::from_settings(&self.osc)?;
         self.natnet.validate()?;
+        let d = &self.daemon;
+        crate::source::allow::AllowList::parse("daemon.http_allow", &d.http_allow)?;
+        check_range(
+            "daemon.http_max_connections",
+            f64::from(d.http_max_connections),
+            1.0,
+            100_000.0,
+        )?;
+        check_range(
+            "daemon.http_max_websockets",
+            f64::from(d.http_max_websockets),
+            1.0,
+            100_000.0,
+        )?;
+        check_range(
+            "daemon.http_header_timeout_s",
+            d.http_header_timeout_s,
+            0.1,
+            600.0,
+        )?;
+        check_range(
+            "daemon.http_idle_timeout_s",
+            d.http_idle_timeout_s,
+            1.0,
+            3600.0,
+        )?;
         Ok(())
     }
 }
@@ -436,6 +489,32 @@ fn merge(base: &mut toml::Table, over: toml::Table, prefix: &str) -> Result<()> 
 
 /// `section.key=value` as a one-key table. The value is read as TOML
 /// (`3`, `0.2`, `true`, `"box"`); a bare word is taken as a string.
+/// A TOML syntax error as one line: where (line and column, 1-based), what
+/// the parser says, and an excerpt of the line.
+fn toml_error(name: &str, text: &str, e: &toml::de::Error) -> Error {
+    let message = e.message().trim().replace('\n', " ");
+    let Some(span) = e.span() else {
+        return Error::config(name, format!("not valid TOML: {message}"));
+    };
+    let (line, column) = line_column(text, span.start);
+    let line_text = text.lines().nth(line as usize - 1).unwrap_or("");
+    Error::config(
+        name,
+        format!(
+            "line {line}, column {column}: not valid TOML: {message} (line: \"{}\")",
+            excerpt(line_text.trim())
+        ),
+    )
+}
+
+/// 1-based line and column (in characters) of byte `at` of `text`.
+fn line_column(text: &str, at: usize) -> (u64, u64) {
+    let before = text.get(..at.min(text.len())).unwrap_or(text);
+    let line = before.matches('\n').count() as u64 + 1;
+    let column = before.rsplit('\n').next().unwrap_or("").chars().count() as u64 + 1;
+    (line, column)
+}
+
 fn parse_set(set: &str) -> Result<toml::Table> {
     let Some((key, value)) = set.split_once('=') else {
         return Err(Error::config(set, "--set takes key=value"));

@@ -161,3 +161,80 @@ pub fn check_range(key: &str, value: f64, lo: f64, hi: f64) -> Result<()> {
         ))
     }
 }
+
+/// Longest excerpt of an input quoted in a message, in characters: enough to
+/// recognise the value, short enough that an error stays one readable line
+/// however long the field was (a stray quote can swallow megabytes).
+pub const EXCERPT_CHARS: usize = 80;
+
+/// `text` as it may appear inside a one-line message: at most
+/// [`EXCERPT_CHARS`] characters, control characters (newlines, tabs, escape
+/// codes), quotes and backslashes escaped Rust-style, `…` where it was cut.
+pub fn excerpt(text: &str) -> String {
+    excerpt_bytes(text.as_bytes())
+}
+
+/// [`excerpt`] of bytes that may not be UTF-8; invalid bytes show as `\xNN`.
+pub fn excerpt_bytes(bytes: &[u8]) -> String {
+    let mut out = String::new();
+    let mut shown = 0;
+    for chunk in bytes.utf8_chunks() {
+        for c in chunk.valid().chars() {
+            if shown == EXCERPT_CHARS {
+                out.push('…');
+                return out;
+            }
+            if c.is_control() || c == '"' || c == '\\' {
+                out.extend(c.escape_default());
+            } else {
+                out.push(c);
+            }
+            shown += 1;
+        }
+        for b in chunk.invalid() {
+            if shown == EXCERPT_CHARS {
+                out.push('…');
+                return out;
+            }
+            out.push_str(&format!("\\x{b:02X}"));
+            shown += 1;
+        }
+    }
+    out
+}
+
+/// A message made safe for one line of a terminal or log: control
+/// characters (a newline from a file that slipped into a message) escaped.
+/// The last guard before an error is printed; excerpts are already short.
+pub fn one_line(message: &str) -> String {
+    if !message.chars().any(char::is_control) {
+        return message.to_string();
+    }
+    message
+        .chars()
+        .flat_map(|c| {
+            let escaped: Vec<char> = if c.is_control() {
+                c.escape_default().collect()
+            } else {
+                vec![c]
+            };
+            escaped
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn excerpts_are_short_escaped_and_marked_when_cut() {
+        assert_eq!(excerpt("a\"b\nc\\"), "a\\\"b\\nc\\\\");
+        let long = "x".repeat(5_000_000);
+        let e = excerpt(&long);
+        assert_eq!(e.chars().count(), EXCERPT_CHARS + 1);
+        assert!(e.ends_with('…'));
+        assert_eq!(excerpt_bytes(b"ok\xFF\xFEz"), "ok\\xFF\\xFEz");
+        assert_eq!(one_line("two\nlines\t!"), "two\\nlines\\t!");
+    }
+}

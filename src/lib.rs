@@ -22,6 +22,7 @@ pub mod serve;
 pub mod shutdown;
 pub mod sim;
 pub mod source;
+pub mod throttle;
 pub mod track;
 pub mod wind;
 

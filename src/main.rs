@@ -34,11 +34,20 @@ struct ConfigArgs {
     /// Override one setting, e.g. --set record.flush_interval_s=0.5 (repeatable).
     #[arg(long = "set", value_name = "KEY=VALUE")]
     set: Vec<String>,
+    /// Refuse a recording that can be read only in part (a C3D file holding
+    /// fewer frames than it declares) instead of reading its complete frames
+    /// with a warning; the same as --set replay.strict=true.
+    #[arg(long)]
+    strict: bool,
 }
 
 impl ConfigArgs {
     fn load(&self) -> Result<treemocap::config::Config> {
-        treemocap::config::Config::load(self.config.as_deref(), &self.set)
+        let mut sets = self.set.clone();
+        if self.strict {
+            sets.push("replay.strict=true".into());
+        }
+        treemocap::config::Config::load(self.config.as_deref(), &sets)
     }
 }
 
@@ -60,8 +69,13 @@ enum Command {
     /// tips.json, tree.glb, tree.json and tree.png to --out (default:
     /// output.dir of the config, "out").
     Replay {
-        /// A Motive CSV export or a treemocap log (detected by content).
+        /// A Motive CSV export, a C3D file, a NatNet capture (pcap/pcapng)
+        /// or a treemocap log (detected by content).
         file: PathBuf,
+        /// The NatNet bitstream of a capture (.pcap/.pcapng) that holds
+        /// no SERVERINFO (overrides replay.natnet_version).
+        #[arg(long, value_name = "X.Y")]
+        natnet_version: Option<natnet::Version>,
         #[command(flatten)]
         config: ConfigArgs,
         /// Output folder (overrides output.dir).
@@ -72,24 +86,55 @@ enum Command {
     /// drop noise, average each marker over the still phase. Prints a table
     /// of tips and a summary.
     Tips {
-        /// A Motive CSV export or a treemocap log (detected by content).
+        /// A Motive CSV export, a C3D file, a NatNet capture (pcap/pcapng)
+        /// or a treemocap log (detected by content).
         file: PathBuf,
+        /// The NatNet bitstream of a capture (.pcap/.pcapng) that holds
+        /// no SERVERINFO (overrides replay.natnet_version).
+        #[arg(long, value_name = "X.Y")]
+        natnet_version: Option<natnet::Version>,
         #[command(flatten)]
         config: ConfigArgs,
         /// Write the tips as JSON (tips.json, what reconstruction reads).
         #[arg(long, value_name = "OUT")]
         json: Option<PathBuf>,
+        /// With --json: include each tip's cleaned trajectory (one position
+        /// or null per frame, filled frames listed; see docs/tracking.md).
+        #[arg(long, requires = "json")]
+        traces: bool,
         /// Draw each marker's x, y, z over time, with gaps and fills, as PNG.
         #[arg(long, value_name = "OUT.png")]
         plot: Option<PathBuf>,
     },
+    /// Write the cleaned, labelled tip trajectories (tip_01, … with their
+    /// marker ids; filled samples flagged) as C3D, CSV or TRC, chosen by the
+    /// extension of --out.
+    Export {
+        /// A Motive CSV export, a C3D file, a NatNet capture (pcap/pcapng)
+        /// or a treemocap log (detected by content).
+        session: PathBuf,
+        /// Output file: .c3d, .csv (pandas reads it as is) or .trc (OpenSim).
+        #[arg(long, value_name = "FILE")]
+        out: PathBuf,
+        #[command(flatten)]
+        config: ConfigArgs,
+    },
     /// Describe a recording: format, rate, units, frames, markers, gaps.
     Inspect {
-        /// A Motive CSV export or a treemocap log (detected by content).
+        /// A Motive CSV export, a C3D file, a NatNet capture (pcap/pcapng)
+        /// or a treemocap log (detected by content).
         file: PathBuf,
+        /// The NatNet bitstream of a capture (.pcap/.pcapng) that holds
+        /// no SERVERINFO (overrides replay.natnet_version).
+        #[arg(long, value_name = "X.Y")]
+        natnet_version: Option<natnet::Version>,
         /// Print one JSON object instead of the table.
         #[arg(long)]
         json: bool,
+        /// Refuse a file that can be read only in part (a C3D file holding
+        /// fewer frames than it declares).
+        #[arg(long)]
+        strict: bool,
     },
     /// Record a live source (OSC or NatNet) to a treemocap log until Ctrl-C
     /// or --seconds, printing frames, markers and losses once a second.
@@ -194,7 +239,8 @@ struct NatNetArgs {
 /// Options of `treemocap serve`.
 #[derive(clap::Args, Debug)]
 struct ServeArgs {
-    /// A Motive CSV export or a treemocap log (detected by content).
+    /// A recording: Motive CSV, C3D, a NatNet capture (pcap/pcapng) or a
+    /// treemocap log (detected by content).
     file: PathBuf,
     /// NatNet bitstream version to stream (2.5 … 4.x); unicast clients
     /// may switch theirs with a `Bitstream,X.Y` request.
@@ -213,8 +259,10 @@ struct ServeArgs {
     /// Send frames to each client that connects (the default).
     #[arg(long)]
     unicast: bool,
-    /// Local address to listen on.
-    #[arg(long, default_value = "0.0.0.0")]
+    /// Local address to listen on: loopback, so that only clients on this
+    /// machine can connect; 0.0.0.0 (or the lab interface's address) to
+    /// serve the lab network.
+    #[arg(long, default_value = "127.0.0.1")]
     bind: std::net::Ipv4Addr,
     /// Command port (clients send CONNECT here).
     #[arg(long, default_value_t = natnet::DEFAULT_COMMAND_PORT)]
@@ -358,10 +406,19 @@ fn main() -> ExitCode {
     match run(cli.command) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("treemocap: {e}");
+            // One line whatever the error holds; a closed stderr is no
+            // reason to panic either.
+            use std::io::Write;
+            let line = treemocap::error::one_line(&e.to_string());
+            let _ = writeln!(std::io::stderr(), "treemocap: {line}");
             ExitCode::from(e.exit_code() as u8)
         }
     }
+}
+
+/// `print!` that ends quietly on a closed pipe (see `app::stdout`).
+macro_rules! say {
+    ($($arg:tt)*) => { treemocap::app::stdout::print(format_args!($($arg)*)) };
 }
 
 /// The process's one async runtime and one shutdown signal, with the one
@@ -390,6 +447,8 @@ fn init_logging(verbose: u8) {
     let _ = tracing_subscriber::fmt()
         .with_env_filter(filter)
         .with_writer(std::io::stderr)
+        // No colour codes in a file or a pipe: only on a terminal.
+        .with_ansi(std::io::IsTerminal::is_terminal(&std::io::stderr()))
         .try_init();
 }
 
@@ -413,41 +472,70 @@ fn run(command: Command) -> Result<()> {
             let frames = session.frames.len();
             let (_stop, shutdown) = tokio::sync::watch::channel(false);
             treemocap::app::view::serve(session, listener, shutdown, |url| {
-                println!(
-                    "{}: {frames} frames; the page is at {url} (Ctrl-C stops)",
+                let _ = say!(
+                    "{}: {frames} frames; the page is at {url} (Ctrl-C stops)\n",
                     path.display()
                 );
             })
         }
-        Command::Replay { file, config, out } => {
-            let config = config.load()?;
+        Command::Replay {
+            file,
+            config,
+            out,
+            natnet_version,
+        } => {
+            let mut config = config.load()?;
+            config.replay.natnet_version = natnet_version.or(config.replay.natnet_version);
             let out = out.unwrap_or_else(|| PathBuf::from(&config.output.dir));
             let report = treemocap::app::replay::run(&file, &config, &out)?;
-            print!("{report}");
+            say!("{report}")?;
             Ok(())
         }
         Command::Tips {
             file,
             config,
             json,
+            traces,
             plot,
+            natnet_version,
         } => {
-            let config = config.load()?;
+            let mut config = config.load()?;
+            config.replay.natnet_version = natnet_version.or(config.replay.natnet_version);
             let (_, _, text) = treemocap::app::tips::tips_command(
                 &file,
                 &config,
                 json.as_deref(),
+                traces,
                 plot.as_deref(),
             )?;
-            print!("{text}");
+            say!("{text}")?;
             Ok(())
         }
-        Command::Inspect { file, json } => {
-            let report = treemocap::app::inspect::inspect(&file)?;
+        Command::Export {
+            session,
+            out,
+            config,
+        } => {
+            let config = config.load()?;
+            let summary = treemocap::app::export::export_command(&session, &out, &config)?;
+            say!("{summary}\n")?;
+            say!("wrote {} ({} tips)\n", out.display(), summary.tips)?;
+            Ok(())
+        }
+        Command::Inspect {
+            file,
+            json,
+            natnet_version,
+            strict,
+        } => {
+            let mut options = treemocap::app::open::ReplayOptions::default();
+            options.pcap.version = natnet_version;
+            options.c3d.strict = strict;
+            let report = treemocap::app::inspect::inspect_with(&file, &options)?;
             if json {
-                println!("{}", to_json(&report)?);
+                say!("{}\n", to_json(&report)?)?;
             } else {
-                print!("{report}");
+                say!("{report}")?;
             }
             Ok(())
         }
@@ -455,16 +543,14 @@ fn run(command: Command) -> Result<()> {
         Command::Serve(args) => serve(args),
         Command::Synth(args) => {
             let summary = treemocap::app::synth::write_session(&args.options(), &args.out)?;
-            print!("{summary}");
+            say!("{summary}")?;
             Ok(())
         }
         Command::Reconstruct { tips, config, out } => {
             let config = config.load()?;
             let out = out.unwrap_or_else(|| PathBuf::from(&config.output.dir));
             let report = treemocap::app::reconstruct::command(&tips, &config, &out)?;
-            // A closed pipe (`| head`) is not an error worth a panic.
-            use std::io::Write;
-            let _ = write!(std::io::stdout().lock(), "{report}");
+            say!("{report}")?;
             Ok(())
         }
     }
@@ -565,11 +651,19 @@ fn serve(args: ServeArgs) -> Result<()> {
         ..Default::default()
     };
     let (rt, shutdown) = runtime()?;
-    let open = || treemocap::app::open::open(&args.file);
+    // A capture without SERVERINFO is read in the bitstream it is served in.
+    let mut options = treemocap::app::open::ReplayOptions::default();
+    options.pcap.version = Some(args.natnet_version);
+    let open = || treemocap::app::open::open_with(&args.file, &options);
     let report = rt.block_on(server::serve(open, &opts, shutdown.receiver()))?;
-    eprintln!(
+    use std::io::Write;
+    let _ = writeln!(
+        std::io::stderr(),
         "served {} frames ({} loops) to {} clients in {:.1} s",
-        report.frames, report.loops, report.clients, report.elapsed_s
+        report.frames,
+        report.loops,
+        report.clients,
+        report.elapsed_s
     );
     Ok(())
 }

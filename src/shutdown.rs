@@ -108,6 +108,18 @@ impl Shutdown {
     }
 }
 
+/// Resolves when the flag turns true (or its sender is gone).
+pub async fn until_true(mut flag: watch::Receiver<bool>) {
+    loop {
+        if *flag.borrow_and_update() {
+            return;
+        }
+        if flag.changed().await.is_err() {
+            return;
+        }
+    }
+}
+
 async fn wait_for_signal() {
     #[cfg(unix)]
     {

@@ -10,7 +10,7 @@ use std::path::Path;
 
 use serde::Serialize;
 
-use crate::error::Result;
+use crate::error::{one_line, Result};
 use crate::model::recording::{ChannelKind, Format, Recording};
 
 /// A marker column seen in fewer frames than this is reported as short: the
@@ -96,7 +96,12 @@ pub struct ColumnSummary {
 
 /// Reads the whole file once and summarises it.
 pub fn inspect(path: &Path) -> Result<Inspection> {
-    let mut rec = crate::app::open::open(path)?;
+    inspect_with(path, &crate::app::open::ReplayOptions::default())
+}
+
+/// [`inspect`] with the given reading options (`--strict`).
+pub fn inspect_with(path: &Path, options: &crate::app::open::ReplayOptions) -> Result<Inspection> {
+    let mut rec = crate::app::open::open_with(path, options)?;
     inspect_recording(path, rec.as_mut())
 }
 
@@ -231,7 +236,7 @@ impl fmt::Display for Inspection {
         writeln!(f, "file        {}", self.file)?;
         writeln!(f, "format      {} {}", self.format, self.version)?;
         if !self.source.is_empty() {
-            writeln!(f, "source      {}", self.source)?;
+            writeln!(f, "source      {}", one_line(&self.source))?;
         }
         writeln!(
             f,
@@ -283,7 +288,10 @@ impl fmt::Display for Inspection {
                 "column", "present", "gap cells"
             )?;
             for c in self.marker_columns.iter().take(COLUMNS_LISTED) {
-                writeln!(f, "  {:<32} {:>8} {:>10}", c.name, c.present, c.gap_cells)?;
+                // Names come from the file: a newline or an escape code in
+                // one must not break the table or the terminal.
+                let name = one_line(&c.name);
+                writeln!(f, "  {name:<32} {:>8} {:>10}", c.present, c.gap_cells)?;
             }
             if self.marker_columns.len() > COLUMNS_LISTED {
                 writeln!(
@@ -294,7 +302,7 @@ impl fmt::Display for Inspection {
             }
         }
         for w in &self.warnings {
-            writeln!(f, "warning     {w}")?;
+            writeln!(f, "warning     {}", one_line(w))?;
         }
         Ok(())
     }

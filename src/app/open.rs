@@ -4,13 +4,14 @@
 
 use std::fs::File;
 use std::io::Read;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use crate::config::Config;
 use crate::error::{Error, Location, Result};
 use crate::format::c3d::{C3dOptions, C3dReader};
 use crate::format::log::LogReader;
 use crate::format::motive_csv::MotiveCsvReader;
+use crate::format::pcap::{PcapOptions, PcapRecording};
 use crate::model::recording::{Format, Recording};
 
 /// Opens a recording with the settings of `config` that change how files
@@ -26,7 +27,9 @@ pub fn detect(path: &Path) -> Result<Format> {
     let n = read_up_to(&mut file, &mut head).map_err(|e| Error::io(path, e))?;
     let head = &head[..n];
     let text = head.strip_prefix(b"\xEF\xBB\xBF").unwrap_or(head);
-    if text.starts_with(crate::format::log::MAGIC.as_bytes()) {
+    if text.starts_with(crate::format::log::MAGIC.as_bytes())
+        || text.starts_with(crate::format::log::COLUMNS.as_bytes())
+    {
         Ok(Format::Log)
     } else if text.starts_with(b"Format Version") {
         Ok(Format::MotiveCsv)
@@ -39,13 +42,15 @@ pub fn detect(path: &Path) -> Result<Format> {
         })
     } else if crate::format::c3d::looks_like_c3d(head) {
         Ok(Format::C3d)
+    } else if crate::format::pcap::looks_like_pcap(head) {
+        Ok(Format::Pcap)
     } else if n == 0 {
         Err(Error::parse(path, Location::Offset(0), "file is empty"))
     } else {
         Err(Error::Unsupported {
             path: path.into(),
             msg: "not a recording treemocap knows (expected a Motive CSV export starting with \
-                  'Format Version', a C3D file or a treemocap log)"
+                  'Format Version', a C3D file, a pcap/pcapng capture or a treemocap log)"
                 .into(),
         })
     }
@@ -69,6 +74,8 @@ pub struct ReplayOptions {
     pub time_tolerance_s: f64,
     /// `c3d.up_axis`.
     pub c3d: crate::format::c3d::C3dOptions,
+    /// `replay.natnet_version`, `natnet.markers` and `natnet.up_axis`.
+    pub pcap: PcapOptions,
 }
 
 impl Default for ReplayOptions {
@@ -84,6 +91,12 @@ impl ReplayOptions {
             time_tolerance_s: config.replay.time_tolerance_s,
             c3d: crate::format::c3d::C3dOptions {
                 up_axis: config.c3d.up_axis,
+                strict: config.replay.strict,
+            },
+            pcap: PcapOptions {
+                version: config.replay.natnet_version,
+                markers: config.natnet.markers,
+                up_axis: config.natnet.up_axis,
             },
         }
     }
@@ -95,12 +108,46 @@ pub fn open(path: &Path) -> Result<Box<dyn Recording>> {
     open_with(path, &ReplayOptions::default())
 }
 
+/// Finds a recording named by a setting (`daemon.replay_file`): as given
+/// (absolute, or relative to the current folder), else relative to the
+/// program's folder and its parents, so the replay shipped in the
+/// repository's `replays/` is found when the program runs from anywhere
+/// (`target/release/treemocap`, a copy in `bin/` beside `replays/`).
+/// Otherwise the error says where it looked and what to set.
+pub fn locate(path: &Path, setting: &str) -> Result<PathBuf> {
+    if path.exists() || path.is_absolute() {
+        return Ok(path.to_path_buf());
+    }
+    let exe = std::env::current_exe().ok();
+    let beside: Vec<PathBuf> = exe
+        .iter()
+        .flat_map(|e| e.ancestors().skip(1).take(4))
+        .map(|dir| dir.join(path))
+        .collect();
+    if let Some(found) = beside.iter().find(|p| p.exists()) {
+        tracing::info!("{}: using {}", path.display(), found.display());
+        return Ok(found.clone());
+    }
+    let cwd = std::env::current_dir().map_or_else(|_| "?".into(), |d| d.display().to_string());
+    let program = exe
+        .as_deref()
+        .and_then(Path::parent)
+        .map_or_else(|| "?".into(), |d| d.display().to_string());
+    Err(Error::Runtime(format!(
+        "{}: no such file in the current folder ({cwd}) nor beside the program ({program} \
+         and its parent folders); set {setting} to a recording (--set {setting}=PATH), \
+         or daemon.source to \"natnet\" or \"osc\" for a live source",
+        path.display()
+    )))
+}
+
 /// Opens a recording of any supported format, detected by content.
 pub fn open_with(path: &Path, options: &ReplayOptions) -> Result<Box<dyn Recording>> {
     match detect(path)? {
         Format::MotiveCsv => Ok(Box::new(motive_csv_with(path, options.time_tolerance_s)?)),
         Format::Log => Ok(Box::new(log(path)?)),
         Format::C3d => Ok(Box::new(c3d(path, &options.c3d)?)),
+        Format::Pcap => Ok(Box::new(pcap(path, options.pcap)?)),
     }
 }
 
@@ -121,6 +168,11 @@ pub fn motive_csv_with(path: &Path, time_tolerance_s: f64) -> Result<MotiveCsvRe
 /// A treemocap log.
 pub fn log(path: &Path) -> Result<LogReader> {
     LogReader::from_file(open_file(path)?, path)
+}
+
+/// A Wireshark/tcpdump capture of NatNet traffic.
+pub fn pcap(path: &Path, options: PcapOptions) -> Result<PcapRecording> {
+    PcapRecording::new(Box::new(open_file(path)?), path.to_path_buf(), options)
 }
 
 /// A C3D file.

@@ -17,8 +17,10 @@ use crossbeam_channel::RecvTimeoutError;
 use serde::Serialize;
 use tokio::sync::watch;
 
+use crate::app::recording::{Recorder, RecordingStats};
+use crate::app::stdout::print;
 use crate::error::{Error, Result};
-use crate::format::log::{LogHeader, LogWriter};
+use crate::format::log::LogHeader;
 use crate::source::channel::{frame_channel, FrameReceiver};
 use crate::source::live::{LiveSource, SourceReport};
 
@@ -79,6 +81,11 @@ pub struct Progress {
     pub restarts: u64,
     /// The source's own losses by kind (see `LiveSource::losses`).
     pub losses: Vec<(String, u64)>,
+    /// Frames lost because writes failed (a full disk); see
+    /// [`crate::app::recording`].
+    pub lost_to_disk: u64,
+    /// Files written (more than one after a failed write).
+    pub files: u64,
 }
 
 /// What `record` tells its caller as it goes.
@@ -104,6 +111,8 @@ pub struct RecordSummary {
 /// Counters shared by the writer thread and the reporting loop.
 #[derive(Debug, Default)]
 struct WriterStats {
+    /// The recording's own counters (files, frames lost to the disk).
+    recording: Arc<RecordingStats>,
     frames: AtomicU64,
     samples: AtomicU64,
     last_frame: AtomicI64,
@@ -124,6 +133,8 @@ impl WriterStats {
             missed_frames: self.missed_frames.load(Ordering::Relaxed),
             restarts: self.restarts.load(Ordering::Relaxed),
             losses,
+            lost_to_disk: self.recording.frames_lost.load(Ordering::Relaxed),
+            files: self.recording.files.load(Ordering::Relaxed),
         }
     }
 }
@@ -258,6 +269,9 @@ pub fn progress_line(p: &Progress) -> String {
     for (kind, n) in &p.losses {
         line += &format!("  {kind} {n}");
     }
+    if p.lost_to_disk > 0 || p.files > 1 {
+        line += &format!("  lost to the disk {}  files {}", p.lost_to_disk, p.files);
+    }
     line
 }
 
@@ -283,20 +297,23 @@ fn write_loop(
             .filter(|r| r.is_finite() && *r > 0.0)
             .unwrap_or(opts.default_frame_rate),
     };
-    let mut log: Option<LogWriter> = None;
+    let mut log: Option<Recorder> = None;
     let mut last: Option<i64> = None;
     loop {
         match rx.recv_timeout(WRITER_TICK) {
             Ok(frame) => {
                 let w = match &mut log {
                     Some(w) => w,
-                    None => log.insert(LogWriter::create(
+                    None => log.insert(Recorder::create(
                         &opts.out,
-                        &header(source),
+                        header(source),
                         opts.flush_interval,
+                        stats.recording.clone(),
                     )?),
                 };
-                w.write_frame(&frame)?;
+                // A failed write is counted and logged by the recorder,
+                // which goes on in a new file once writes work again.
+                w.write_frame(&frame);
                 if let Some(prev) = last {
                     if frame.frame > prev {
                         let gap = frame.frame.saturating_sub(prev).saturating_sub(1);
@@ -321,15 +338,24 @@ fn write_loop(
             Err(RecvTimeoutError::Disconnected) => break,
         }
         if let Some(w) = &mut log {
-            w.tick()?;
+            w.tick();
         }
     }
     let w = match log {
         Some(w) => w,
         // Nothing arrived: still leave a valid, empty log.
-        None => LogWriter::create(&opts.out, &header(source), opts.flush_interval)?,
+        None => Recorder::create(
+            &opts.out,
+            header(source),
+            opts.flush_interval,
+            stats.recording.clone(),
+        )?,
     };
-    w.finish()
+    let counts = w.finish();
+    if counts.frames_lost > 0 {
+        tracing::warn!("{counts}");
+    }
+    Ok(())
 }
 
 /// The `treemocap record` command: builds the source from the settings
@@ -341,18 +367,23 @@ pub fn command(
     source: Arc<dyn LiveSource>,
     opts: &RecordOptions,
 ) -> Result<RecordSummary> {
-    println!("recording to {}", opts.out.display());
+    print(format_args!("recording to {}\n", opts.out.display()))?;
     let summary = rt.block_on(record(
         source,
         opts,
         shutdown.receiver(),
         |event| match event {
-            RecordEvent::Status(s) => println!("{s}"),
-            RecordEvent::Progress(p) => println!("{}", progress_line(&p)),
+            // Recording goes on when the reader of the progress is gone.
+            RecordEvent::Status(s) => {
+                let _ = print(format_args!("{s}\n"));
+            }
+            RecordEvent::Progress(p) => {
+                let _ = print(format_args!("{}\n", progress_line(&p)));
+            }
         },
     ))?;
-    println!("{}", progress_line(&summary.progress));
-    println!("{}", summary.source);
+    print(format_args!("{}\n", progress_line(&summary.progress)))?;
+    print(format_args!("{}\n", summary.source))?;
     if summary.progress.frames == 0 {
         // A header alone is no recording: leave nothing to be mistaken for one.
         let _ = std::fs::remove_file(&summary.out);
@@ -362,6 +393,6 @@ pub fn command(
             summary.source.source, summary.progress.elapsed_s
         )));
     }
-    println!("wrote {}", summary.out.display());
+    print(format_args!("wrote {}\n", summary.out.display()))?;
     Ok(summary)
 }

@@ -36,19 +36,26 @@ impl fmt::Display for Tips {
     }
 }
 
-/// `treemocap tips FILE [--json OUT] [--plot OUT.png]`: runs the marker
-/// stage on a recording, writes the requested files, and returns the text
-/// to print (table, then summary).
+/// `treemocap tips FILE [--json OUT [--traces]] [--plot OUT.png]`: runs
+/// the marker stage on a recording, writes the requested files, and returns
+/// the text to print (table, then summary). `traces`: the JSON also holds
+/// every tip's cleaned trajectory (docs/tracking.md).
 pub fn tips_command(
     file: &Path,
     config: &Config,
     json_out: Option<&Path>,
+    traces: bool,
     plot_out: Option<&Path>,
 ) -> Result<(Tips, Summary, String)> {
     let mut recording = open_recording(file, config)?;
     let (tips, summary) = process(recording.as_mut(), &config.tracking)?;
     if let Some(path) = json_out {
-        write_atomic(path, tips.to_json().as_bytes())?;
+        if traces {
+            let text = crate::render::trajectories::tips_json_with_traces(&tips);
+            write_atomic(path, text.as_bytes())?;
+        } else {
+            write_atomic(path, tips.to_json().as_bytes())?;
+        }
     }
     if let Some(path) = plot_out {
         write_atomic(path, &crate::render::plot::plot_traces(&tips)?)?;

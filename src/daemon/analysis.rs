@@ -1,18 +1,22 @@
-//! The analysis thread: the marker stage (`track::process`) on the window,
-//! the triggers, and a tree request when one fires. The same code as
-//! `treemocap replay`, on the last `daemon.window_s` seconds.
+//! The analysis thread: the marker stage on a snapshot of the window, the
+//! triggers, and a tree request when one fires. The same code as
+//! `treemocap replay`, on the last `daemon.window_s` seconds. Every tree is
+//! built from the best rest positions seen so far (`rest_estimate`): they
+//! improve while a still phase goes on, and a rebuild uses the latest.
 
 use std::sync::atomic::Ordering;
 use std::sync::Arc;
 use std::time::Instant;
 
-use crossbeam_channel::Receiver;
 use glam::DVec3;
 
-use super::pipeline::AnalysisJob;
+use super::handoff::{track_snapshot, AnalysisHandoff};
+use super::rest_estimate::{BestRest, RestEstimate};
 use super::shared::{lock, Shared, TreeRequest};
-use super::triggers::{compare_tips, TriggerConfig, Triggers};
-use crate::model::tips::{CapturedTip, Tips};
+use super::triggers::{TriggerConfig, Triggers};
+use crate::model::tips::Tips;
+use crate::model::trace::{Timeline, Trace};
+use crate::reconstruct::forest::SwayLink;
 use crate::track::RestSource;
 use crate::wind::fan;
 
@@ -20,22 +24,17 @@ use crate::wind::fan;
 pub(crate) struct Analysis {
     shared: Arc<Shared>,
     triggers: Triggers,
-    /// What the last tree was built from, reused when a rebuild finds nothing
-    /// changed so that the tree does not jump.
-    last_build: Option<Tips>,
+    /// The best rest positions seen, from a still phase, with the tips they
+    /// belong to; every tree is built from them, so a rebuild on unchanged
+    /// data gives the very same tree.
+    best: BestRest<Tips>,
     /// The configured fan's wind is set once the first still phase gives the
     /// crown's centre.
     fan_set: bool,
-}
-
-/// What one window said about the tips.
-struct Findings {
-    tips: Tips,
-    /// The window held a still phase (else the rest positions are the mean
-    /// of a sway, bent downwind, and are not used).
-    still: bool,
-    rest: Vec<DVec3>,
-    rest_len_s: f64,
+    /// Tips that swayed together in the last window with wind (for telling
+    /// several trees apart, docs/forest.md). Taken from the window's traces
+    /// before `best` drops them; still windows (no sway) keep the last.
+    links: Vec<SwayLink>,
 }
 
 impl Analysis {
@@ -49,59 +48,65 @@ impl Analysis {
             wind_turn_deg: d.wind_turn_deg,
             period_s: d.period_s,
         });
+        let best = BestRest::new(d.moved_mm / 1000.0);
         Analysis {
             shared,
             triggers,
-            last_build: None,
+            best,
             fan_set: false,
+            links: Vec::new(),
         }
     }
 
-    /// Runs until the pipeline stops sending windows, then closes the tree
+    /// Runs until the pipeline closes the hand-off, then closes the tree
     /// requests so that the builder stops too.
-    pub(crate) fn run(mut self, rx: Receiver<AnalysisJob>) {
-        for (mut rec, now) in rx {
-            match crate::track::process(&mut rec, &self.shared.config.tracking) {
-                Ok((tips, summary)) => {
-                    self.shared.status.analyses.fetch_add(1, Ordering::Relaxed);
-                    let still = summary.rest_source != RestSource::WholeRecording;
-                    self.handle(now, tips, still);
-                }
-                Err(e) => tracing::warn!("analysis: {e}"),
+    pub(crate) fn run(mut self, handoff: &AnalysisHandoff) {
+        while let Some(job) = handoff.recv() {
+            let now = job.snapshot.now_s;
+            let (tips, summary) = track_snapshot(&job, &self.shared.config.tracking);
+            drop(job);
+            handoff.done();
+            self.shared.status.analyses.fetch_add(1, Ordering::Relaxed);
+            let links = sway_links(&self.shared, &tips);
+            if !links.is_empty() {
+                self.links = links;
             }
+            // Rest positions come only from a still phase. In a window of
+            // continuous wind the tracker falls back to the mean of the
+            // sway, which is bent downwind: that is not a tip moving, so the
+            // best rest positions stand and only wind, request and period
+            // can fire.
+            if summary.rest_source != RestSource::WholeRecording && !tips.tips.is_empty() {
+                self.offer_rest(tips);
+            }
+            self.handle(now);
         }
         self.shared.requests.close();
     }
 
-    fn findings(&self, tips: Tips, still: bool) -> Findings {
-        // Rest positions come only from a still phase. In a window of
-        // continuous wind the tracker falls back to the mean of the sway,
-        // which is bent downwind: that is not a tip moving, so the last
-        // tree's tips stand and only wind, request and period can fire.
-        let (rest, rest_len_s) = if still {
-            (
-                tips.tips.iter().map(|t| t.rest).collect(),
-                tips.rest_window_s[1] - tips.rest_window_s[0],
-            )
-        } else {
-            let built = self.triggers.built_tips().map(<[DVec3]>::to_vec);
-            (built.unwrap_or_default(), 0.0)
-        };
-        Findings {
-            tips,
-            still,
-            rest,
-            rest_len_s,
+    /// Offers an analysis's rest positions to the best estimate, without the
+    /// traces (they are the window's size; only the rest positions are kept).
+    fn offer_rest(&mut self, mut tips: Tips) {
+        for t in &mut tips.tips {
+            t.trace = Trace::new(t.trace.id, 0, t.rest, None);
         }
+        tips.timeline = Timeline::default();
+        self.best.offer(RestEstimate {
+            positions: tips.tips.iter().map(|t| t.rest).collect(),
+            window_s: tips.rest_window_s,
+            payload: tips,
+        });
     }
 
-    /// One analysed window: triggers, and a tree request when one fires.
-    fn handle(&mut self, now: f64, tips: Tips, still: bool) {
-        let f = self.findings(tips, still);
+    /// After an analysis: triggers, and a tree request when one fires.
+    fn handle(&mut self, now: f64) {
         let shared = self.shared.clone();
-        shared.status.progress.set_still(f.rest_len_s);
-        if !self.fan_set && f.still && !f.rest.is_empty() {
-            if let Some(e) = fan::configured_fan_wind(&shared.config.wind, &f.rest, now) {
+        let Some(rest) = self.best.get() else {
+            return;
+        };
+        shared.status.progress.set_still(rest.len_s());
+        if !self.fan_set {
+            if let Some(e) = fan::configured_fan_wind(&shared.config.wind, &rest.positions, now) {
                 shared.new_wind(e);
             }
             self.fan_set = true;
@@ -110,38 +115,26 @@ impl Analysis {
         if shared.rebuild.swap(false, Ordering::Relaxed) {
             self.triggers.request();
         }
-        let Some(reason) =
-            self.triggers
-                .check(now, &f.rest, f.rest_len_s, wind.map(|w| w.direction))
-        else {
+        let Some(reason) = self.triggers.check(
+            now,
+            &rest.positions,
+            rest.len_s(),
+            wind.map(|w| w.direction),
+        ) else {
             return;
         };
-        let moved_m = shared.config.daemon.moved_mm / 1000.0;
-        let same_tips = self.last_build.as_ref().is_some_and(|b| {
-            let old: Vec<DVec3> = b.tips.iter().map(|t| t.rest).collect();
-            compare_tips(&old, &f.rest, moved_m) == (0, 0, 0)
-        });
-        // Unchanged tips (or no still phase to take new ones from): the last
-        // tree's tips exactly, with the wind of now.
-        let mut built = match self.last_build.take() {
-            Some(b) if same_tips || !f.still => b,
-            _ => f.tips,
-        };
+        let mut built = rest.payload.clone();
         built.wind = wind;
-        let captured = built.captured();
-        let positions: Vec<DVec3> = captured.iter().map(|t: &CapturedTip| t.position).collect();
         self.triggers
-            .built(now, &positions, wind.map(|w| w.direction));
-        let tips_json = built.to_json();
-        let links = sway_links(&shared, &built);
-        self.last_build = Some(built);
+            .built(now, &rest.positions, wind.map(|w| w.direction));
+        let links = self.links.clone();
         tracing::info!("new tree: {reason}");
         shared.requests.put(TreeRequest {
             fired: Instant::now(),
             reason,
             time_s: now,
-            tips: captured,
-            tips_json,
+            tips: built.captured(),
+            tips_json: built.to_json(),
             wind: wind.map_or(DVec3::ZERO, |w| w.flow_vector()),
             links,
         });
@@ -150,7 +143,7 @@ impl Analysis {
 
 /// The tips of `tips` that sway together in the window (docs/forest.md),
 /// for telling several trees apart; none when the sway is turned off.
-fn sway_links(shared: &Shared, tips: &Tips) -> Vec<crate::reconstruct::forest::SwayLink> {
+fn sway_links(shared: &Shared, tips: &Tips) -> Vec<SwayLink> {
     let f = &lock(&shared.recon_config).forest;
     if f.sway_weight_m > 0.0 {
         crate::reconstruct::forest::sway::links(tips, f.sway_correlation)

@@ -50,8 +50,7 @@ impl Console {
         if Some(conn) != self.connection {
             match conn {
                 Connection::Receiving => out.push(Line::Receiving(format!(
-                    "source: receiving frames ({:.0} Hz, {} markers)",
-                    f64::from_bits(s.frame_rate_bits.load(Ordering::Relaxed)),
+                    "source: receiving frames ({} markers in the first)",
                     s.markers.load(Ordering::Relaxed)
                 ))),
                 Connection::Silent => out.push(Line::Silent(format!(

@@ -22,10 +22,13 @@
 mod analysis;
 mod builder;
 mod console;
-pub mod follow;
+pub mod counters;
+pub mod handoff;
 mod live_tips;
+mod osc_control;
 mod pipeline;
 pub mod progress;
+pub mod rest_estimate;
 mod shared;
 mod sources;
 pub mod status;
@@ -120,18 +123,20 @@ fn run_with(
     if !shared.config.wind.sensor_port.is_empty() {
         threads.push(sources::start_serial(&shared));
     }
-    let (analysis_tx, analysis_rx) = bounded(1);
+    let handoff = Arc::new(handoff::AnalysisHandoff::default());
     let (tips_tx, tips_rx) = bounded(4);
-    let s = shared.clone();
+    let (s, h) = (shared.clone(), handoff.clone());
     threads.push(spawn("treemocap-analysis", move || {
-        analysis::Analysis::new(s).run(analysis_rx)
+        analysis::Analysis::new(s).run(&h)
     }));
     let s = shared.clone();
     threads.push(spawn("treemocap-builder", move || {
         builder::run(&s, tips_tx)
     }));
     let result =
-        pipeline::Pipeline::new(shared.clone(), analysis_tx).map(|p| p.run(rx, &sink, tips_rx));
+        pipeline::Pipeline::new(shared.clone(), handoff.clone()).map(|p| p.run(rx, &sink, tips_rx));
+    // The analysis ends once it has nothing more to read.
+    handoff.close();
     // The pipeline stops on shutdown, or on an error at its start: either way
     // everything else stops with it.
     shutdown.trigger();
@@ -184,8 +189,9 @@ fn start_http(shared: &Arc<Shared>, rt: &tokio::runtime::Handle, addr: SocketAdd
         rebuild: Some(Arc::new(move || s.ask_rebuild())),
         shutdown: shared.shutdown.receiver(),
     };
+    let (limits, bad) = counters::http_limits(&shared.config.daemon, &shared.status.bad_input)?;
     rt.spawn(async move {
-        if let Err(e) = http::serve(listener, state).await {
+        if let Err(e) = http::serve(listener, state, limits, bad).await {
             tracing::error!("HTTP server: {e}");
         }
     });

@@ -7,42 +7,47 @@ use std::sync::atomic::Ordering;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use crossbeam_channel::{select, Receiver, Sender, TrySendError};
+use crossbeam_channel::{select, Receiver};
 use glam::DVec3;
 
-use super::follow::TipFollower;
-use super::live_tips::LiveTips;
+use super::handoff::{AnalysisHandoff, Job};
+use super::live_tips::LiveTips as ViewerTips;
 use super::shared::{lock, Shared};
-use super::window::{FrameWindow, WindowRecording};
-use crate::error::{Error, Result};
-use crate::format::log::{LogHeader, LogWriter};
+use super::window::FrameWindow;
+use crate::error::Result;
+use crate::format::log::LogHeader;
 use crate::model::frame::MarkerFrame;
 use crate::serve::osc::{tips_datagram, wind_datagram, OscSender};
 use crate::source::channel::{FrameReceiver, FrameSink};
+use crate::track::live::LiveTips;
 use crate::wind::pca::SwayPca;
 
 /// How often the pipeline wakes with no frame: the recording's flush and a
 /// rebuild asked for while the source is quiet must not wait for a frame.
 const TICK: Duration = Duration::from_millis(50);
 
-/// A window of frames and the capture time it ends at, for the analysis.
-pub(crate) type AnalysisJob = (WindowRecording, f64);
-
 /// The pipeline's state.
 pub(crate) struct Pipeline {
     shared: Arc<Shared>,
     window: FrameWindow,
-    follower: TipFollower,
+    /// The tracker itself, frame by frame: live tips are the replay's tips.
+    follower: LiveTips,
     /// The tips' states for the live page (measured, filled, not seen).
-    live_tips: LiveTips,
+    live_tips: ViewerTips,
+    /// Per marker of the current frame: a tip's (reused buffer).
+    claimed: Vec<bool>,
+    /// The frame's markers by the bits of x (reused buffer of `mark_claimed`).
+    by_x: Vec<(u64, usize)>,
     pca: SwayPca,
     next_pca: f64,
     next_analysis: f64,
     rate: RateEstimate,
     osc: Option<OscSender>,
-    recorder: Option<LogWriter>,
-    record_error_logged: bool,
-    analysis_tx: Sender<AnalysisJob>,
+    /// The recording (`daemon.record`), which survives a full disk.
+    recorder: Option<crate::app::recording::Recorder>,
+    /// Where the window goes for analysis: a snapshot (shared chunks, no
+    /// copy), offered only when the analysis is free.
+    handoff: Arc<AnalysisHandoff>,
 }
 
 /// A smoothed estimate of the source's frame rate. Until two frames have
@@ -73,7 +78,7 @@ impl RateEstimate {
 impl Pipeline {
     /// The pipeline's state from the settings; opens the recording when
     /// `daemon.record` asks for one.
-    pub(crate) fn new(shared: Arc<Shared>, analysis_tx: Sender<AnalysisJob>) -> Result<Self> {
+    pub(crate) fn new(shared: Arc<Shared>, handoff: Arc<AnalysisHandoff>) -> Result<Self> {
         let c = &shared.config;
         let d = &c.daemon;
         let rate = RateEstimate {
@@ -86,26 +91,28 @@ impl Pipeline {
                 source: lock(&shared.status.source).clone(),
                 frame_rate: rate.hz,
             };
-            Some(LogWriter::create(
-                &shared.out.join("session.log.csv"),
-                &header,
-                Duration::from_secs_f64(c.record.flush_interval_s),
+            Some(super::counters::start_recording(
+                &shared.out,
+                c.record.flush_interval_s,
+                &shared.status.recording,
+                header,
             )?)
         } else {
             None
         };
         Ok(Pipeline {
             window: FrameWindow::new(d.window_s),
-            follower: TipFollower::new(d.follow_gate_mm / 1000.0),
-            live_tips: LiveTips::new(c.tracking.max_fill_s),
+            follower: LiveTips::new(&c.tracking, None, d.follow_gate_mm / 1000.0),
+            live_tips: ViewerTips::new(c.tracking.max_fill_s),
+            claimed: Vec::new(),
+            by_x: Vec::new(),
             pca: SwayPca::new(c.wind.pca_window_s, c.wind.pca_min_sway_mm / 1000.0),
             next_pca: f64::NEG_INFINITY,
             next_analysis: f64::NEG_INFINITY,
             rate,
             osc: super::osc_sender(&d.osc_targets)?,
             recorder,
-            record_error_logged: false,
-            analysis_tx,
+            handoff,
             shared,
         })
     }
@@ -119,14 +126,13 @@ impl Pipeline {
         tips_rx: Receiver<Vec<(usize, DVec3)>>,
     ) {
         let stop = self.shared.shutdown.gate();
-        let frames: &Receiver<MarkerFrame> = &rx;
+        let frames = rx.receiver();
         loop {
             select! {
                 recv(frames) -> frame => match frame {
-                    Ok(frame) => {
-                        if !self.on_frame(frame, sink) {
-                            break;
-                        }
+                    Ok((frame, arrived)) => {
+                        self.shared.status.record_backlog(rx.len(), arrived.elapsed());
+                        self.on_frame(frame, arrived, sink);
                     }
                     Err(_) => break,
                 },
@@ -141,9 +147,7 @@ impl Pipeline {
             self.flush_recording();
         }
         if let Some(w) = self.recorder.take() {
-            if let Err(e) = w.finish() {
-                self.record_failed(&e);
-            }
+            super::counters::finish_recording(w);
         }
     }
 
@@ -161,49 +165,44 @@ impl Pipeline {
     /// requested rebuild waiting for the next frame.
     fn on_quiet(&mut self) {
         if self.shared.rebuild.load(Ordering::Relaxed) && !self.window.is_empty() {
-            let snapshot = self
-                .window
-                .to_recording(self.rate.hz.round().max(1.0), "live");
-            let _ = self.analysis_tx.try_send((snapshot, self.window.now_s()));
+            self.offer_window();
         }
     }
 
     fn flush_recording(&mut self) {
         if let Some(w) = self.recorder.as_mut() {
-            if let Err(e) = w.tick() {
-                self.record_failed(&e);
-            }
+            w.tick();
         }
     }
 
-    /// One frame through the pipeline; false when the analysis has gone.
-    fn on_frame(&mut self, frame: MarkerFrame, sink: &FrameSink) -> bool {
-        let arrived = Instant::now();
+    /// One frame through the pipeline; `arrived` is when the source handed
+    /// it over (the latency counts from there, queueing included).
+    fn on_frame(&mut self, frame: MarkerFrame, arrived: Instant, sink: &FrameSink) {
         self.shared.status.progress.frame_arrived();
         self.count(&frame, sink);
         if let Some(w) = self.recorder.as_mut() {
-            if let Err(e) = w.write_frame(&frame) {
-                self.record_failed(&e);
-            }
+            w.write_frame(&frame);
         }
         let now = frame.time_s;
+        let seen = self.follower.update(&frame);
         if !self.follower.is_empty() {
-            self.follow(&frame);
+            self.follow(&frame, &seen);
         }
         // The viewers' frame: built only while someone watches, published
         // into a latest-wins slot (never a wait on a viewer).
         if self.shared.hub.has_viewers() {
-            let live = self.live_tips.frame(&frame, self.follower.claimed());
+            mark_claimed(&frame, &seen, &mut self.claimed, &mut self.by_x);
+            let live = self.live_tips.frame(&frame, &self.claimed);
             self.shared.hub.publish_frame(live);
         }
-        self.window.push(frame);
-        let alive = self.maybe_analyse(now);
+        self.window.push(&frame);
+        drop(frame);
+        self.maybe_analyse(now);
         let us = arrived.elapsed().as_micros() as u64;
         let status = &self.shared.status;
         status.latency_us_last.store(us, Ordering::Relaxed);
         status.latency_us_max.fetch_max(us, Ordering::Relaxed);
         status.latency_hist.record(us);
-        alive
     }
 
     fn count(&mut self, frame: &MarkerFrame, sink: &FrameSink) {
@@ -227,19 +226,17 @@ impl Pipeline {
     }
 
     /// The live tips of this frame → viewers, OSC, and the sway PCA.
-    fn follow(&mut self, frame: &MarkerFrame) {
+    fn follow(&mut self, frame: &MarkerFrame, seen: &[(usize, DVec3)]) {
         let now = frame.time_s;
-        let positions: Vec<DVec3> = frame.positions().collect();
-        let seen = self.follower.update(&positions);
         let shared = &self.shared;
         shared
             .status
             .tips_live
             .store(seen.len() as u64, Ordering::Relaxed);
-        self.pca.push(now, self.follower.displacements(&seen));
-        self.live_tips.update(now, &seen);
+        self.pca.push(now, self.follower.displacements(seen));
+        self.live_tips.update(now, seen);
         if let Some(o) = self.osc.as_mut() {
-            o.send(&tips_datagram(frame.frame, now, &seen));
+            o.send(&tips_datagram(frame.frame, now, seen));
         }
         if now >= self.next_pca {
             self.next_pca = now + shared.config.wind.pca_window_s;
@@ -253,30 +250,60 @@ impl Pipeline {
     }
 
     /// Hands the window to the analysis when one is due (or the clock went
-    /// back: a restarted source); false when the analysis has gone.
-    fn maybe_analyse(&mut self, now: f64) -> bool {
+    /// back: a restarted source) and the analysis is free; while it is busy
+    /// this costs two atomic loads per frame and nothing is copied.
+    fn maybe_analyse(&mut self, now: f64) {
         let interval = self.shared.config.daemon.analysis_interval_s;
         if now < self.next_analysis && now >= self.next_analysis - 2.0 * interval {
-            return true;
+            return;
         }
-        let snapshot = self
-            .window
-            .to_recording(self.rate.hz.round().max(1.0), "live");
-        match self.analysis_tx.try_send((snapshot, now)) {
-            Ok(()) => self.next_analysis = now + interval,
-            Err(TrySendError::Full(_)) => {} // analysis still busy: next frame
-            Err(TrySendError::Disconnected(_)) => return false,
+        if self.offer_window() {
+            self.next_analysis = now + interval;
         }
-        true
     }
 
-    /// A recording that fails is said once in the log and stays on /status;
-    /// ingest goes on.
-    fn record_failed(&mut self, e: &Error) {
-        if !self.record_error_logged {
-            tracing::error!("recording: {e}");
-            self.record_error_logged = true;
+    /// Offers a snapshot of the window if the analysis is free; true if it was.
+    fn offer_window(&mut self) -> bool {
+        if !self.handoff.wants() {
+            return false;
         }
-        self.shared.output_error(Some(format!("recording: {e}")));
+        self.handoff.offer(Job {
+            snapshot: self.window.snapshot(),
+            frame_rate: self.rate.hz.round().max(1.0),
+        });
+        true
+    }
+}
+
+/// Which markers of `frame` are the tips `seen`: the tracker reports a tip
+/// measured in this frame at exactly its marker's position, so the markers
+/// are found by equal coordinates (sorted by x, not a search per tip over
+/// all markers: 1 000 tips among 1 000 markers stay cheap).
+fn mark_claimed(
+    frame: &MarkerFrame,
+    seen: &[(usize, DVec3)],
+    claimed: &mut Vec<bool>,
+    by_x: &mut Vec<(u64, usize)>,
+) {
+    claimed.clear();
+    claimed.resize(frame.markers.len(), false);
+    by_x.clear();
+    by_x.extend(
+        frame
+            .markers
+            .iter()
+            .enumerate()
+            .map(|(i, m)| (m.position.x.to_bits(), i)),
+    );
+    by_x.sort_unstable();
+    for (_, p) in seen {
+        let x = p.x.to_bits();
+        let start = by_x.partition_point(|e| e.0 < x);
+        for &(_, i) in by_x[start..].iter().take_while(|e| e.0 == x) {
+            if frame.markers[i].position == *p && !claimed[i] {
+                claimed[i] = true;
+                break;
+            }
+        }
     }
 }

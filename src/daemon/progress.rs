@@ -1,9 +1,8 @@
 //! What an operator watches besides the counters: is the source sending,
-//! how far the still phase has got, and how much input the source rejected.
+//! and how far the still phase has got (bad input is `status.bad_input`).
 //! Read by `/status` (and so the live page) and by the console.
 
 use std::sync::atomic::{AtomicU64, Ordering};
-use std::sync::Mutex;
 use std::time::{Duration, Instant};
 
 use serde::Serialize;
@@ -23,9 +22,6 @@ pub enum Connection {
     Silent,
 }
 
-/// The source's rejected input so far, by kind (see `LiveSource::losses`).
-pub type Losses = Box<dyn Fn() -> Vec<(String, u64)> + Send + Sync>;
-
 /// Progress of a running daemon. Atomics and a short lock: the pipeline
 /// never waits for a reader.
 pub struct Progress {
@@ -38,8 +34,6 @@ pub struct Progress {
     still_bits: AtomicU64,
     /// The still phase the first tree needs (`daemon.rest_min_s`).
     needed_s: f64,
-    /// The source's rejected input, when it counts any.
-    losses: Mutex<Option<Losses>>,
 }
 
 impl std::fmt::Debug for Progress {
@@ -65,7 +59,6 @@ impl Progress {
             last_frame_ms: AtomicU64::new(0),
             still_bits: AtomicU64::new(f64::NAN.to_bits()),
             needed_s,
-            losses: Mutex::new(None),
         }
     }
 
@@ -78,13 +71,6 @@ impl Progress {
     /// The last analysis found a still phase of `still_s` (0 when none).
     pub fn set_still(&self, still_s: f64) {
         self.still_bits.store(still_s.to_bits(), Ordering::Relaxed);
-    }
-
-    /// Where the source's rejected input is counted.
-    pub fn set_losses(&self, losses: Losses) {
-        if let Ok(mut l) = self.losses.lock() {
-            *l = Some(losses);
-        }
     }
 
     /// Seconds since the last frame, `None` before the first.
@@ -117,27 +103,11 @@ impl Progress {
         self.needed_s
     }
 
-    /// Rejected input by kind, and the total.
-    pub fn losses(&self) -> (u64, Vec<(String, u64)>) {
-        let list = self
-            .losses
-            .lock()
-            .ok()
-            .and_then(|l| l.as_ref().map(|f| f()))
-            .unwrap_or_default();
-        (list.iter().map(|(_, n)| n).sum(), list)
-    }
-
-    /// The `/status` fields: `connection`, `still`, `bad_input`.
+    /// The `/status` fields: `connection`, `still`.
     pub fn to_json(&self) -> serde_json::Value {
-        let (bad, kinds) = self.losses();
-        let kinds: serde_json::Map<String, serde_json::Value> =
-            kinds.into_iter().map(|(k, n)| (k, n.into())).collect();
         serde_json::json!({
             "connection": {"state": self.connection(), "silent_s": self.silent_s()},
             "still": {"still_s": self.still_s(), "needed_s": self.needed_s},
-            "bad_input": bad,
-            "bad_input_by_kind": kinds,
         })
     }
 }
@@ -161,12 +131,8 @@ mod tests {
         };
         assert_eq!(p.connection(), Connection::Silent);
         p.set_still(3.25);
-        p.set_losses(Box::new(|| {
-            vec![("garbage".into(), 2), ("bad_args".into(), 3)]
-        }));
         let v = p.to_json();
         assert_eq!(v["still"]["still_s"], 3.25);
-        assert_eq!(v["bad_input"], 5);
         assert_eq!(v["connection"]["state"], "silent");
     }
 }

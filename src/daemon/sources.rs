@@ -9,7 +9,7 @@ use std::time::Duration;
 use super::shared::{lock, Shared};
 use super::spawn;
 use crate::app::live::{natnet_source, osc_source};
-use crate::app::open::{open_with, ReplayOptions};
+use crate::app::open::{locate, open_with, ReplayOptions};
 use crate::config::DaemonSource;
 use crate::error::{Error, Result};
 use crate::source::allow::AllowList;
@@ -38,10 +38,14 @@ pub(crate) fn start_source(
     };
     *lock(&shared.status.source) = source.describe();
     let counted = source.clone();
+    let name = match d.source {
+        DaemonSource::Natnet => "natnet",
+        _ => "osc",
+    };
     shared
         .status
-        .progress
-        .set_losses(Box::new(move || counted.losses()));
+        .bad_input
+        .register(name, Arc::new(move || counted.losses()));
     let s = shared.clone();
     let stop = shared.shutdown.receiver();
     rt.spawn(async move {
@@ -57,7 +61,7 @@ pub(crate) fn start_source(
 /// rig. The file is opened here so that a missing file fails the start.
 fn start_replay(shared: &Arc<Shared>, sink: FrameSink) -> Result<JoinHandle<()>> {
     let d = &shared.config.daemon;
-    let path = PathBuf::from(&d.replay_file);
+    let path = locate(&PathBuf::from(&d.replay_file), "daemon.replay_file")?;
     let opts = ReplayOptions::from_config(&shared.config);
     let first = open_with(&path, &opts)?;
     *lock(&shared.status.source) = format!("replay {} at {}×", path.display(), d.replay_speed);
@@ -114,36 +118,19 @@ pub(crate) fn start_osc_control(
             source,
         })?;
     let allow = AllowList::parse("osc.allow", &shared.config.osc.allow)?;
-    let s = shared.clone();
-    rt.spawn(async move { osc_control(socket, allow, s).await });
+    let bad = Arc::new(crate::source::bad_input::BadInput::default());
+    let b = bad.clone();
+    shared
+        .status
+        .bad_input
+        .register("osc_control", Arc::new(move || b.counts()));
+    let (s, stop) = (shared.clone(), shared.shutdown.clone());
+    rt.spawn(super::osc_control::run(
+        socket,
+        allow,
+        move || s.ask_rebuild(),
+        bad,
+        stop,
+    ));
     Ok(())
-}
-
-/// `/treemocap/rebuild` over OSC, from allowed senders only.
-async fn osc_control(socket: tokio::net::UdpSocket, allow: AllowList, shared: Arc<Shared>) {
-    fn asks_rebuild(p: &rosc::OscPacket) -> bool {
-        match p {
-            rosc::OscPacket::Message(m) => m.addr == "/treemocap/rebuild",
-            rosc::OscPacket::Bundle(b) => b.content.iter().any(asks_rebuild),
-        }
-    }
-    let mut buf = vec![0u8; 65536];
-    let stop = shared.shutdown.clone();
-    loop {
-        tokio::select! {
-            r = socket.recv_from(&mut buf) => {
-                let Ok((n, from)) = r else { continue };
-                if !allow.allows(from.ip()) {
-                    tracing::warn!("OSC control: {from} is not in osc.allow; ignored");
-                    continue;
-                }
-                match rosc::decoder::decode_udp(&buf[..n]) {
-                    Ok((_, p)) if asks_rebuild(&p) => shared.ask_rebuild(),
-                    Ok(_) => {}
-                    Err(e) => tracing::warn!("OSC control from {from}: {e:?}"),
-                }
-            }
-            _ = stop.triggered() => return,
-        }
-    }
 }

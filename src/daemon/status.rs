@@ -51,7 +51,9 @@ pub struct Status {
     pub source_error: Mutex<Option<String>>,
     /// The last failed config reload (SIGHUP), cleared by a good one.
     pub config_error: Mutex<Option<String>>,
-    /// Per-frame latency from arrival to tips published, in microseconds.
+    /// Per-frame latency in microseconds, from the frame's arrival (stamped
+    /// by the source as it hands the decoded datagram over, so time queued
+    /// in the channel counts) to its tips published.
     pub latency_us_last: AtomicU64,
     /// The largest of those latencies since the start (µs).
     pub latency_us_max: AtomicU64,
@@ -59,6 +61,19 @@ pub struct Status {
     /// last bucket everything slower. Fixed size, so percentiles cost no
     /// memory however long the daemon runs.
     pub latency_hist: LatencyHistogram,
+    /// Bad input of every listening socket, by source and kind.
+    pub bad_input: super::counters::InputCounters,
+    /// The recording's counters, once recording.
+    pub recording: std::sync::OnceLock<std::sync::Arc<crate::app::recording::RecordingStats>>,
+    /// Frames waiting in the channel behind the one just taken (the backlog).
+    pub backlog_frames: AtomicU64,
+    /// The largest backlog seen.
+    pub backlog_max: AtomicU64,
+    /// How long the frame just taken waited in the channel, and the longest
+    /// wait seen (µs).
+    pub queue_us_last: AtomicU64,
+    /// The longest wait seen (µs).
+    pub queue_us_max: AtomicU64,
     /// Source connection, still-phase progress and rejected input, for the
     /// live page and the console.
     pub progress: Progress,
@@ -110,6 +125,17 @@ fn get(a: &AtomicU64) -> u64 {
 }
 
 impl Status {
+    /// Records the channel's state as the pipeline takes a frame: `waiting`
+    /// frames behind it, after it waited `wait`.
+    pub fn record_backlog(&self, waiting: usize, wait: std::time::Duration) {
+        let us = wait.as_micros() as u64;
+        self.backlog_frames.store(waiting as u64, Ordering::Relaxed);
+        self.backlog_max
+            .fetch_max(waiting as u64, Ordering::Relaxed);
+        self.queue_us_last.store(us, Ordering::Relaxed);
+        self.queue_us_max.fetch_max(us, Ordering::Relaxed);
+    }
+
     /// Time of the latest frame (s): the daemon's session clock.
     pub fn frame_time(&self) -> f64 {
         f64::from_bits(get(&self.last_frame_time_bits))
@@ -145,12 +171,20 @@ impl Status {
             "last_tree": self.last_tree.lock().ok().and_then(|t| t.clone()),
             "wind": wind,
             "output_error": self.output_error.lock().ok().and_then(|e| e.clone()),
+            "backlog": {
+                "frames": get(&self.backlog_frames),
+                "max_frames": get(&self.backlog_max),
+                "wait_us": get(&self.queue_us_last),
+                "max_wait_us": get(&self.queue_us_max),
+            },
             "latency_us": {
                 "last": get(&self.latency_us_last),
                 "p50": self.latency_hist.quantile_us(0.5),
                 "p99": self.latency_hist.quantile_us(0.99),
                 "max": get(&self.latency_us_max),
             },
+            "bad_input": self.bad_input.to_json(),
+            "recording": super::counters::recording_json(self.recording.get()),
         });
         if let (Some(doc), serde_json::Value::Object(more)) =
             (doc.as_object_mut(), self.progress.to_json())
@@ -217,6 +251,12 @@ impl Status {
             get(&self.trees) as f64,
         );
         metric(
+            "backlog_frames",
+            "gauge",
+            "Frames waiting between the source and the pipeline.",
+            get(&self.backlog_frames) as f64,
+        );
+        metric(
             "frame_latency_seconds_max",
             "gauge",
             "Longest time from frame arrival to tips published.",
@@ -231,6 +271,8 @@ impl Status {
                 .map(|e| e.is_some() as u8 as f64)
                 .unwrap_or(0.0),
         );
+        self.bad_input.to_prometheus(&mut out);
+        super::counters::recording_prometheus(self.recording.get(), &mut out);
         out
     }
 }

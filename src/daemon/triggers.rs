@@ -4,9 +4,10 @@
 //! Rules (issue 6): the first tree once a still phase of `rest_min_s` has been
 //! seen; a new tree when the set of tips has differed from the last tree's for
 //! longer than `tip_change_s` (a marker added, fallen off, or moved by more
-//! than `moved_mm`); when the wind turned by more than `wind_turn_deg`; on
-//! request; optionally every `period_s`. Nothing else: an unchanged session
-//! gives one tree, not one per analysis.
+//! than `moved_mm`); when the wind became known (the last tree had none) or
+//! turned by more than `wind_turn_deg`; on request; optionally every
+//! `period_s`. Nothing else: an unchanged session gives one tree, not one
+//! per analysis.
 
 use glam::DVec3;
 use serde::Serialize;
@@ -49,6 +50,12 @@ pub enum Reason {
         /// Angle between the last tree's wind and now (degrees).
         degrees: f64,
     },
+    /// The last tree was built without a wind and one is known now (the
+    /// sway became measurable, a sensor started): a tree bent by it.
+    WindKnown {
+        /// Downwind azimuth of the wind now known (degrees).
+        azimuth_deg: f64,
+    },
     /// `POST /rebuild`, `/treemocap/rebuild` over OSC, or SIGHUP.
     Requested,
     /// `period_s` passed since the last tree.
@@ -68,6 +75,9 @@ impl std::fmt::Display for Reason {
                 "tips changed ({added} added, {removed} removed, {moved} moved)"
             ),
             Reason::WindTurned { degrees } => write!(f, "wind turned {degrees:.0}°"),
+            Reason::WindKnown { azimuth_deg } => {
+                write!(f, "wind known (towards azimuth {azimuth_deg:.0}°)")
+            }
             Reason::Requested => write!(f, "requested"),
             Reason::Period => write!(f, "periodic"),
         }
@@ -154,11 +164,19 @@ impl Triggers {
         } else {
             self.change_since = None;
         }
-        if let (Some(a), Some(b)) = (built.wind, wind) {
-            let degrees = angle_between_deg(a, b);
-            if degrees > self.cfg.wind_turn_deg {
-                return Some(Reason::WindTurned { degrees });
+        match (built.wind, wind) {
+            (Some(a), Some(b)) => {
+                let degrees = angle_between_deg(a, b);
+                if degrees > self.cfg.wind_turn_deg {
+                    return Some(Reason::WindTurned { degrees });
+                }
             }
+            (None, Some(b)) => {
+                return Some(Reason::WindKnown {
+                    azimuth_deg: crate::model::wind::azimuth_of(b),
+                })
+            }
+            _ => {}
         }
         if self.cfg.period_s > 0.0 && now_s - built.time_s >= self.cfg.period_s {
             return Some(Reason::Period);
@@ -284,6 +302,21 @@ mod tests {
             Some(Reason::Requested)
         );
         assert_eq!(t.check(8.0, &moved, 20.0, Some(turned)), None);
+    }
+
+    #[test]
+    fn a_wind_that_becomes_known_fires_once() {
+        let mut t = Triggers::new(cfg());
+        t.built(0.0, &tips(3), None);
+        assert_eq!(t.check(1.0, &tips(3), 20.0, None), None);
+        assert_eq!(
+            t.check(2.0, &tips(3), 20.0, Some(DVec3::X)),
+            Some(Reason::WindKnown { azimuth_deg: 90.0 })
+        );
+        t.built(2.0, &tips(3), Some(DVec3::X));
+        assert_eq!(t.check(3.0, &tips(3), 20.0, Some(DVec3::X)), None);
+        // Losing the wind (a stale sensor) is no reason to rebuild.
+        assert_eq!(t.check(4.0, &tips(3), 20.0, None), None);
     }
 
     #[test]

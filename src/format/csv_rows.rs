@@ -4,55 +4,187 @@
 //! CRLF files differently, so an error would name the wrong line — and naming
 //! the exact line is the point of an error in a 100 MB export. Quoted fields
 //! (Motive quotes its IDs) and doubled quotes are handled; a quoted field may
-//! run over a line end (a multi-line Take Notes).
+//! run over a line end (a multi-line Take Notes) while `multiline` is on.
+//!
+//! Memory is bounded by the row, not the file: a row longer than
+//! [`RowLimits::max_bytes`] or with more than [`RowLimits::max_fields`]
+//! fields is refused as soon as the limit is passed, before it is read
+//! whole, so a hostile file of one 100 MB line costs a few times the limit
+//! at most, not gigabytes.
 
-use std::io::{self, BufRead};
+use std::io::{self, BufRead, Read};
+
+/// How large a row may be. The defaults are far beyond any real export
+/// (Motive's widest: a few thousand markers × 3 columns, a few hundred KB a
+/// row) and small against the memory of any machine that runs treemocap.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) struct RowLimits {
+    /// Bytes of one row, continuation lines of a quoted field included.
+    pub(crate) max_bytes: usize,
+    /// Fields of one row.
+    pub(crate) max_fields: usize,
+}
+
+impl Default for RowLimits {
+    fn default() -> Self {
+        RowLimits {
+            max_bytes: 8 << 20,
+            max_fields: 200_000,
+        }
+    }
+}
+
+/// Why a row could not be read.
+#[derive(Debug)]
+pub(crate) enum RowError {
+    /// The OS refused to read.
+    Io(io::Error),
+    /// The row starting on `line` is longer than the limit.
+    TooLong { line: u64, limit: usize },
+    /// The row starting on `line` has more fields than the limit.
+    TooManyFields { line: u64, limit: usize },
+    /// A quoted field opened on `line`, column `column` (1-based field
+    /// number) is not closed before the line ends, where the rows read
+    /// allow no multi-line fields.
+    UnterminatedQuote { line: u64, column: u64 },
+}
+
+impl From<io::Error> for RowError {
+    fn from(e: io::Error) -> Self {
+        RowError::Io(e)
+    }
+}
 
 /// Reads rows one at a time into a reused buffer.
 pub(crate) struct RowReader<R> {
     reader: R,
+    limits: RowLimits,
+    /// Whether a quoted field may run over a line end (header rows: a
+    /// multi-line Take Notes) or not (data rows, which hold numbers only:
+    /// there a lone quote is an error at its line, not a field that swallows
+    /// the rest of the file).
+    pub(crate) multiline: bool,
     /// Line number of the last line read (1-based).
     lines_read: u64,
     /// Line on which the current row starts.
     row_line: u64,
+    /// Bytes the current row may still take (continuation lines of a
+    /// quoted field count against the row's limit).
+    budget_left: usize,
     raw: Vec<u8>,
     data: Vec<u8>,
-    ends: Vec<usize>,
+    /// End of each field in `data`. u32: a row is far below 4 GB, and the
+    /// ends are the largest part of a row of many short fields.
+    ends: Vec<u32>,
 }
 
 impl<R: BufRead> RowReader<R> {
-    pub(crate) fn new(reader: R) -> Self {
+    pub(crate) fn new(reader: R, limits: RowLimits) -> Self {
         RowReader {
             reader,
+            limits,
+            multiline: true,
             lines_read: 0,
             row_line: 0,
+            budget_left: 0,
             raw: Vec::with_capacity(4096),
             data: Vec::with_capacity(4096),
             ends: Vec::with_capacity(256),
         }
     }
 
-    /// Reads the next row; `Ok(false)` at the end of the input.
-    pub(crate) fn read(&mut self) -> io::Result<bool> {
-        self.data.clear();
-        self.ends.clear();
+    /// Reads one line into `raw` (replacing it), at most `budget` bytes;
+    /// the number of bytes read, 0 at the end of the input.
+    fn fill(&mut self, budget: usize) -> Result<usize, RowError> {
         self.raw.clear();
-        if self.reader.read_until(b'\n', &mut self.raw)? == 0 {
+        let n = (&mut self.reader)
+            .take(budget as u64 + 1)
+            .read_until(b'\n', &mut self.raw)?;
+        if n > budget {
+            return Err(RowError::TooLong {
+                line: self.row_line,
+                limit: self.limits.max_bytes,
+            });
+        }
+        Ok(n)
+    }
+
+    fn end_field(&mut self) -> Result<(), RowError> {
+        if self.ends.len() == self.limits.max_fields {
+            return Err(RowError::TooManyFields {
+                line: self.row_line,
+                limit: self.limits.max_fields,
+            });
+        }
+        self.ends.push(self.data.len() as u32);
+        Ok(())
+    }
+
+    /// Reads the next row; `Ok(false)` at the end of the input.
+    pub(crate) fn read(&mut self) -> Result<bool, RowError> {
+        if !self.read_line()? {
             return Ok(false);
         }
+        self.split()?;
+        Ok(true)
+    }
+
+    /// Reads the next line without splitting it into fields (see
+    /// [`Self::line_bytes`]); `Ok(false)` at the end of the input. Data rows
+    /// are read this way and scanned in place; [`Self::split`] makes fields
+    /// of the line when needed.
+    pub(crate) fn read_line(&mut self) -> Result<bool, RowError> {
+        self.data.clear();
+        self.ends.clear();
+        self.row_line = self.lines_read + 1;
+        let budget = self.limits.max_bytes;
+        let n = self.fill(budget)?;
+        if n == 0 {
+            return Ok(false);
+        }
+        self.budget_left = budget - n;
         self.lines_read += 1;
-        self.row_line = self.lines_read;
+        Ok(true)
+    }
+
+    /// The line just read by [`Self::read_line`], without its line end.
+    pub(crate) fn line_bytes(&self) -> &[u8] {
+        &self.raw[..trim_eol(&self.raw)]
+    }
+
+    /// The line just read with its line end: word-at-a-time readers may look
+    /// a few bytes past a field's end.
+    pub(crate) fn line_buffer(&self) -> &[u8] {
+        &self.raw
+    }
+
+    /// Splits the line just read into fields; a quoted field running over
+    /// the line end pulls in the following lines (while `multiline`).
+    pub(crate) fn split(&mut self) -> Result<(), RowError> {
+        self.data.clear();
+        self.ends.clear();
+        let mut budget = self.budget_left;
         let line_end = trim_eol(&self.raw);
         if !self.raw[..line_end].contains(&b'"') {
             // Every data row of an export: no quotes, so fields are the
             // slices between commas, copied whole rather than byte by byte.
-            for field in self.raw[..line_end].split(|&b| b == b',') {
-                self.data.extend_from_slice(field);
-                self.ends.push(self.data.len());
+            let mut start = 0;
+            loop {
+                let end = self.raw[start..line_end]
+                    .iter()
+                    .position(|&b| b == b',')
+                    .map_or(line_end, |i| start + i);
+                self.data.extend_from_slice(&self.raw[start..end]);
+                self.end_field()?;
+                if end == line_end {
+                    break;
+                }
+                start = end + 1;
             }
-            return Ok(true);
+            return Ok(());
         }
         let mut in_quotes = false;
+        let mut quote_field = 0u64;
         let mut field_start = true;
         let mut pos = 0;
         loop {
@@ -72,11 +204,12 @@ impl<R: BufRead> RowReader<R> {
                         self.data.push(b);
                     }
                 } else if b == b',' {
-                    self.ends.push(self.data.len());
+                    self.end_field()?;
                     field_start = true;
                     continue;
                 } else if b == b'"' && field_start {
                     in_quotes = true;
+                    quote_field = self.ends.len() as u64 + 1;
                 } else {
                     self.data.push(b);
                 }
@@ -85,17 +218,25 @@ impl<R: BufRead> RowReader<R> {
             if !in_quotes {
                 break;
             }
+            if !self.multiline {
+                return Err(RowError::UnterminatedQuote {
+                    line: self.row_line,
+                    column: quote_field,
+                });
+            }
             // A quoted field runs over the line end: keep the newline, go on.
             self.data.push(b'\n');
-            self.raw.clear();
             pos = 0;
-            if self.reader.read_until(b'\n', &mut self.raw)? == 0 {
+            let n = self.fill(budget)?;
+            if n == 0 {
                 break; // unterminated quote at EOF: take what there is
             }
+            budget -= n;
             self.lines_read += 1;
         }
-        self.ends.push(self.data.len());
-        Ok(true)
+        self.end_field()?;
+        self.budget_left = budget;
+        Ok(())
     }
 
     /// The line the current row starts on.
@@ -114,7 +255,21 @@ impl<R: BufRead> RowReader<R> {
             return &[];
         };
         let start = if i == 0 { 0 } else { self.ends[i - 1] };
-        &self.data[start..end]
+        &self.data[start as usize..end as usize]
+    }
+
+    /// Where field `i` lies in [`Self::data_buffer`] (empty if out of range).
+    pub(crate) fn field_range(&self, i: usize) -> (usize, usize) {
+        let Some(&end) = self.ends.get(i) else {
+            return (0, 0);
+        };
+        let start = if i == 0 { 0 } else { self.ends[i - 1] };
+        (start as usize, end as usize)
+    }
+
+    /// The fields of the current row, one after another (see [`Self::field_range`]).
+    pub(crate) fn data_buffer(&self) -> &[u8] {
+        &self.data
     }
 
     /// Field `i` as text (empty if out of range or not UTF-8).
@@ -125,6 +280,40 @@ impl<R: BufRead> RowReader<R> {
     /// True when every field is empty (a blank line or Excel's `,,,,`).
     pub(crate) fn is_blank(&self) -> bool {
         self.data.is_empty()
+    }
+
+    /// The current row as a compact copy (one buffer, one end per field),
+    /// for header rows kept while the next ones are read.
+    pub(crate) fn to_row(&self) -> Row {
+        Row {
+            data: self.data.clone(),
+            ends: self.ends.clone(),
+        }
+    }
+}
+
+/// A copied row: the fields' bytes back to back and where each ends. A
+/// header row of 200 000 columns costs its bytes plus 4 per field, where a
+/// `Vec<String>` would cost 24 plus an allocation per field.
+#[derive(Debug, Clone, Default)]
+pub(crate) struct Row {
+    data: Vec<u8>,
+    ends: Vec<u32>,
+}
+
+impl Row {
+    /// Number of fields.
+    pub(crate) fn len(&self) -> usize {
+        self.ends.len()
+    }
+
+    /// Field `i` as text (empty if out of range or not UTF-8).
+    pub(crate) fn text(&self, i: usize) -> &str {
+        let Some(&end) = self.ends.get(i) else {
+            return "";
+        };
+        let start = if i == 0 { 0 } else { self.ends[i - 1] };
+        std::str::from_utf8(&self.data[start as usize..end as usize]).unwrap_or("")
     }
 }
 
@@ -144,7 +333,7 @@ mod tests {
     use super::*;
 
     fn rows(text: &str) -> Vec<(u64, Vec<String>)> {
-        let mut r = RowReader::new(text.as_bytes());
+        let mut r = RowReader::new(text.as_bytes(), RowLimits::default());
         let mut out = Vec::new();
         while r.read().unwrap() {
             out.push((
@@ -169,5 +358,47 @@ mod tests {
         assert_eq!(a[0].1, ["x,y", "say \"hi\"", "", ""]);
         assert_eq!(a[1], (2, vec!["two\nlines".into(), "z".into()]));
         assert_eq!(a[2], (4, vec!["last".into()]));
+    }
+
+    #[test]
+    fn rows_beyond_the_limits_are_refused_at_their_line() {
+        let limits = RowLimits {
+            max_bytes: 64,
+            max_fields: 5,
+        };
+        let read_all = |text: &str, multiline: bool| {
+            let mut r = RowReader::new(text.as_bytes(), limits);
+            r.multiline = multiline;
+            loop {
+                match r.read() {
+                    Ok(true) => {}
+                    Ok(false) => return None,
+                    Err(e) => return Some(e),
+                }
+            }
+        };
+        let long = format!("a,b\n{}\n", "x".repeat(100));
+        assert!(matches!(
+            read_all(&long, true),
+            Some(RowError::TooLong { line: 2, limit: 64 })
+        ));
+        assert!(matches!(
+            read_all("a\n1,2,3,4,5,6\n", true),
+            Some(RowError::TooManyFields { line: 2, limit: 5 })
+        ));
+        // A quote left open swallows lines only up to the byte limit...
+        let open = format!("a\n\"{}", "1,2\n".repeat(40));
+        assert!(matches!(
+            read_all(&open, true),
+            Some(RowError::TooLong { line: 2, .. })
+        ));
+        // ...and none at all where rows may not span lines.
+        assert!(matches!(
+            read_all("1,2\n3,\"4\n5,6\n", false),
+            Some(RowError::UnterminatedQuote { line: 2, column: 2 })
+        ));
+        assert!(read_all("1,2\n3,\"4\"\n", false).is_none());
+        // Exactly at the limits is fine.
+        assert!(read_all("1,2,3,4,5\n", true).is_none());
     }
 }

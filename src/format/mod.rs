@@ -8,6 +8,7 @@
 pub use crate::model::recording::{Channel, ChannelKind, Format, Recording, RecordingInfo};
 
 pub mod c3d;
+mod cells;
 mod csv_rows;
 pub mod log;
 pub mod motive_csv;

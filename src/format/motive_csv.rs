@@ -10,9 +10,11 @@
 //!   taken in order as Type, Name, ID, …, the last one being the component row.
 //! - Columns are grouped into channels by consecutive runs of equal
 //!   (Type, Name, ID), never by blocks of three.
-//! - Time is frame / export rate. The Time column is only a check (it is
-//!   quantized to 1 ms by some builds): a disagreement beyond
-//!   `time_tolerance_s` is a warning, never an error.
+//! - Time is the Time column's clock: its value in the first row that has
+//!   one, plus (frame − that frame) / export rate (the column is quantized
+//!   to 1 ms by some builds). So `tracking.rest_window_s` means what the
+//!   user reads in the Time column even when the first frame is not 0. A
+//!   row disagreeing beyond `time_tolerance_s` is a warning, never an error.
 
 use std::fs::File;
 use std::io::{BufRead, BufReader};
@@ -20,15 +22,23 @@ use std::path::{Path, PathBuf};
 
 use glam::DVec3;
 
-use super::csv_rows::RowReader;
+use super::cells::{self, Scan};
+use super::csv_rows::{Row, RowError, RowLimits, RowReader};
+
 use super::{Channel, ChannelKind, Format, Recording, RecordingInfo};
-use crate::error::{Error, Result};
+use crate::error::{excerpt, excerpt_bytes, Error, Result};
 use crate::model::frame::{Marker, MarkerFrame};
 
 /// Default allowed disagreement of the Time column (s); see `config.replay`.
 /// How far the Time column may disagree with frame / rate by default (s):
 /// Motive quantizes Time to 1 ms at high rates.
 pub const DEFAULT_TIME_TOLERANCE_S: f64 = 0.002;
+/// Keys of row 1 kept at most: Motive writes about 12; thousands mean the
+/// file is not a Motive header, and each key costs memory.
+const MAX_HEADER_KEYS: usize = 1000;
+/// Header rows (Type, Name, ID, Parent, components…) before `Frame,Time`
+/// at most: Motive writes up to 5; each one kept costs a row of memory.
+const MAX_HEADER_ROWS: usize = 16;
 
 /// Where a channel's numbers are in a data row.
 #[derive(Debug, Clone)]
@@ -64,6 +74,23 @@ pub struct MotiveCsvReader {
     /// Latest values of non-marker channels (rigid bodies, bones), kept apart
     /// from the tip candidates: (channel index, values in file order; NaN = empty).
     poses: Vec<(usize, Vec<f64>)>,
+    /// What each column of a data row is: `channel << 2 | role` with role
+    /// 0–2 the X, Y, Z of a marker's position and 3 any other column of a
+    /// channel; [`NO_CHANNEL`] for Frame, Time, TimeCode and unnamed columns.
+    /// Rows are read cell by cell through this map, so a row costs what its
+    /// non-empty cells cost, however many columns the take has.
+    column_roles: Vec<u32>,
+    /// Per channel: cells that held something, so empty cells are counted
+    /// without visiting them (empty = rows × width − non-empty).
+    nonempty: Vec<u64>,
+    /// Data rows read (blank lines aside).
+    rows_read: u64,
+    /// Per channel: its slot in `poses` (non-marker channels), else `u32::MAX`.
+    pose_slot: Vec<u32>,
+    /// Per pose slot: cells filled in the current row.
+    pose_filled: Vec<u32>,
+    /// The non-empty cells of the current row: (column, start, end).
+    cells: Vec<(usize, usize, usize)>,
     warnings: Vec<String>,
     done: bool,
 }
@@ -100,7 +127,7 @@ impl MotiveCsvReader {
         }
         let mut r = MotiveCsvReader {
             path: path.to_path_buf(),
-            rows: RowReader::new(buf),
+            rows: RowReader::new(buf, RowLimits::default()),
             info: RecordingInfo {
                 format: Format::MotiveCsv,
                 version: String::new(),
@@ -119,6 +146,12 @@ impl MotiveCsvReader {
             time_origin: None,
             time_mismatches: 0,
             poses: Vec::new(),
+            column_roles: Vec::new(),
+            nonempty: Vec::new(),
+            rows_read: 0,
+            pose_slot: Vec::new(),
+            pose_filled: Vec::new(),
+            cells: Vec::new(),
             warnings: Vec::new(),
             done: false,
         };
@@ -131,7 +164,32 @@ impl MotiveCsvReader {
     }
 
     fn read_row(&mut self) -> Result<bool> {
-        self.rows.read().map_err(|e| Error::io(&self.path, e))
+        self.rows.read().map_err(|e| self.row_error(e))
+    }
+
+    /// A row the reader refused, as an error at its line.
+    fn row_error(&self, e: RowError) -> Error {
+        match e {
+            RowError::Io(e) => Error::io(&self.path, e),
+            RowError::TooLong { line, limit } => self.err(
+                line,
+                None,
+                format!(
+                    "row is longer than {} MiB: not a Motive CSV row (a quote left open?)",
+                    limit >> 20
+                ),
+            ),
+            RowError::TooManyFields { line, limit } => self.err(
+                line,
+                Some(limit as u64 + 1),
+                format!("row has more than {limit} fields, more than any Motive export"),
+            ),
+            RowError::UnterminatedQuote { line, column } => self.err(
+                line,
+                Some(column),
+                "a quote opened here is not closed on this line (data rows hold no quotes)",
+            ),
+        }
     }
 
     fn read_header(&mut self) -> Result<()> {
@@ -148,15 +206,24 @@ impl MotiveCsvReader {
             });
         }
         // Row 1: key, value, key, value… Excel adds empty pairs at the end.
-        let cells: Vec<String> = (0..self.rows.len())
-            .map(|i| self.rows.text(i).trim().to_string())
-            .collect();
-        for pair in cells.chunks(2) {
-            let key = pair[0].clone();
-            let value = pair.get(1).cloned().unwrap_or_default();
-            if !key.is_empty() {
-                self.header.push((key, value));
+        // Read in place: a hostile first row of millions of fields must not
+        // become millions of strings.
+        for i in (0..self.rows.len()).step_by(2) {
+            let key = self.rows.text(i).trim();
+            if key.is_empty() {
+                continue;
             }
+            if self.header.len() == MAX_HEADER_KEYS {
+                return Err(self.err(
+                    1,
+                    Some(i as u64 + 1),
+                    format!(
+                        "row 1 has more than {MAX_HEADER_KEYS} keys; a Motive export has about 12"
+                    ),
+                ));
+            }
+            let value = self.rows.text(i + 1).trim().to_string();
+            self.header.push((key.to_string(), value));
         }
         let header = self.header.clone();
         let get = |k: &str| {
@@ -212,7 +279,10 @@ impl MotiveCsvReader {
                 return Err(self.err(
                     1,
                     None,
-                    format!("frame rate '{rate_text}' is not a positive number"),
+                    format!(
+                        "frame rate \"{}\" is not a positive number",
+                        excerpt(&rate_text)
+                    ),
                 ))
             }
         };
@@ -232,7 +302,10 @@ impl MotiveCsvReader {
                 return Err(self.err(
                     1,
                     None,
-                    format!("Length Units '{other}' is not Meters, Centimeters or Millimeters"),
+                    format!(
+                        "Length Units \"{}\" is not Meters, Centimeters or Millimeters",
+                        excerpt(other)
+                    ),
                 ))
             }
         };
@@ -241,10 +314,14 @@ impl MotiveCsvReader {
         self.info.units = units;
         self.info.source = get("Take Name").unwrap_or("").to_string();
 
-        // Descriptor rows up to the axis row `Frame,Time…`.
-        let mut labeled: Vec<(String, Vec<String>)> = Vec::new();
-        let mut unlabeled: Vec<Vec<String>> = Vec::new();
-        let axis_row: Vec<String>;
+        // Only row 1 (Take Notes) may hold a quoted field over several
+        // lines; anywhere else an open quote is an error at its own line.
+        self.rows.multiline = false;
+        // Descriptor rows up to the axis row `Frame,Time…`, kept as compact
+        // copies (bytes plus field ends), never as a string per cell.
+        let mut labeled: Vec<(String, Row)> = Vec::new();
+        let mut unlabeled: Vec<Row> = Vec::new();
+        let axis_row: Row;
         loop {
             if !self.read_row()? {
                 return Err(self.err(
@@ -254,27 +331,34 @@ impl MotiveCsvReader {
                 ));
             }
             let line = self.rows.line();
-            let row: Vec<String> = (0..self.rows.len())
-                .map(|i| self.rows.text(i).to_string())
-                .collect();
-            if row.iter().all(|c| c.is_empty()) {
+            if self.rows.is_blank() {
                 continue; // row 2, plain or Excel's `,,,,`
             }
-            if row[0] == "Frame" {
+            if labeled.len() + unlabeled.len() == MAX_HEADER_ROWS {
+                return Err(self.err(
+                    line,
+                    None,
+                    format!(
+                        "more than {MAX_HEADER_ROWS} header rows before 'Frame,Time': not a Motive CSV header"
+                    ),
+                ));
+            }
+            let row = self.rows.to_row();
+            if row.text(0) == "Frame" {
                 axis_row = row;
                 break;
             }
-            if !row[0].is_empty() {
+            if !self.rows.get(0).is_empty() {
                 return Err(self.err(
                     line,
                     Some(1),
                     format!(
-                        "expected a header row (',Type,…', ',Name,…', ',ID,…' or 'Frame,Time,…'), found '{}'",
-                        row[0]
+                        "expected a header row (',Type,…', ',Name,…', ',ID,…' or 'Frame,Time,…'), found \"{}\"",
+                        excerpt_bytes(self.rows.get(0))
                     ),
                 ));
             }
-            let label = row.get(1).cloned().unwrap_or_default();
+            let label = row.text(1).to_string();
             match label.as_str() {
                 "Type" | "Name" | "ID" | "Parent" => labeled.push((label, row)),
                 "" => unlabeled.push(row),
@@ -282,16 +366,16 @@ impl MotiveCsvReader {
                     return Err(self.err(
                         line,
                         Some(2),
-                        format!("unknown header row label '{other}'"),
+                        format!("unknown header row label \"{}\"", excerpt(other)),
                     ))
                 }
             }
         }
         let axis_line = self.rows.line();
-        if !axis_row.get(1).is_some_and(|t| t.starts_with("Time")) {
+        if !axis_row.text(1).starts_with("Time") {
             return Err(self.err(axis_line, Some(2), "the header row must begin 'Frame,Time'"));
         }
-        self.has_timecode = axis_row.get(2).is_some_and(|t| t == "TimeCode");
+        self.has_timecode = axis_row.text(2) == "TimeCode";
         let data_start = if self.has_timecode { 3 } else { 2 };
         self.width = axis_row.len();
 
@@ -311,14 +395,14 @@ impl MotiveCsvReader {
         };
         let names = row_of("Name");
         let ids = row_of("ID");
-        fn cell(row: Option<&Vec<String>>, i: usize) -> &str {
-            row.and_then(|r| r.get(i)).map(String::as_str).unwrap_or("")
+        fn cell(row: Option<&Row>, i: usize) -> &str {
+            row.map_or("", |r| r.text(i))
         }
 
         let mut i = data_start;
         while i < self.width {
             let key = (cell(Some(types), i), cell(names, i), cell(ids, i));
-            if key.0.is_empty() && axis_row[i].is_empty() {
+            if key.0.is_empty() && axis_row.text(i).is_empty() {
                 i += 1; // Excel's trailing empty columns
                 continue;
             }
@@ -333,9 +417,10 @@ impl MotiveCsvReader {
             if kind.is_marker() {
                 let find = |axis: &str| {
                     (i..end).find(|&c| {
-                        axis_row[c] == axis
+                        axis_row.text(c) == axis
                             && component.as_ref().is_none_or(|r| {
-                                r.get(c).is_none_or(|s| s == "Position" || s.is_empty())
+                                let s = r.text(c);
+                                s == "Position" || s.is_empty()
                             })
                     })
                 };
@@ -345,7 +430,10 @@ impl MotiveCsvReader {
                         return Err(self.err(
                             axis_line,
                             Some(i as u64 + 1),
-                            format!("marker '{}' has no Position X, Y, Z columns", key.1),
+                            format!(
+                                "marker \"{}\" has no Position X, Y, Z columns",
+                                excerpt(key.1)
+                            ),
                         ))
                     }
                 }
@@ -363,7 +451,42 @@ impl MotiveCsvReader {
             });
             i = end;
         }
+        self.map_columns();
         Ok(())
+    }
+
+    /// Builds the column map and the per-channel counters once the channels
+    /// are known.
+    fn map_columns(&mut self) {
+        self.column_roles = vec![NO_CHANNEL; self.width];
+        for (ci, cols) in self.columns.iter().enumerate() {
+            for c in cols.first..cols.end {
+                let role = cols
+                    .position
+                    .and_then(|xyz| xyz.iter().position(|&p| p == c))
+                    .unwrap_or(3);
+                self.column_roles[c] = (ci as u32) << 2 | role as u32;
+            }
+        }
+        self.nonempty = vec![0; self.channels.len()];
+        self.pose_slot = vec![u32::MAX; self.channels.len()];
+        for (ci, ch) in self.channels.iter().enumerate() {
+            if !ch.kind.is_marker() {
+                self.pose_slot[ci] = self.poses.len() as u32;
+                let width = self.columns[ci].end - self.columns[ci].first;
+                self.poses.push((ci, vec![f64::NAN; width]));
+            }
+        }
+        self.pose_filled = vec![0; self.poses.len()];
+    }
+
+    /// Brings the channels' empty-cell counts up to date (they are derived
+    /// from the non-empty cells, so only at the end of reading or on request).
+    fn count_empty_cells(&mut self) {
+        for (ci, ch) in self.channels.iter_mut().enumerate() {
+            let width = (self.columns[ci].end - self.columns[ci].first) as u64;
+            ch.empty_cells = self.rows_read * width - self.nonempty[ci];
+        }
     }
 
     fn warn(&mut self, msg: String) {
@@ -379,9 +502,44 @@ impl MotiveCsvReader {
         &self.poses
     }
 
-    fn parse_row(&mut self) -> Result<MarkerFrame> {
+    /// Finds the non-empty cells of the line just read; `None` for a blank
+    /// line. Unquoted rows (every data row Motive writes) are scanned in
+    /// place; a row with a quoted cell goes through the full CSV reader.
+    fn find_cells(&mut self) -> Result<Option<(usize, bool)>> {
+        self.cells.clear();
+        let cells = &mut self.cells;
+        // Cells past the header's width are kept only as far as the first
+        // one (the error names it): a hostile row of millions of fields
+        // costs no memory beyond the row itself.
+        let width = self.width;
+        let keep = |c: usize, a: usize, b: usize| {
+            if cells.last().is_none_or(|l| l.0 < width) {
+                cells.push((c, a, b));
+            }
+        };
+        let fields = match cells::scan(self.rows.line_bytes(), keep) {
+            Scan::Fields(n) => (n, true),
+            Scan::Quoted => {
+                self.rows.split().map_err(|e| self.row_error(e))?;
+                self.cells.clear();
+                for i in 0..self.rows.len() {
+                    let (a, b) = self.rows.field_range(i);
+                    if a < b && self.cells.last().is_none_or(|l| l.0 < self.width) {
+                        self.cells.push((i, a, b));
+                    }
+                }
+                (self.rows.len(), false)
+            }
+        };
+        Ok((!self.cells.is_empty()).then_some(fields))
+    }
+
+    /// Parses the data row just read into a frame; `None` for a blank line.
+    fn parse_row(&mut self) -> Result<Option<MarkerFrame>> {
+        let Some((n, in_place)) = self.find_cells()? else {
+            return Ok(None);
+        };
         let line = self.rows.line();
-        let n = self.rows.len();
         if n < self.width {
             // Trailing empty cells may be cut by hand-edited files; a row
             // short of real data is malformed.
@@ -391,110 +549,154 @@ impl MotiveCsvReader {
                 format!("row has {n} fields, the header has {}", self.width),
             ));
         }
-        if let Some(c) = (self.width..n).find(|&c| !self.rows.get(c).is_empty()) {
+        if let Some(&(c, _, _)) = self.cells.last().filter(|c| c.0 >= self.width) {
             return Err(self.err(
                 line,
                 Some(c as u64 + 1),
                 format!("row has {n} fields, the header has {}", self.width),
             ));
         }
-        let frame_text = self.rows.text(0);
-        let frame: i64 = frame_text.trim().parse().map_err(|_| {
-            self.err(
-                line,
-                Some(1),
-                format!("frame number '{frame_text}' is not an integer"),
-            )
-        })?;
-        let time_text = self.rows.text(1);
-        if !time_text.is_empty() {
-            let t: f64 = time_text.trim().parse().map_err(|_| {
-                self.err(line, Some(2), format!("time '{time_text}' is not a number"))
+        let buf = if in_place {
+            self.rows.line_buffer()
+        } else {
+            self.rows.data_buffer()
+        };
+        let text = |a: usize, b: usize| excerpt_bytes(&buf[a..b]);
+        let (frame_cell, time_cell) = {
+            let mut it = self.cells.iter().take(2).filter(|c| c.0 < 2);
+            let first = it.next().copied();
+            let second = it.next().copied();
+            match first {
+                Some(c) if c.0 == 0 => (Some(c), second),
+                other => (None, other),
+            }
+        };
+        let frame: i64 = frame_cell
+            .and_then(|(_, a, b)| std::str::from_utf8(&buf[a..b]).ok()?.trim().parse().ok())
+            .ok_or_else(|| {
+                let t = frame_cell.map_or(String::new(), |(_, a, b)| text(a, b));
+                Error::at_line(
+                    &self.path,
+                    line,
+                    Some(1),
+                    format!("frame number \"{t}\" is not an integer"),
+                )
+            })?;
+        if let Some((_, a, b)) = time_cell {
+            let t = cells::number(buf, a, b).ok_or_else(|| {
+                Error::at_line(
+                    &self.path,
+                    line,
+                    Some(2),
+                    format!("time \"{}\" is not a number", text(a, b)),
+                )
             })?;
             let (f0, t0) = *self.time_origin.get_or_insert((frame, t));
             let expected = t0 + (frame - f0) as f64 / self.info.frame_rate;
             if (t - expected).abs() > self.time_tolerance_s {
                 self.time_mismatches += 1;
                 if self.time_mismatches == 1 {
-                    self.warn(format!(
-                        "line {line}: Time column {t} differs from frame/rate ({expected:.6}); \
-                         using frame/rate (further mismatches counted, not logged)"
-                    ));
+                    let msg = format!(
+                        "{}: line {line}: Time column {t} differs from frame/rate ({expected:.6}); \
+                         using frame/rate (further mismatches counted, not logged)",
+                        self.path.display()
+                    );
+                    tracing::warn!("{msg}");
+                    self.warnings.push(msg);
                 }
             }
         }
-        let rate = self.info.frame_rate;
+        self.rows_read += 1;
+        for (_, values) in &mut self.poses {
+            values.fill(f64::NAN);
+        }
+        self.pose_filled.fill(0);
         let mut markers = Vec::new();
-        let mut values: [f64; 3];
-        for ci in 0..self.columns.len() {
-            let cols = &self.columns[ci];
-            let (first, end, position) = (cols.first, cols.end, cols.position);
-            let mut empty = 0u64;
-            for c in first..end {
-                if self.rows.get(c).is_empty() {
-                    empty += 1;
-                }
+        // The marker channel being filled: (channel, X Y Z, axes seen).
+        let mut open: Option<(usize, [f64; 3], u8)> = None;
+        for &(c, a, b) in &self.cells {
+            let role = self.column_roles[c];
+            if role == NO_CHANNEL {
+                continue;
             }
-            self.channels[ci].empty_cells += empty;
-            if let Some(xyz) = position {
-                values = [0.0; 3];
-                let mut complete = true;
-                for (k, &c) in xyz.iter().enumerate() {
-                    let raw = self.rows.get(c);
-                    if raw.is_empty() {
-                        complete = false;
-                        continue;
-                    }
-                    values[k] = parse_number(raw).ok_or_else(|| {
-                        self.err(
-                            line,
-                            Some(c as u64 + 1),
-                            format!(
-                                "'{}' is not a number (marker '{}')",
-                                String::from_utf8_lossy(raw),
-                                self.channels[ci].name
-                            ),
-                        )
-                    })?;
+            let (ci, axis) = ((role >> 2) as usize, (role & 3) as usize);
+            self.nonempty[ci] += 1;
+            let slot = self.pose_slot[ci];
+            if slot == u32::MAX {
+                if axis == 3 {
+                    continue; // a marker's other columns (quality…) are not read
                 }
-                if complete {
-                    self.channels[ci].present += 1;
-                    markers.push(Marker {
-                        position: DVec3::from_array(values) * self.scale,
-                        id: Some(ci as i64),
-                    });
+                if open.is_some_and(|o| o.0 != ci) {
+                    close_marker(open.take(), &mut markers, &mut self.channels, self.scale);
                 }
+                let v = cells::number(buf, a, b).ok_or_else(|| {
+                    Error::at_line(
+                        &self.path,
+                        line,
+                        Some(c as u64 + 1),
+                        format!(
+                            "\"{}\" is not a number (marker \"{}\")",
+                            text(a, b),
+                            excerpt(&self.channels[ci].name)
+                        ),
+                    )
+                })?;
+                let o = open.get_or_insert((ci, [0.0; 3], 0));
+                o.1[axis] = v;
+                o.2 |= 1 << axis;
             } else {
-                let mut vals = Vec::with_capacity(end - first);
-                for c in first..end {
-                    let raw = self.rows.get(c);
-                    if raw.is_empty() {
-                        vals.push(f64::NAN);
-                        continue;
-                    }
-                    vals.push(parse_number(raw).ok_or_else(|| {
-                        self.err(
-                            line,
-                            Some(c as u64 + 1),
-                            format!(
-                                "'{}' is not a number ({} '{}')",
-                                String::from_utf8_lossy(raw),
-                                kind_name(self.channels[ci].kind),
-                                self.channels[ci].name
-                            ),
-                        )
-                    })?);
-                }
-                if empty == 0 {
-                    self.channels[ci].present += 1;
-                }
-                match self.poses.iter_mut().find(|(i, _)| *i == ci) {
-                    Some(slot) => slot.1 = vals,
-                    None => self.poses.push((ci, vals)),
-                }
+                let v = cells::number(buf, a, b).ok_or_else(|| {
+                    Error::at_line(
+                        &self.path,
+                        line,
+                        Some(c as u64 + 1),
+                        format!(
+                            "\"{}\" is not a number ({} \"{}\")",
+                            text(a, b),
+                            kind_name(self.channels[ci].kind),
+                            excerpt(&self.channels[ci].name)
+                        ),
+                    )
+                })?;
+                let slot = slot as usize;
+                self.poses[slot].1[c - self.columns[ci].first] = v;
+                self.pose_filled[slot] += 1;
             }
         }
-        Ok(MarkerFrame::new(frame, frame as f64 / rate, markers))
+        close_marker(open, &mut markers, &mut self.channels, self.scale);
+        for (slot, (ci, values)) in self.poses.iter().enumerate() {
+            if self.pose_filled[slot] as usize == values.len() {
+                self.channels[*ci].present += 1;
+            }
+        }
+        // The Time column's clock, anchored on the first row that has one
+        // (a take whose first frame is not 0 keeps its own Time), advanced
+        // by frame / rate so that a 1 ms quantized column adds no jitter.
+        let rate = self.info.frame_rate;
+        let time = match self.time_origin {
+            Some((f0, t0)) => t0 + (frame - f0) as f64 / rate,
+            None => frame as f64 / rate,
+        };
+        Ok(Some(MarkerFrame::new(frame, time, markers)))
+    }
+}
+
+/// Column role of Frame, Time, TimeCode and unnamed columns.
+const NO_CHANNEL: u32 = u32::MAX;
+
+/// Ends a marker channel's cells in a row: a marker if X, Y and Z were all there.
+fn close_marker(
+    open: Option<(usize, [f64; 3], u8)>,
+    markers: &mut Vec<Marker>,
+    channels: &mut [Channel],
+    scale: f64,
+) {
+    if let Some((ci, xyz, 0b111)) = open {
+        channels[ci].present += 1;
+        markers.push(Marker {
+            position: DVec3::from_array(xyz) * scale,
+            id: Some(ci as i64),
+        });
     }
 }
 
@@ -508,12 +710,6 @@ fn kind_name(kind: ChannelKind) -> &'static str {
     }
 }
 
-fn parse_number(raw: &[u8]) -> Option<f64> {
-    let s = std::str::from_utf8(raw).ok()?;
-    let v: f64 = s.trim().parse().ok()?;
-    v.is_finite().then_some(v)
-}
-
 impl Iterator for MotiveCsvReader {
     type Item = Result<MarkerFrame>;
 
@@ -522,13 +718,13 @@ impl Iterator for MotiveCsvReader {
             return None;
         }
         loop {
-            match self.read_row() {
+            match self.rows.read_line() {
                 Err(e) => {
-                    self.done = true;
-                    return Some(Err(e));
+                    self.finish();
+                    return Some(Err(self.row_error(e)));
                 }
                 Ok(false) => {
-                    self.done = true;
+                    self.finish();
                     if self.time_mismatches > 1 {
                         let n = self.time_mismatches;
                         self.warn(format!(
@@ -540,15 +736,23 @@ impl Iterator for MotiveCsvReader {
                 }
                 Ok(true) => {}
             }
-            if self.rows.is_blank() {
-                continue; // a blank line, e.g. at the end
+            match self.parse_row() {
+                Ok(None) => continue, // a blank line, e.g. at the end
+                Ok(Some(frame)) => return Some(Ok(frame)),
+                Err(e) => {
+                    self.finish();
+                    return Some(Err(e));
+                }
             }
-            let r = self.parse_row();
-            if r.is_err() {
-                self.done = true;
-            }
-            return Some(r);
         }
+    }
+}
+
+impl MotiveCsvReader {
+    /// Reading has ended (end of file or an error): counts become final.
+    fn finish(&mut self) {
+        self.done = true;
+        self.count_empty_cells();
     }
 }
 

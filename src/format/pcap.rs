@@ -36,6 +36,7 @@ use pcap_parser::{Block, PcapBlockOwned, PcapError};
 
 use crate::error::{Error, Location, Result};
 use crate::model::frame::MarkerFrame;
+use crate::model::recording::{Format, Recording, RecordingInfo};
 use crate::protocol::natnet::select::{
     to_marker_frame, up_axis_from_answer, FrameContext, MarkerSelection, UpAxis, UpAxisSetting,
 };
@@ -107,6 +108,10 @@ pub struct PcapRecording {
     rate_measured: bool,
     bad_frames: u64,
     warnings: Vec<String>,
+    /// What the capture says about itself, once read ahead.
+    info: RecordingInfo,
+    /// The version at the start of the capture.
+    start_version: Option<Version>,
 }
 
 /// Datagrams read ahead at most while looking for the version and rate.
@@ -130,26 +135,35 @@ impl PcapRecording {
             rate_measured: false,
             bad_frames: 0,
             warnings: Vec::new(),
+            info: RecordingInfo {
+                format: Format::Pcap,
+                version: String::new(),
+                frame_rate: 0.0,
+                units: "m".into(),
+                up_axis: "Y".into(),
+                source: String::new(),
+            },
+            start_version: None,
         };
         r.stream.version = options.version;
         r.look_ahead()?;
+        r.info.version = r
+            .start_version
+            .map_or_else(String::new, |v| format!("NatNet {v}"));
+        r.info.frame_rate = r.rate;
+        r.info.up_axis = crate::protocol::natnet::select::up_axis_name(r.up_axis()).into();
         Ok(r)
     }
 
-    /// The server ("Motive at 10.0.0.5:1510"), for the recording's header.
-    pub fn source(&self) -> String {
-        match self.stream.server {
-            Some(s) if !self.stream.server_name.is_empty() => {
-                format!("natnet capture of {} at {s}", self.stream.server_name)
-            }
-            Some(s) => format!("natnet capture of {s}"),
-            None => "natnet capture".into(),
-        }
+    /// The server ("natnet capture of Motive at 10.0.0.5:1510"), for the
+    /// recording's header.
+    pub fn source(&self) -> &str {
+        &self.info.source
     }
 
     /// The bitstream version frames are decoded with (at the start).
     pub fn version(&self) -> Option<Version> {
-        self.stream.version
+        self.start_version
     }
 
     /// Frames per second: the server's answer, else measured.
@@ -202,6 +216,14 @@ impl PcapRecording {
         }
         self.set_rate(probe.rate, &frames);
         self.stream.up = probe.up;
+        self.info.source = match probe.server {
+            Some(s) if !probe.server_name.is_empty() => {
+                format!("natnet capture of {} at {s}", probe.server_name)
+            }
+            Some(s) => format!("natnet capture of {s}"),
+            None => "natnet capture".into(),
+        };
+        self.start_version = probe.version;
         Ok(())
     }
 
@@ -266,6 +288,16 @@ impl PcapRecording {
             clock_frequency: self.stream.clock_frequency,
         };
         Some(to_marker_frame(&f, &cx, fallback))
+    }
+}
+
+impl Recording for PcapRecording {
+    fn info(&self) -> &RecordingInfo {
+        &self.info
+    }
+
+    fn warnings(&self) -> &[String] {
+        &self.warnings
     }
 }
 

@@ -17,6 +17,8 @@ pub enum Format {
     Log,
     /// C3D, any processor type and storage (`c3d/`).
     C3d,
+    /// A Wireshark/tcpdump capture (pcap, pcapng) of NatNet traffic.
+    Pcap,
 }
 
 impl std::fmt::Display for Format {
@@ -25,6 +27,7 @@ impl std::fmt::Display for Format {
             Format::MotiveCsv => "Motive CSV",
             Format::Log => "treemocap log",
             Format::C3d => "C3D",
+            Format::Pcap => "NatNet capture (pcap)",
         })
     }
 }

@@ -44,40 +44,66 @@ pub struct Sample {
     pub position: DVec3,
 }
 
-/// A gap filled by a cubic Hermite segment between two measured samples.
-/// Positions of the filled frames are computed from it when read.
-#[derive(Debug, Clone, Copy, PartialEq)]
+/// A gap filled between two measured samples. Positions of the filled
+/// frames are computed from it when read.
+#[derive(Debug, Clone, PartialEq)]
 pub struct Fill {
     /// Last measured frame before the gap.
     pub from: i64,
     /// First measured frame after the gap.
     pub to: i64,
-    /// Position and velocity (m per frame) at `from`.
-    pub p0: DVec3,
-    /// Velocity (m per frame) at `from`: the Hermite tangent, limited so the
-    /// fill does not overshoot.
-    pub m0: DVec3,
-    /// Position and velocity (m per frame) at `to`.
-    pub p1: DVec3,
-    /// Velocity (m per frame) at `to`, limited like `m0`.
-    pub m1: DVec3,
+    /// How the frames in between are filled.
+    pub curve: Curve,
+}
+
+/// The shape of a fill.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Curve {
+    /// A cubic Hermite segment (PCHIP slopes): position and velocity (m
+    /// per frame) at `from` and at `to`.
+    Hermite {
+        /// Position at `from`.
+        p0: DVec3,
+        /// Velocity at `from` (m per frame).
+        m0: DVec3,
+        /// Position at `to`.
+        p1: DVec3,
+        /// Velocity at `to` (m per frame).
+        m1: DVec3,
+    },
+    /// Positions for the frames `from + 1 .. to`, predicted from the
+    /// motion of the marker's neighbours (see `gaps.rs`).
+    Points(Vec<DVec3>),
 }
 
 impl Fill {
-    /// The Hermite curve at frame `f` (`from <= f <= to`).
+    /// The fill at frame `f` (`from <= f <= to`).
     pub fn at(&self, f: i64) -> DVec3 {
-        let h = (self.to - self.from) as f64;
-        if h <= 0.0 {
-            return self.p0;
+        match &self.curve {
+            Curve::Hermite { p0, m0, p1, m1 } => {
+                let h = (self.to - self.from) as f64;
+                if h <= 0.0 {
+                    return *p0;
+                }
+                let s = (f - self.from) as f64 / h;
+                let s2 = s * s;
+                let s3 = s2 * s;
+                let h00 = 2.0 * s3 - 3.0 * s2 + 1.0;
+                let h10 = s3 - 2.0 * s2 + s;
+                let h01 = -2.0 * s3 + 3.0 * s2;
+                let h11 = s3 - s2;
+                *p0 * h00 + *m0 * (h10 * h) + *p1 * h01 + *m1 * (h11 * h)
+            }
+            Curve::Points(points) => {
+                let k = (f - self.from - 1).clamp(0, points.len() as i64 - 1);
+                points.get(k as usize).copied().unwrap_or(DVec3::NAN)
+            }
         }
-        let s = (f - self.from) as f64 / h;
-        let s2 = s * s;
-        let s3 = s2 * s;
-        let h00 = 2.0 * s3 - 3.0 * s2 + 1.0;
-        let h10 = s3 - 2.0 * s2 + s;
-        let h01 = -2.0 * s3 + 3.0 * s2;
-        let h11 = s3 - s2;
-        self.p0 * h00 + self.m0 * (h10 * h) + self.p1 * h01 + self.m1 * (h11 * h)
+    }
+
+    /// Whether the fill came from the neighbours (rather than PCHIP).
+    pub fn from_neighbours(&self) -> bool {
+        matches!(self.curve, Curve::Points(_))
     }
 }
 
@@ -280,7 +306,7 @@ impl Trace {
         for (frame, p, source) in other.measurements_with_source() {
             self.push(frame, p, source);
         }
-        self.fills.extend_from_slice(&other.fills);
+        self.fills.extend(other.fills.iter().cloned());
         self.pieces.extend_from_slice(&other.pieces);
         true
     }
@@ -347,7 +373,7 @@ impl Trace {
         out.pieces.extend_from_slice(&other.pieces);
         out.fills = self.fills.clone();
         for f in &other.fills {
-            out.add_fill(*f);
+            out.add_fill(f.clone());
         }
         Some(out)
     }
@@ -613,10 +639,12 @@ mod tests {
         t.add_fill(Fill {
             from: 1,
             to: 5,
-            p0: DVec3::X * 0.001,
-            m0: DVec3::X * 0.001,
-            p1: DVec3::X * 0.005,
-            m1: DVec3::X * 0.001,
+            curve: Curve::Hermite {
+                p0: DVec3::X * 0.001,
+                m0: DVec3::X * 0.001,
+                p1: DVec3::X * 0.005,
+                m1: DVec3::X * 0.001,
+            },
         });
         let s: Vec<_> = t.samples().collect();
         assert_eq!(s.len(), 6);

@@ -38,10 +38,17 @@ use rosc::{OscMessage, OscPacket, OscType};
 
 use crate::model::frame::{Marker, MarkerFrame, UpAxis};
 
-/// Bundles nested deeper than this are refused before rosc parses them:
-/// rosc recurses once per level, and a 64 KiB datagram of empty nested
-/// bundles would otherwise go ~3000 frames deep on a 2 MiB task stack.
-pub const MAX_BUNDLE_DEPTH: usize = 8;
+/// Bundles nested deeper than this, and arrays (`[` … `]` in the type tags)
+/// nested deeper than this, are refused before rosc parses them. rosc
+/// recurses once per bundle level, and builds nested arrays whose drop
+/// recurses once per level: a 64 KiB datagram goes ~3000 bundles or ~30 000
+/// arrays deep, which overflows a 2 MiB task stack and aborts the process.
+/// No sender in the wild nests at all beyond a bundle of bundles.
+pub const MAX_DEPTH: usize = 8;
+
+/// Largest datagram decoded: the most a UDP datagram over IPv4 can carry.
+/// A receive that fills a larger buffer was cut by the kernel and is refused.
+pub const MAX_DATAGRAM_BYTES: usize = 65_507;
 
 /// The edge conversions of the OSC source: incoming positions to metres, Y up.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -590,10 +597,18 @@ fn clip(s: &str) -> String {
 }
 
 /// Decodes a datagram with rosc, refusing what rosc would accept only in part
-/// (trailing bytes, a bundle element it stopped at) or could not parse safely.
+/// (trailing bytes, a bundle element it stopped at) or could not parse safely
+/// (nested deeper than [`MAX_DEPTH`], longer than [`MAX_DATAGRAM_BYTES`]).
+/// Every OSC socket of treemocap decodes through this one function.
 pub fn parse_datagram(bytes: &[u8]) -> Result<OscPacket, String> {
     if bytes.is_empty() {
         return Err("empty datagram".into());
+    }
+    if bytes.len() > MAX_DATAGRAM_BYTES {
+        return Err(format!(
+            "datagram of {} bytes or more is longer than UDP allows ({MAX_DATAGRAM_BYTES}); refused",
+            bytes.len()
+        ));
     }
     check_nesting(bytes, 0)?;
     match rosc::decoder::decode_udp(bytes) {
@@ -622,15 +637,16 @@ fn preview(bytes: &[u8]) -> String {
 }
 
 /// Walks the bundle structure (`#bundle\0`, 8-byte time tag, then
-/// size-prefixed elements) without recursing deeper than [`MAX_BUNDLE_DEPTH`].
+/// size-prefixed elements) without recursing deeper than [`MAX_DEPTH`], and
+/// checks the array nesting of every message in it.
 fn check_nesting(bytes: &[u8], depth: usize) -> Result<(), String> {
     const TAG: &[u8] = b"#bundle\0";
     if !bytes.starts_with(TAG) {
-        return Ok(());
+        return check_arrays(bytes);
     }
-    if depth >= MAX_BUNDLE_DEPTH {
+    if depth >= MAX_DEPTH {
         return Err(format!(
-            "OSC bundles nested more than {MAX_BUNDLE_DEPTH} deep; refused"
+            "OSC bundles nested more than {MAX_DEPTH} deep; refused"
         ));
     }
     let mut at = 16usize;
@@ -646,6 +662,37 @@ fn check_nesting(bytes: &[u8], depth: usize) -> Result<(), String> {
         };
         check_nesting(element, depth + 1)?;
         at = start + size;
+    }
+    Ok(())
+}
+
+/// Refuses a message whose type tags nest arrays deeper than [`MAX_DEPTH`].
+/// A message is its address (NUL-terminated, padded to 4 bytes), then its
+/// type tags (`,` then one character per argument); anything malformed is
+/// left for rosc to report.
+fn check_arrays(message: &[u8]) -> Result<(), String> {
+    let Some(nul) = message.iter().position(|&b| b == 0) else {
+        return Ok(());
+    };
+    let Some(tags) = message.get((nul + 4) & !3..) else {
+        return Ok(());
+    };
+    let tags = &tags[..tags.iter().position(|&b| b == 0).unwrap_or(tags.len())];
+    let mut depth = 0usize;
+    for &t in tags {
+        match t {
+            b'[' => {
+                depth += 1;
+                if depth > MAX_DEPTH {
+                    return Err(format!(
+                        "OSC arrays nested more than {MAX_DEPTH} deep in the type tags of \"{}\"; refused",
+                        crate::error::excerpt_bytes(&message[..nul])
+                    ));
+                }
+            }
+            b']' => depth = depth.saturating_sub(1),
+            _ => {}
+        }
     }
     Ok(())
 }
@@ -999,6 +1046,40 @@ mod tests {
         let out = feed(&mut a, &p, 0.0);
         assert_eq!(out.frames.len(), 1);
         assert_eq!(out.frames[0].markers.len(), 4);
+    }
+
+    #[test]
+    fn deep_array_nesting_and_oversized_datagrams_are_refused() {
+        // `,[[[…]]]`: rosc parses it without recursing, but dropping the
+        // nested arrays recurses once per level.
+        let arrays = |depth: usize| {
+            let mut b = b"/marker\0,".to_vec();
+            b.extend(std::iter::repeat_n(b'[', depth));
+            b.extend(std::iter::repeat_n(b']', depth));
+            b.push(0);
+            while !b.len().is_multiple_of(4) {
+                b.push(0);
+            }
+            b
+        };
+        for depth in [9, 10_000, 32_000] {
+            let err = parse_datagram(&arrays(depth)).unwrap_err();
+            assert!(err.contains("arrays nested more than 8"), "{err}");
+            assert!(err.contains("\"/marker\""), "{err}");
+        }
+        // Inside a bundle too.
+        let mut b = b"#bundle\0\0\0\0\0\0\0\0\x01".to_vec();
+        let inner = arrays(100);
+        b.extend_from_slice(&(inner.len() as u32).to_be_bytes());
+        b.extend_from_slice(&inner);
+        assert!(parse_datagram(&b).unwrap_err().contains("arrays nested"));
+        // Within the limit the message is read (and its arrays are not
+        // coordinates: a bad-argument problem, not garbage).
+        assert!(parse_datagram(&arrays(8)).is_ok());
+        let big = vec![0u8; MAX_DATAGRAM_BYTES + 1];
+        assert!(parse_datagram(&big)
+            .unwrap_err()
+            .contains("longer than UDP allows"));
     }
 
     /// Seeded random mutations of valid datagrams of every family: nothing

@@ -10,3 +10,4 @@ pub mod outputs;
 pub mod picture;
 pub mod plot;
 pub mod raster;
+pub mod trajectories;

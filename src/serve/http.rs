@@ -21,33 +21,20 @@ use std::sync::Arc;
 
 use axum::extract::ws::WebSocketUpgrade;
 use axum::extract::{Request, State};
-use axum::http::{header, HeaderValue, Method, StatusCode, Uri};
+use axum::http::{header, HeaderMap, HeaderValue, Method, StatusCode, Uri};
 use axum::middleware::Next;
 use axum::response::{IntoResponse, Response};
 use axum::routing::{get, post};
 use axum::Router;
-use tokio::sync::watch;
+use tokio::sync::{watch, Semaphore};
 
-use super::live::{self, FrameFormat, LiveHub};
+use super::limits::HttpLimits;
+use super::live::{self, FrameFormat};
 use super::snapshot::TreeSnapshot;
+pub use crate::shutdown::until_true;
+use crate::source::bad_input::BadInput;
 
-/// What the HTTP server reads. Cheap to clone.
-#[derive(Clone)]
-pub struct HttpState {
-    /// The latest tree, `None` before the first.
-    pub tree: watch::Receiver<Option<Arc<TreeSnapshot>>>,
-    /// What the pipeline publishes for `/live`: frames and events.
-    pub hub: Arc<LiveHub>,
-    /// The `/status` document, computed on request.
-    pub status: Arc<dyn Fn() -> serde_json::Value + Send + Sync>,
-    /// The `/metrics` text, computed on request.
-    pub metrics: Arc<dyn Fn() -> String + Send + Sync>,
-    /// Called by `POST /rebuild`; `None` where nothing can be rebuilt
-    /// (`treemocap view`), and the route answers 405.
-    pub rebuild: Option<Arc<dyn Fn() + Send + Sync>>,
-    /// Turns true at shutdown; open WebSockets close on it.
-    pub shutdown: watch::Receiver<bool>,
-}
+pub use super::live::{tree_notice, HttpState};
 
 /// The router, for tests and for [`serve`].
 pub fn router(state: HttpState) -> Router {
@@ -86,10 +73,22 @@ async fn cors(req: Request, next: Next) -> Response {
 }
 
 /// Serves until `shutdown` turns true.
-pub async fn serve(listener: tokio::net::TcpListener, state: HttpState) -> std::io::Result<()> {
+pub async fn serve(
+    listener: tokio::net::TcpListener,
+    state: HttpState,
+    limits: HttpLimits,
+    bad: Arc<BadInput>,
+) -> std::io::Result<()> {
     let shutdown = state.shutdown.clone();
-    serve_router(listener, router(state), shutdown).await
+    let gate = LiveGate(Arc::new(Semaphore::new(limits.max_websockets)));
+    let app = router(state).layer(axum::Extension(gate));
+    super::limits::serve(listener, app, limits, bad, shutdown).await
 }
+
+/// The `/live` sessions that may still open (`daemon.http_max_websockets`);
+/// without one (`treemocap view`) there is no cap.
+#[derive(Clone)]
+struct LiveGate(Arc<Semaphore>);
 
 /// Serves `router` (e.g. [`router`] merged with `treemocap view`'s routes)
 /// until `shutdown` turns true.
@@ -101,18 +100,6 @@ pub async fn serve_router(
     axum::serve(listener, router)
         .with_graceful_shutdown(until_true(shutdown))
         .await
-}
-
-/// Resolves when the flag turns true (or its sender is gone).
-pub async fn until_true(mut flag: watch::Receiver<bool>) {
-    loop {
-        if *flag.borrow_and_update() {
-            return;
-        }
-        if flag.changed().await.is_err() {
-            return;
-        }
-    }
 }
 
 fn latest(state: &HttpState) -> Option<Arc<TreeSnapshot>> {
@@ -231,14 +218,55 @@ async fn metrics(State(s): State<HttpState>) -> Response {
         .into_response()
 }
 
-async fn rebuild(State(s): State<HttpState>) -> Response {
+async fn rebuild(State(s): State<HttpState>, headers: HeaderMap) -> Response {
+    if !same_origin(&headers) {
+        return (
+            StatusCode::FORBIDDEN,
+            "POST /rebuild from a page of another site is refused\n",
+        )
+            .into_response();
+    }
     if let Some(r) = &s.rebuild {
         r();
     }
     (StatusCode::ACCEPTED, "rebuild requested\n").into_response()
 }
 
-async fn live(ws: WebSocketUpgrade, uri: Uri, State(s): State<HttpState>) -> Response {
+/// False when a browser says the request comes from a page of another site
+/// (its `Origin` names another host than the one asked): a page visited on
+/// the rig's machine must not trigger rebuilds. Scripts, curl and our own
+/// page send no `Origin` or our own.
+fn same_origin(headers: &HeaderMap) -> bool {
+    let Some(origin) = headers.get(header::ORIGIN).and_then(|o| o.to_str().ok()) else {
+        return true;
+    };
+    let host = headers
+        .get(header::HOST)
+        .and_then(|h| h.to_str().ok())
+        .unwrap_or("");
+    let origin_host = origin.split_once("://").map_or(origin, |(_, h)| h);
+    !host.is_empty() && origin_host.eq_ignore_ascii_case(host)
+}
+
+async fn live(
+    ws: WebSocketUpgrade,
+    uri: Uri,
+    State(s): State<HttpState>,
+    gate: Option<axum::Extension<LiveGate>>,
+) -> Response {
+    let permit = match gate {
+        Some(axum::Extension(LiveGate(g))) => match g.try_acquire_owned() {
+            Ok(p) => Some(p),
+            Err(_) => {
+                return (
+                    StatusCode::SERVICE_UNAVAILABLE,
+                    "too many /live sessions (daemon.http_max_websockets)\n",
+                )
+                    .into_response()
+            }
+        },
+        None => None,
+    };
     // `/live?format=json`: frames as JSON text, for scripts.
     let json = uri
         .query()
@@ -248,25 +276,8 @@ async fn live(ws: WebSocketUpgrade, uri: Uri, State(s): State<HttpState>) -> Res
     } else {
         FrameFormat::Binary
     };
-    ws.on_upgrade(move |socket| live::session(socket, s, format))
-}
-
-/// The `/live` message announcing a new tree; with several trees it also
-/// lists them (`trees`: id, name, nodes, rebuilt).
-pub fn tree_notice(t: &TreeSnapshot) -> Arc<str> {
-    let mut notice = serde_json::json!({
-        "type": "tree",
-        "version": t.version,
-        "time_s": t.time_s,
-        "reason": t.reason,
-        "nodes": t.nodes.len(),
-    });
-    if !t.trees.is_empty() {
-        notice["trees"] = t
-            .trees
-            .iter()
-            .map(|x| serde_json::json!({"id": x.id, "name": x.name, "nodes": x.nodes.len(), "rebuilt": x.rebuilt}))
-            .collect();
-    }
-    notice.to_string().into()
+    ws.on_upgrade(move |socket| async move {
+        live::session(socket, s, format).await;
+        drop(permit);
+    })
 }

@@ -16,8 +16,9 @@ use axum::extract::ws::{Message, WebSocket};
 use tokio::sync::{broadcast, watch};
 use tokio::time::Instant;
 
-use super::http::{tree_notice, until_true, HttpState};
+use super::snapshot::TreeSnapshot;
 use crate::protocol::live_frame::{self, LiveFrame, TipState};
+use crate::shutdown::until_true;
 
 /// Frames a viewer gets per second at most: what a display shows.
 pub const MAX_FRAMES_PER_S: f64 = 60.0;
@@ -232,4 +233,42 @@ mod tests {
         drop(rx);
         assert!(!hub.has_viewers());
     }
+}
+
+/// What the HTTP server reads. Cheap to clone.
+#[derive(Clone)]
+pub struct HttpState {
+    /// The latest tree, `None` before the first.
+    pub tree: watch::Receiver<Option<Arc<TreeSnapshot>>>,
+    /// What the pipeline publishes for `/live`: frames and events.
+    pub hub: Arc<LiveHub>,
+    /// The `/status` document, computed on request.
+    pub status: Arc<dyn Fn() -> serde_json::Value + Send + Sync>,
+    /// The `/metrics` text, computed on request.
+    pub metrics: Arc<dyn Fn() -> String + Send + Sync>,
+    /// Called by `POST /rebuild`; `None` where nothing can be rebuilt
+    /// (`treemocap view`), and the route answers 405.
+    pub rebuild: Option<Arc<dyn Fn() + Send + Sync>>,
+    /// Turns true at shutdown; open WebSockets close on it.
+    pub shutdown: watch::Receiver<bool>,
+}
+
+/// The `/live` message announcing a new tree.
+pub fn tree_notice(t: &TreeSnapshot) -> Arc<str> {
+    let mut notice = serde_json::json!({
+        "type": "tree",
+        "version": t.version,
+        "time_s": t.time_s,
+        "reason": t.reason,
+        "nodes": t.nodes.len(),
+    });
+    // With several trees the notice also lists them (docs/forest.md).
+    if !t.trees.is_empty() {
+        notice["trees"] = t
+            .trees
+            .iter()
+            .map(|x| serde_json::json!({"id": x.id, "name": x.name, "nodes": x.nodes.len(), "rebuilt": x.rebuilt}))
+            .collect();
+    }
+    notice.to_string().into()
 }

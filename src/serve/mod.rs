@@ -3,6 +3,7 @@
 //! immutable [`snapshot::TreeSnapshot`]; none of them can slow the pipeline.
 
 pub mod http;
+pub mod limits;
 pub mod live;
 pub mod natnet;
 pub mod osc;

@@ -17,6 +17,8 @@ pub mod capture;
 pub mod forest;
 pub mod motion;
 pub mod motive_writer;
+pub mod score;
+pub mod stress;
 pub mod tree;
 pub mod truth;
 
@@ -36,15 +38,16 @@ use crate::rng::Rng;
 pub use forest::{ForestTruth, Layout, PlacedTree};
 pub use motive_writer::write_motive_csv;
 pub use tree::{CrownShape, TreeNode, TreeTruth};
-pub use truth::{ColumnTruth, GapTruth, Sinusoid, SpuriousTruth, TipTruth, Truth};
+pub use truth::{ColumnTruth, GapTruth, GustTruth, Sinusoid, SpuriousTruth, TipTruth, Truth};
 
 /// Stream labels under the session seed.
 const TREE: u64 = 1;
 const MOTION: u64 = 2;
 const WIND: u64 = 3;
 const CAPTURE: u64 = 4;
+const GUSTS: u64 = 5;
 /// Where the trees of a forest stand.
-const FOREST: u64 = 5;
+const FOREST: u64 = 6;
 
 /// Longest session `generate` makes (frames).
 pub const MAX_FRAMES: usize = 360_000;
@@ -99,9 +102,27 @@ pub struct SynthOptions {
     pub min_spacing_mm: f64,
     /// `Take Name` in the CSV header; empty = the output file's stem.
     pub take_name: String,
+    /// Stress: the band `[low, high]` (Hz) of the tree-like sway model
+    /// (see `motion`): limb modes near `low`, twigs near `high`, with the
+    /// modes shared by every tip on a limb and on a fork, as on a real
+    /// tree. Empty (default) keeps the original three-mode sway.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub sway_hz: Vec<f64>,
+    /// Stress: mean number of gusts per minute in the wind phase (each
+    /// raises the wind's strength by 30–100 % for 1–5 s); 0 = steady wind.
+    #[serde(skip_serializing_if = "is_zero")]
+    pub gusts_per_min: f64,
+    /// Stress: pairs of neighbouring tips made to swing towards each other
+    /// in the wind, so that their markers pass close (see `close_mm`).
+    #[serde(skip_serializing_if = "is_zero_usize")]
+    pub close_pairs: usize,
+    /// Closest approach the swing of a close pair aims at (mm); the other
+    /// modes move them too, so the truth's actual spacing is what counts.
+    #[serde(skip_serializing_if = "is_default_close")]
+    pub close_mm: f64,
     /// Trees in the session, 1–5 (docs/forest.md); `tips` markers each.
-    /// The fields from here on are left out of the truth file when at
-    /// their defaults, so one-tree truth files read as before.
+    /// The forest fields are left out of the truth file when at their
+    /// defaults, so one-tree truth files read as before.
     #[serde(skip_serializing_if = "is_one")]
     pub trees: usize,
     /// How far neighbouring crowns overlap, as a fraction of the narrower
@@ -120,12 +141,22 @@ pub struct SynthOptions {
     pub mixed: bool,
 }
 
-fn is_one(v: &usize) -> bool {
-    *v == 1
-}
+/// Default of `SynthOptions::close_mm`.
+const CLOSE_MM: f64 = 20.0;
 
+// Stress options at their defaults are left out of the truth file, so the
+// shipped replays' truth stays byte-identical.
 fn is_zero(v: &f64) -> bool {
     *v == 0.0
+}
+fn is_zero_usize(v: &usize) -> bool {
+    *v == 0
+}
+fn is_default_close(v: &f64) -> bool {
+    *v == CLOSE_MM
+}
+fn is_one(v: &usize) -> bool {
+    *v == 1
 }
 
 impl Default for SynthOptions {
@@ -150,6 +181,10 @@ impl Default for SynthOptions {
             spurious_max_frames: 50,
             min_spacing_mm: 60.0,
             take_name: String::new(),
+            sway_hz: Vec::new(),
+            gusts_per_min: 0.0,
+            close_pairs: 0,
+            close_mm: CLOSE_MM,
             trees: 1,
             overlap: 0.0,
             layout: Layout::Row,
@@ -192,7 +227,27 @@ impl SynthOptions {
             10_000.0,
         )?;
         check("min_spacing_mm", self.min_spacing_mm, 0.0, 1000.0)?;
+        match self.sway_hz[..] {
+            [] => {}
+            [lo, hi] if lo.is_finite() && hi.is_finite() && 0.05 <= lo && lo < hi && hi <= 20.0 => {
+            }
+            _ => {
+                return Err(Error::config(
+                    "sway_hz",
+                    "must be [] or [low, high] with 0.05 <= low < high <= 20 (Hz)",
+                ))
+            }
+        }
+        check("gusts_per_min", self.gusts_per_min, 0.0, 60.0)?;
+        check("close_pairs", self.close_pairs as f64, 0.0, 35.0)?;
+        check("close_mm", self.close_mm, 1.0, 500.0)?;
         check("trees", self.trees as f64, 1.0, 5.0)?;
+        if self.trees > 1 && self.close_pairs > 0 {
+            return Err(Error::config(
+                "close_pairs",
+                "pairs of close tips are made on one tree only (trees = 1)",
+            ));
+        }
         check("overlap", self.overlap, -1.0, 0.5)?;
         check("lean", self.lean, -1.0, 1.0)?;
         // The whole session is held in memory (about 1 kB per frame at 35
@@ -236,18 +291,24 @@ pub fn generate(opts: &SynthOptions) -> Result<Synthetic> {
         let tree = tree::grow(opts.shape, &mut motion::stream(&root, TREE));
         let nodes = tree.choose_tips(opts.tips, opts.min_spacing_mm / 1000.0)?;
         let crown_centre = DVec3::new(0.0, 0.5 * (tree.crown_base + tree.height), 0.0);
-        let tips = motion::tips(
+        let motion_rng = motion::stream(&root, MOTION);
+        let mut tips = sway(opts, &tree, &nodes, wind_direction, &motion_rng);
+        motion::close_pairs(
+            &mut tips,
+            opts.close_pairs,
+            opts.close_mm / 1000.0,
             &tree,
-            &nodes,
-            wind_direction,
-            opts.still_motion_mm / 1000.0,
-            opts.sway_scale,
-            &motion::stream(&root, MOTION),
+            &motion::stream(&motion_rng, 3),
         );
         (tree, tips, None, crown_centre)
     };
     let fan = crown_centre - wind_direction * 2.0;
     let fan_position = DVec3::new(tree::q9(fan.x), tree::q9(fan.y), tree::q9(fan.z));
+    let gusts = motion::gusts(
+        opts.gusts_per_min,
+        (opts.still_s + opts.wind_ramp_s, opts.still_s + opts.wind_s),
+        &motion::stream(&root, GUSTS),
+    );
 
     let frames = ((opts.still_s + opts.wind_s) * opts.frame_rate).round() as usize;
     let capture_rng = motion::stream(&root, CAPTURE);
@@ -266,6 +327,7 @@ pub fn generate(opts: &SynthOptions) -> Result<Synthetic> {
         fan_position,
         tree,
         tips,
+        gusts,
         gaps,
         columns: Vec::new(),
         spurious,
@@ -280,6 +342,36 @@ pub fn generate(opts: &SynthOptions) -> Result<Synthetic> {
     })
 }
 
+/// The motion of the marked `nodes` of `tree`: the tree-like sway model
+/// when `sway_hz` is set, else the original three-mode sway.
+fn sway(
+    opts: &SynthOptions,
+    tree: &TreeTruth,
+    nodes: &[usize],
+    wind: DVec3,
+    rng: &Rng,
+) -> Vec<TipTruth> {
+    match opts.sway_hz[..] {
+        [lo, hi] => motion::tree_tips(
+            tree,
+            nodes,
+            wind,
+            opts.still_motion_mm / 1000.0,
+            opts.sway_scale,
+            (lo, hi),
+            rng,
+        ),
+        _ => motion::tips(
+            tree,
+            nodes,
+            wind,
+            opts.still_motion_mm / 1000.0,
+            opts.sway_scale,
+            rng,
+        ),
+    }
+}
+
 /// The trees of a forest session, their tips' motion (each tree swaying on
 /// its own limbs in the common wind) and the centre of the whole canopy.
 fn forest_tips(
@@ -292,12 +384,11 @@ fn forest_tips(
     let mut tips = Vec::with_capacity(chosen.len());
     for (k, p) in placed.iter().enumerate() {
         let nodes: Vec<usize> = chosen.iter().filter(|c| c.0 == k).map(|c| c.1).collect();
-        tips.extend(motion::tips(
+        tips.extend(sway(
+            opts,
             &p.tree,
             &nodes,
             wind,
-            opts.still_motion_mm / 1000.0,
-            opts.sway_scale,
             &motion::stream(&motion_base, k as u64 + 1),
         ));
     }

@@ -10,6 +10,18 @@
 //!   (1–3 Hz, like a cantilever), both mainly along the wind, and a cross-wind
 //!   mode about a third as large. Peak displacements come out at 1–6 cm.
 //!
+//! - Stress model (`sway_hz = [low, high]`), closer to a real crown in strong
+//!   wind: every tip moves with its limb (an along-wind and a cross-wind mode,
+//!   both shared by all tips of the limb, near `low`), with its branch (one
+//!   mode shared by the tips above the same fork, near the band's geometric
+//!   middle) and on its own twig (near `high`, amplitude growing only with
+//!   the square root of `sway_scale`: the small, fast modes of a twig carry
+//!   little of the wind's energy). Neighbours thus move coherently, as they
+//!   do on a tree.
+//! - Gusts (`gusts_per_min`) raise the wind's strength for a few seconds;
+//!   close pairs (`close_pairs`) swing two neighbouring tips towards each
+//!   other so that their markers pass close.
+//!
 //! [`Truth::position`]: super::Truth::position
 
 use std::f64::consts::TAU;
@@ -17,7 +29,7 @@ use std::f64::consts::TAU;
 use glam::DVec3;
 
 use super::tree::{q9, TreeTruth};
-use super::truth::{Sinusoid, TipTruth};
+use super::truth::{GustTruth, Sinusoid, TipTruth};
 use crate::rng::Rng;
 
 /// A random stream that depends only on `base`'s state and `label`, not on
@@ -112,6 +124,151 @@ pub(crate) fn tips(
             }
         })
         .collect()
+}
+
+/// The stress model's tips (see the module comment): limb, branch and twig
+/// modes in the band `hz` (Hz).
+pub(crate) fn tree_tips(
+    tree: &TreeTruth,
+    nodes: &[usize],
+    wind: DVec3,
+    still_motion: f64,
+    sway_scale: f64,
+    hz: (f64, f64),
+    base: &Rng,
+) -> Vec<TipTruth> {
+    let (lo, hi) = hz;
+    let mid = (lo * hi).sqrt();
+    let levers: Vec<f64> = nodes.iter().map(|&n| tree.lever(n)).collect();
+    let max_lever = levers.iter().copied().fold(0.0, f64::max).max(1e-6);
+    let cross = DVec3::Y.cross(wind).normalize();
+    let limb_base = stream(base, 11);
+    let fork_base = stream(base, 12);
+    let tip_base = stream(base, 13);
+    nodes
+        .iter()
+        .zip(&levers)
+        .map(|(&node, &lever)| {
+            let reach = lever / max_lever;
+            let mut limb = stream(&limb_base, tree.limb(node) as u64);
+            let along_f = limb.range(lo, (lo * 2.5).min(mid));
+            let along_ph = limb.range(0.0, TAU);
+            let along_a = limb.range(0.010, 0.022);
+            let cross_f = limb.range(lo, (lo * 3.0).min(hi));
+            let cross_ph = limb.range(0.0, TAU);
+            let cross_a = along_a * limb.range(0.25, 0.4);
+            let mut fork = stream(&fork_base, tree.fork(node) as u64);
+            let fork_f = fork.range(0.8 * mid, (1.8 * mid).min(hi));
+            let fork_ph = fork.range(0.0, TAU);
+            let fork_a = fork.range(0.003, 0.008);
+            let fork_turn = fork.range(-40f64, 40.0).to_radians();
+            let mut rng = stream(&tip_base, node as u64);
+            let wobble = vec![sinusoid(
+                unit(&mut rng),
+                still_motion * rng.range(0.1, 1.0),
+                rng.range(0.2, 2.0),
+                rng.range(0.0, TAU),
+            )];
+            let lever_gain = 0.4 + 0.6 * reach;
+            let twig_turn = rng.range(-60f64, 60.0).to_radians();
+            let twig_a = rng.range(0.002, 0.006) * (0.5 + reach) * sway_scale.sqrt();
+            let sway = vec![
+                sinusoid(wind, along_a * lever_gain * sway_scale, along_f, along_ph),
+                sinusoid(cross, cross_a * lever_gain * sway_scale, cross_f, cross_ph),
+                sinusoid(
+                    wind * fork_turn.cos() + cross * fork_turn.sin(),
+                    fork_a * (0.5 + reach) * sway_scale,
+                    fork_f,
+                    fork_ph,
+                ),
+                sinusoid(
+                    wind * twig_turn.cos() + cross * twig_turn.sin(),
+                    twig_a,
+                    rng.range(hi / 2.0, hi),
+                    rng.range(0.0, TAU),
+                ),
+            ];
+            let bend = wind * (along_a * lever_gain * sway_scale * rng.range(0.4, 0.7));
+            TipTruth {
+                node,
+                rest: tree.nodes[node].position,
+                lever: q9(lever),
+                wobble,
+                bend: DVec3::new(q9(bend.x), q9(bend.y), q9(bend.z)),
+                sway,
+            }
+        })
+        .collect()
+}
+
+/// Adds to `pairs` pairs of nearest neighbouring tips an opposite swing
+/// along the line between them, of amplitude (distance − `close`) / 2, so
+/// that the two come within about `close` of each other twice a period.
+/// Pairs are taken closest first, each tip in at most one pair.
+pub(crate) fn close_pairs(
+    tips: &mut [TipTruth],
+    pairs: usize,
+    close: f64,
+    tree: &TreeTruth,
+    base: &Rng,
+) {
+    if pairs == 0 {
+        return;
+    }
+    let mut candidates = Vec::new();
+    for i in 0..tips.len() {
+        for j in i + 1..tips.len() {
+            candidates.push((tips[i].rest.distance(tips[j].rest), i, j));
+        }
+    }
+    candidates.sort_by(|a, b| a.0.total_cmp(&b.0).then((a.1, a.2).cmp(&(b.1, b.2))));
+    let mut used = vec![false; tips.len()];
+    let mut made = 0;
+    for (d, i, j) in candidates {
+        if made == pairs {
+            break;
+        }
+        if used[i] || used[j] || d <= close {
+            continue;
+        }
+        used[i] = true;
+        used[j] = true;
+        let mut rng = stream(base, (tree.nodes.len() * i + j) as u64);
+        let u = (tips[j].rest - tips[i].rest) / d;
+        let amp = (d - close) / 2.0;
+        let f = rng.range(0.4, 1.2);
+        let ph = rng.range(0.0, TAU);
+        tips[i].sway.push(sinusoid(u, amp, f, ph));
+        tips[j].sway.push(sinusoid(-u, amp, f, ph));
+        made += 1;
+    }
+}
+
+/// Gusts as a Poisson process at `per_min` over `span` (s on the take's
+/// clock), none reaching past its end.
+pub(crate) fn gusts(per_min: f64, span: (f64, f64), base: &Rng) -> Vec<GustTruth> {
+    let mut out = Vec::new();
+    if per_min <= 0.0 {
+        return out;
+    }
+    let mut rng = base.clone();
+    let mut t = span.0;
+    loop {
+        t += -(1.0 - rng.f64()).ln() * 60.0 / per_min;
+        let g = GustTruth {
+            start_s: q9(t),
+            rise_s: q9(rng.range(0.3, 1.5)),
+            hold_s: q9(rng.range(0.5, 3.0)),
+            fall_s: q9(rng.range(0.5, 2.0)),
+            extra: q9(rng.range(0.3, 1.0)),
+        };
+        if g.start_s + g.rise_s + g.hold_s + g.fall_s >= span.1 {
+            break;
+        }
+        t = g.start_s + g.rise_s + g.hold_s + g.fall_s;
+        out.push(g);
+    }
+    out
 }
 
 #[cfg(test)]

@@ -444,6 +444,25 @@ impl TreeTruth {
         at
     }
 
+    /// The nearest fork below node `i` (a node with more than one child), or
+    /// the trunk's foot: tips that share it sway together on that branch.
+    pub fn fork(&self, i: usize) -> usize {
+        let mut children = vec![0u32; self.nodes.len()];
+        for n in &self.nodes {
+            if let Some(p) = n.parent {
+                children[p] += 1;
+            }
+        }
+        let mut at = i;
+        while let Some(p) = self.nodes[at].parent {
+            at = p;
+            if children[p] > 1 {
+                break;
+            }
+        }
+        at
+    }
+
     /// Length (m) of the last piece of branch to a tip, from its nearest
     /// fork: short twigs sway faster.
     pub fn twig_length(&self, i: usize) -> f64 {

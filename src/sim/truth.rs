@@ -58,6 +58,37 @@ pub struct TipTruth {
     pub sway: Vec<Sinusoid>,
 }
 
+/// One gust: the wind's strength rises by `extra` (a fraction of the
+/// steady wind) over `rise_s`, holds for `hold_s` and falls back over
+/// `fall_s`, each change a smoothstep; bend and sway scale with it.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct GustTruth {
+    /// Start of the rise (s on the take's clock).
+    pub start_s: f64,
+    /// Seconds of the rise, the hold and the fall.
+    pub rise_s: f64,
+    /// See `rise_s`.
+    pub hold_s: f64,
+    /// See `rise_s`.
+    pub fall_s: f64,
+    /// Extra strength at the hold, as a fraction of the steady wind.
+    pub extra: f64,
+}
+
+impl GustTruth {
+    /// The gust's extra strength at `time_s`.
+    pub fn at(&self, time_s: f64) -> f64 {
+        let smooth = |x: f64| {
+            let x = x.clamp(0.0, 1.0);
+            x * x * (3.0 - 2.0 * x)
+        };
+        let t = time_s - self.start_s;
+        let up = smooth(t / self.rise_s);
+        let down = smooth((t - self.rise_s - self.hold_s) / self.fall_s);
+        self.extra * (up - down).max(0.0)
+    }
+}
+
 /// One occlusion: the tip is missing from every frame in
 /// `first_frame..=last_frame`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -125,6 +156,9 @@ pub struct Truth {
     pub tree: TreeTruth,
     /// The marked tips, in tip-index order.
     pub tips: Vec<TipTruth>,
+    /// Gusts of the wind phase (stress option `gusts_per_min`).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub gusts: Vec<GustTruth>,
     /// Every occlusion, sorted by tip then frame.
     pub gaps: Vec<GapTruth>,
     /// Every CSV column, in CSV order: the column → tip map.
@@ -138,17 +172,22 @@ pub struct Truth {
 }
 
 impl Truth {
-    /// 0 before the wind phase, rising smoothly to 1 over `wind_ramp_s`.
+    /// 0 before the wind phase, rising smoothly to 1 over `wind_ramp_s`, times
+    /// 1 + the gusts blowing at `time_s`.
     pub fn wind_strength(&self, time_s: f64) -> f64 {
         let dt = time_s - self.wind.0;
-        if dt <= 0.0 {
+        let ramp = if dt <= 0.0 {
             0.0
         } else if dt >= self.wind_ramp_s {
             1.0
         } else {
             let x = dt / self.wind_ramp_s;
             x * x * (3.0 - 2.0 * x)
+        };
+        if ramp == 0.0 || self.gusts.is_empty() {
+            return ramp;
         }
+        ramp * (1.0 + self.gusts.iter().map(|g| g.at(time_s)).sum::<f64>())
     }
 
     /// The noiseless true position of `tip` at `time_s` (m, Y up).

@@ -7,17 +7,24 @@
 
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::Arc;
+use std::time::{Duration, Instant};
 
-use crossbeam_channel::{bounded, Receiver, Sender, TrySendError};
+use crossbeam_channel::{
+    bounded, Receiver, RecvError, RecvTimeoutError, Sender, TryRecvError, TrySendError,
+};
 
 use crate::model::frame::MarkerFrame;
+
+/// A frame and the instant it arrived: the daemon's latency is measured from
+/// here, so time spent waiting in the channel (a backlog) counts.
+pub type Arrived = (MarkerFrame, Instant);
 
 /// The sending end every live source pushes into. Cheap to clone.
 #[derive(Clone)]
 pub struct FrameSink {
-    tx: Sender<MarkerFrame>,
+    tx: Sender<Arrived>,
     /// A receiver kept only to pop the oldest frame when the channel is full.
-    evict: Receiver<MarkerFrame>,
+    evict: Receiver<Arrived>,
     dropped: Arc<AtomicU64>,
     pushed: Arc<AtomicU64>,
     /// Set when the [`FrameReceiver`] is dropped: the eviction receiver above
@@ -25,23 +32,58 @@ pub struct FrameSink {
     closed: Arc<AtomicBool>,
 }
 
-/// The pipeline's end of the channel: a crossbeam receiver (it derefs to
-/// one) that tells the sources when it is gone.
+/// The pipeline's end of the channel. Frames come out in order; the
+/// `*_arrived` methods also give each frame's arrival instant.
 pub struct FrameReceiver {
-    rx: Receiver<MarkerFrame>,
+    rx: Receiver<Arrived>,
     closed: Arc<AtomicBool>,
-}
-
-impl std::ops::Deref for FrameReceiver {
-    type Target = Receiver<MarkerFrame>;
-    fn deref(&self) -> &Receiver<MarkerFrame> {
-        &self.rx
-    }
 }
 
 impl Drop for FrameReceiver {
     fn drop(&mut self) {
         self.closed.store(true, Ordering::Relaxed);
+    }
+}
+
+impl FrameReceiver {
+    /// Waits for the next frame.
+    pub fn recv(&self) -> Result<MarkerFrame, RecvError> {
+        self.rx.recv().map(|a| a.0)
+    }
+
+    /// Waits at most `timeout` for the next frame.
+    pub fn recv_timeout(&self, timeout: Duration) -> Result<MarkerFrame, RecvTimeoutError> {
+        self.rx.recv_timeout(timeout).map(|a| a.0)
+    }
+
+    /// Like [`Self::recv_timeout`], with the instant the frame arrived.
+    pub fn recv_timeout_arrived(&self, timeout: Duration) -> Result<Arrived, RecvTimeoutError> {
+        self.rx.recv_timeout(timeout)
+    }
+
+    /// The next frame if one is queued.
+    pub fn try_recv(&self) -> Result<MarkerFrame, TryRecvError> {
+        self.rx.try_recv().map(|a| a.0)
+    }
+
+    /// Every frame queued now.
+    pub fn try_iter(&self) -> impl Iterator<Item = MarkerFrame> + '_ {
+        self.rx.try_iter().map(|a| a.0)
+    }
+
+    /// The underlying receiver, for `select!` (items carry their arrival).
+    pub fn receiver(&self) -> &Receiver<Arrived> {
+        &self.rx
+    }
+
+    /// Frames waiting in the channel (the backlog).
+    pub fn len(&self) -> usize {
+        self.rx.len()
+    }
+
+    /// True when no frame is waiting.
+    pub fn is_empty(&self) -> bool {
+        self.rx.is_empty()
     }
 }
 
@@ -62,23 +104,30 @@ pub fn frame_channel(capacity: usize) -> (FrameSink, FrameReceiver) {
 }
 
 impl FrameSink {
-    /// Delivers a frame, dropping the oldest queued one if the channel is full.
-    /// Returns false when the receiving side is gone (the pipeline shut down).
+    /// Delivers a frame that arrives now, dropping the oldest queued one if
+    /// the channel is full. Returns false when the receiving side is gone
+    /// (the pipeline shut down).
     pub fn push(&self, frame: MarkerFrame) -> bool {
+        self.push_arrived(frame, Instant::now())
+    }
+
+    /// Like [`Self::push`] for a frame that arrived at `arrived` (a source
+    /// that takes the time as the datagram comes in, before decoding it).
+    pub fn push_arrived(&self, frame: MarkerFrame, arrived: Instant) -> bool {
         if self.closed.load(Ordering::Relaxed) {
             return false;
         }
         self.pushed.fetch_add(1, Ordering::Relaxed);
-        let mut frame = frame;
+        let mut item = (frame, arrived);
         loop {
-            match self.tx.try_send(frame) {
+            match self.tx.try_send(item) {
                 Ok(()) => return true,
                 Err(TrySendError::Disconnected(_)) => return false,
                 Err(TrySendError::Full(back)) => {
                     if self.evict.try_recv().is_ok() {
                         self.dropped.fetch_add(1, Ordering::Relaxed);
                     }
-                    frame = back;
+                    item = back;
                 }
             }
         }
@@ -109,6 +158,15 @@ mod tests {
         assert_eq!(got, vec![7, 8, 9]);
         assert_eq!(sink.dropped(), 7);
         assert_eq!(sink.pushed(), 10);
+        // Arrival instants travel with the frames, oldest first.
+        let t0 = Instant::now();
+        sink.push_arrived(MarkerFrame::new(20, 0.0, vec![]), t0);
+        sink.push(MarkerFrame::new(21, 0.0, vec![]));
+        assert_eq!(rx.len(), 2);
+        let (f, at) = rx.recv_timeout_arrived(Duration::from_secs(1)).unwrap();
+        assert_eq!((f.frame, at), (20, t0));
+        let (f, at) = rx.recv_timeout_arrived(Duration::from_secs(1)).unwrap();
+        assert!(f.frame == 21 && at >= t0);
         drop(rx);
         assert!(
             !sink.push(MarkerFrame::new(11, 0.0, vec![])),

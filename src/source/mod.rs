@@ -3,6 +3,7 @@
 //! deliver through a [`channel::FrameSink`] and never block on the pipeline.
 
 pub mod allow;
+pub mod bad_input;
 pub mod channel;
 pub mod live;
 pub mod natnet;

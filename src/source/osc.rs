@@ -3,15 +3,14 @@
 //!
 //! This half owns the socket, the sender allow-list, the clock and the
 //! counters; [`decode::Assembler`] turns the packets into frames.
-//! Everything rejected is counted by kind and logged with the sender and the
-//! offending address and argument (the first few of each kind at `warn`,
-//! the rest at `debug`, so a flood cannot flood the log).
+//! Everything rejected is counted by kind ([`BadInput`]) and logged with the
+//! sender and the offending address and argument, once per kind every 10 s
+//! ([`LogThrottle`]), so a flood cannot flood the log.
 
-use std::collections::HashSet;
-use std::net::{IpAddr, SocketAddr};
+use std::net::SocketAddr;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
-use std::time::Instant;
+use std::time::{Duration, Instant};
 
 use serde::Serialize;
 use tokio::net::UdpSocket;
@@ -19,16 +18,17 @@ use tokio::sync::watch;
 
 use crate::error::{Error, Result};
 use crate::model::frame::{LengthUnit, UpAxis};
-use crate::protocol::osc::{Assembler, DecodeOptions, Output, ProblemKind};
+use crate::protocol::osc::{Assembler, DecodeOptions, Output, ProblemKind, MAX_DATAGRAM_BYTES};
 use crate::source::allow::AllowList;
+use crate::source::bad_input::{BadInput, BadInputKind};
 use crate::source::channel::FrameSink;
 use crate::source::live::{LiveSource, SourceFuture, SourceReport};
+use crate::throttle::LogThrottle;
 use serde::Deserialize;
 
-/// Problems of one kind logged at `warn` before the rest go to `debug`.
-const WARN_FIRST: u64 = 5;
-/// Distinct refused senders remembered (each is warned about once).
-const MAX_REFUSED_SENDERS: usize = 256;
+/// How often the throttled warnings' counts are written out while the
+/// socket is quiet.
+const FLUSH_EVERY: Duration = Duration::from_secs(1);
 /// Kernel receive buffer asked for: 1000 markers × 1000 frames/s arrive in
 /// bursts, and a datagram the kernel cannot queue is lost without a trace.
 const RECV_BUFFER_BYTES: usize = 4 << 20;
@@ -95,14 +95,12 @@ pub struct OscStats {
     pub frames: AtomicU64,
     /// Markers in those frames.
     pub markers: AtomicU64,
-    /// Datagrams from senders not in the allow-list, dropped unread.
-    pub not_allowed: AtomicU64,
-    /// Datagrams that are not OSC.
-    pub garbage: AtomicU64,
-    /// Messages at our addresses with wrong type tags or arguments, skipped.
-    pub bad_args: AtomicU64,
-    /// `/frame/start` … `/frame/end` brackets broken by a lost datagram.
-    pub broken_frames: AtomicU64,
+    /// Rejected input by kind: senders not in the allow-list
+    /// (`not_allowed`), datagrams that are not OSC or nest too deep
+    /// (`failed_decode`), messages at our addresses with wrong type tags or
+    /// arguments (`invalid`), `/frame/start` … `/frame/end` brackets broken
+    /// by a lost datagram (`incomplete`).
+    pub bad: BadInput,
     /// Well-formed messages at addresses we do not use (rigid bodies, …).
     pub ignored: AtomicU64,
     /// Frames the sink dropped because its consumer fell behind.
@@ -124,28 +122,16 @@ pub struct OscCounts {
     pub markers: u64,
     /// Datagrams from senders outside `osc.allow`, dropped unread.
     pub not_allowed: u64,
-    /// Datagrams that are not OSC.
-    pub garbage: u64,
+    /// Datagrams that are not OSC or nest too deep.
+    pub failed_decode: u64,
     /// Messages with wrong type tags or arguments, skipped.
-    pub bad_args: u64,
+    pub invalid: u64,
     /// Frame brackets broken by a lost datagram.
-    pub broken_frames: u64,
+    pub incomplete: u64,
     /// Well-formed messages at addresses we do not use.
     pub ignored: u64,
     /// Frames dropped because the consumer fell behind.
     pub dropped: u64,
-}
-
-impl OscCounts {
-    /// The rejected/lost kinds, in report order.
-    pub fn rejected(&self) -> Vec<(String, u64)> {
-        vec![
-            ("not_allowed".into(), self.not_allowed),
-            ("garbage".into(), self.garbage),
-            ("bad_args".into(), self.bad_args),
-            ("broken_frames".into(), self.broken_frames),
-        ]
-    }
 }
 
 impl OscStats {
@@ -156,10 +142,10 @@ impl OscStats {
             datagrams: get(&self.datagrams),
             frames: get(&self.frames),
             markers: get(&self.markers),
-            not_allowed: get(&self.not_allowed),
-            garbage: get(&self.garbage),
-            bad_args: get(&self.bad_args),
-            broken_frames: get(&self.broken_frames),
+            not_allowed: self.bad.get(BadInputKind::NotAllowed),
+            failed_decode: self.bad.get(BadInputKind::FailedDecode),
+            invalid: self.bad.get(BadInputKind::Invalid),
+            incomplete: self.bad.get(BadInputKind::Incomplete),
             ignored: get(&self.ignored),
             dropped: get(&self.dropped),
         }
@@ -173,13 +159,23 @@ impl OscStats {
     fn set_local_addr(&self, addr: SocketAddr) {
         *self.local_addr.lock().unwrap_or_else(|p| p.into_inner()) = Some(addr);
     }
+}
 
-    fn problem_counter(&self, kind: ProblemKind) -> &AtomicU64 {
-        match kind {
-            ProblemKind::Garbage => &self.garbage,
-            ProblemKind::BadArgs => &self.bad_args,
-            ProblemKind::BrokenFrame => &self.broken_frames,
-        }
+/// The common kind of a decoder problem.
+fn bad_input_kind(kind: ProblemKind) -> BadInputKind {
+    match kind {
+        ProblemKind::Garbage => BadInputKind::FailedDecode,
+        ProblemKind::BadArgs => BadInputKind::Invalid,
+        ProblemKind::BrokenFrame => BadInputKind::Incomplete,
+    }
+}
+
+/// The throttle kind (and log prefix) of a decoder problem.
+fn warning_kind(kind: ProblemKind) -> &'static str {
+    match kind {
+        ProblemKind::Garbage => "osc: datagrams that are not OSC",
+        ProblemKind::BadArgs => "osc: messages with wrong arguments",
+        ProblemKind::BrokenFrame => "osc: frames broken by a lost datagram",
     }
 }
 
@@ -221,11 +217,14 @@ pub async fn run(
     let started = Instant::now();
     let stats = &opts.stats;
     let mut assembler = Assembler::new(opts.decode);
-    let mut refused: HashSet<IpAddr> = HashSet::new();
-    let mut buf = vec![0u8; 65536];
+    let throttle = LogThrottle::default();
+    // One byte more than the largest datagram taken, so that a datagram the
+    // kernel cut to fit is seen as too long rather than decoded in part.
+    let mut buf = vec![0u8; MAX_DATAGRAM_BYTES + 1];
     let mut out = Output::default();
     let mut sender = local;
     let mut open = true;
+    let mut flush = tokio::time::interval(FLUSH_EVERY);
     while open && !*shutdown.borrow() {
         tokio::select! {
             changed = shutdown.changed() => {
@@ -233,6 +232,7 @@ pub async fn run(
                     break;
                 }
             }
+            _ = flush.tick() => throttle.flush(),
             received = socket.recv_from(&mut buf) => {
                 let (n, from) = match received {
                     Ok(r) => r,
@@ -245,27 +245,28 @@ pub async fn run(
                     }
                 };
                 if !opts.allow.allows(from.ip()) {
-                    stats.not_allowed.fetch_add(1, Ordering::Relaxed);
-                    if refused.len() < MAX_REFUSED_SENDERS && refused.insert(from.ip()) {
-                        tracing::warn!(
+                    stats.bad.add(BadInputKind::NotAllowed);
+                    throttle.warn("osc: senders not in osc.allow", || {
+                        format!(
                             "osc: dropping datagrams from {from}: not in osc.allow {:?} \
                              (to accept it: --set 'osc.allow=[\"{}\"]')",
                             opts.allow.0.iter().map(|r| r.to_string()).collect::<Vec<_>>(),
                             from.ip()
-                        );
-                    }
+                        )
+                    });
                     continue;
                 }
                 stats.datagrams.fetch_add(1, Ordering::Relaxed);
                 sender = from;
                 let now_s = started.elapsed().as_secs_f64();
                 assembler.datagram(buf.get(..n).unwrap_or(&[]), now_s, &mut out);
-                open = deliver(&mut out, &sink, stats, from);
+                open = deliver(&mut out, &sink, stats, &throttle, from);
             }
         }
     }
     assembler.finish(&mut out);
-    deliver(&mut out, &sink, stats, sender);
+    deliver(&mut out, &sink, stats, &throttle, sender);
+    throttle.finish();
     stats.dropped.store(sink.dropped(), Ordering::Relaxed);
     let counts = stats.snapshot();
     Ok(SourceReport {
@@ -274,13 +275,19 @@ pub async fn run(
         frames: counts.frames,
         markers: counts.markers,
         dropped: counts.dropped,
-        rejected: counts.rejected(),
+        rejected: stats.bad.counts(),
     })
 }
 
 /// Pushes finished frames and accounts for problems; false when the
 /// consumer is gone.
-fn deliver(out: &mut Output, sink: &FrameSink, stats: &OscStats, from: SocketAddr) -> bool {
+fn deliver(
+    out: &mut Output,
+    sink: &FrameSink,
+    stats: &OscStats,
+    throttle: &LogThrottle,
+    from: SocketAddr,
+) -> bool {
     stats
         .ignored
         .fetch_add(std::mem::take(&mut out.ignored), Ordering::Relaxed);
@@ -298,23 +305,10 @@ fn deliver(out: &mut Output, sink: &FrameSink, stats: &OscStats, from: SocketAdd
         );
     }
     for p in out.problems.drain(..) {
-        let n = stats
-            .problem_counter(p.kind)
-            .fetch_add(1, Ordering::Relaxed)
-            + 1;
-        if n <= WARN_FIRST {
-            tracing::warn!(
-                "osc: {} from {from}: {p}{}",
-                p.kind.name(),
-                if n == WARN_FIRST {
-                    " (further ones at debug level)"
-                } else {
-                    ""
-                }
-            );
-        } else {
-            tracing::debug!("osc: {} from {from}: {p}", p.kind.name());
-        }
+        stats.bad.add(bad_input_kind(p.kind));
+        throttle.warn(warning_kind(p.kind), || {
+            format!("osc: {} from {from}: {p}", p.kind.name())
+        });
     }
     let mut open = true;
     for frame in out.frames.drain(..) {
@@ -348,7 +342,7 @@ impl LiveSource for OscSource {
     }
 
     fn losses(&self) -> Vec<(String, u64)> {
-        self.0.stats.snapshot().rejected()
+        self.0.stats.bad.counts()
     }
 
     fn start(&self, sink: FrameSink, shutdown: watch::Receiver<bool>) -> SourceFuture {

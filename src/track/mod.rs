@@ -2,13 +2,16 @@
 //! markers per frame in, one rest position per branch tip out.
 //!
 //! The steps, in order:
-//! 1. [`tracker`]: frame by frame, markers become traces (forward
-//!    differencing, kd-tree gating, global assignment);
-//! 2. [`noise`]: pieces of one marker are joined (by motion across a gap,
-//!    then by rest position);
+//! 1. [`tracker`]: frame by frame, markers become traces (a Kalman filter
+//!    per trace, gates from its uncertainty, kd-tree candidates, global
+//!    assignment), and [`identity`] joins the pieces of each marker on line
+//!    from its neighbours' motion; traces never confirmed are ghosts;
+//! 2. [`noise`]: pieces of one marker still apart are joined by rest
+//!    position;
 //! 3. [`rest`]: the still phase is found (or taken from the config);
 //! 4. [`noise`]: traces measured in fewer than 1/4 of the frames are dropped;
-//! 5. [`gaps`]: gaps are filled where plausible;
+//! 5. [`gaps`]: gaps are filled from the neighbours' motion, or by PCHIP,
+//!    where plausible;
 //! 6. [`rest`]: each remaining trace's rest position → [`Tips`].
 //!
 //! The live daemon runs step 1 as frames arrive and steps 2–6 ([`clean`])
@@ -16,6 +19,9 @@
 
 pub mod assign;
 pub mod gaps;
+mod identity;
+pub mod live;
+mod motion;
 pub mod noise;
 pub mod rest;
 pub mod settings;
@@ -52,10 +58,12 @@ pub struct Summary {
     pub tracking: TrackStats,
     /// Traces the tracker made (before joining).
     pub traces: usize,
-    /// Pieces joined to an earlier piece of the same marker.
-    pub joined_by_motion: usize,
-    /// Pieces joined because their rest positions lie within
-    /// `merge_radius_mm` of each other.
+    /// Traces never confirmed as a marker (ghost reflections, flickers).
+    pub ghosts: usize,
+    /// Pieces joined to an earlier piece of the same marker on line, from
+    /// the neighbours' motion.
+    pub joined_on_line: usize,
+    /// Pieces joined afterwards by rest position.
     pub joined_by_rest: usize,
     /// Long fragments without a rest position put into a gap of the marker
     /// whose neighbourhood they occupy.
@@ -87,8 +95,8 @@ impl fmt::Display for Summary {
         )?;
         writeln!(
             f,
-            "markers found: {} tips, from {} traces (pieces joined: {} by motion across a gap, {} by rest position, {} into a gap of their neighbourhood)",
-            self.tips, self.traces, self.joined_by_motion, self.joined_by_rest, self.joined_into_gaps
+            "markers found: {} tips, from {} traces ({} ghosts never confirmed; pieces joined: {} from the neighbours' motion, {} by rest position, {} into a gap of their neighbourhood)",
+            self.tips, self.traces, self.ghosts, self.joined_on_line, self.joined_by_rest, self.joined_into_gaps
         )?;
         let longest = self.dropped.first().map_or(String::new(), |d| {
             format!(
@@ -109,8 +117,8 @@ impl fmt::Display for Summary {
         let g = &self.gaps;
         writeln!(
             f,
-            "gaps: {} filled ({} frames); left open: {} longer than max_fill ({} frames), {} with an implausible jump ({} frames)",
-            g.filled, g.filled_frames, g.too_long, g.too_long_frames, g.rejected_jump, g.rejected_jump_frames
+            "gaps: {} filled ({} frames, {} from the neighbours' motion); left open: {} too long ({} frames), {} whose ends are not one marker ({} frames)",
+            g.filled, g.filled_frames, g.from_neighbours, g.too_long, g.too_long_frames, g.rejected, g.rejected_frames
         )?;
         let source = match self.rest_source {
             RestSource::Auto => "found automatically",
@@ -132,6 +140,31 @@ impl fmt::Display for Summary {
         }
         Ok(())
     }
+}
+
+/// One trace per identity (its pieces appended in time order); returns
+/// them in order of first appearance and the number of traces in none.
+fn assemble(
+    traces: Vec<crate::model::trace::Trace>,
+    identities: &[Vec<usize>],
+) -> (Vec<crate::model::trace::Trace>, usize) {
+    let mut slots: Vec<Option<crate::model::trace::Trace>> = traces.into_iter().map(Some).collect();
+    let mut out = Vec::with_capacity(identities.len());
+    for pieces in identities {
+        let mut iter = pieces.iter();
+        let Some(mut joined) = iter.next().and_then(|&i| slots.get_mut(i)?.take()) else {
+            continue;
+        };
+        for &i in iter {
+            if let Some(piece) = slots.get_mut(i).and_then(Option::take) {
+                joined.append(&piece);
+            }
+        }
+        out.push(joined);
+    }
+    let ghosts = slots.iter().flatten().count();
+    out.sort_by_key(|t| (t.first_frame(), t.id));
+    (out, ghosts)
 }
 
 /// Runs the whole marker stage over a recording: reads, tracks, joins,
@@ -159,10 +192,13 @@ pub fn clean(
 ) -> (Tips, Summary) {
     let Tracked {
         traces,
+        identities,
         timeline,
         stats,
     } = tracked;
     let n_traces = traces.len();
+    let joined_on_line = stats.joined as usize;
+    let (traces, ghosts) = assemble(traces, &identities);
     let frames = stats.frames;
     let mut warnings = Vec::new();
     if let Some(d) = stats.closest_spacing_m {
@@ -175,12 +211,6 @@ pub fn clean(
     }
 
     let mut assigner = assign::Assigner::default();
-    let (traces, joined_by_motion) = noise::join_by_motion(
-        traces,
-        i64::from(cfg.max_gap),
-        cfg.max_jump_mm / 1000.0,
-        &mut assigner,
-    );
 
     let total = timeline.len() as i64;
     let window = match cfg.rest_window_s.as_slice() {
@@ -256,18 +286,10 @@ pub fn clean(
 
     let settings = gaps::GapSettings {
         max_fill_s: cfg.max_fill_s,
-        max_jump_m: cfg.max_jump_mm / 1000.0,
+        max_pchip_s: cfg.max_pchip_s,
+        neighbours: true,
     };
-    let mut gap_stats = GapStats::default();
-    for t in kept.iter_mut() {
-        let s = gaps::fill_gaps(t, &timeline, settings);
-        gap_stats.filled += s.filled;
-        gap_stats.filled_frames += s.filled_frames;
-        gap_stats.too_long += s.too_long;
-        gap_stats.too_long_frames += s.too_long_frames;
-        gap_stats.rejected_jump += s.rejected_jump;
-        gap_stats.rejected_jump_frames += s.rejected_jump_frames;
-    }
+    let gap_stats = gaps::fill_gaps(&mut kept, &timeline, settings);
 
     kept.sort_by_key(|t| (t.first_frame(), t.id));
     let mut tips = Vec::with_capacity(kept.len());
@@ -309,7 +331,8 @@ pub fn clean(
         duration_s,
         tracking: stats,
         traces: n_traces,
-        joined_by_motion,
+        ghosts,
+        joined_on_line,
         joined_by_rest,
         joined_into_gaps,
         dropped,

@@ -1,16 +1,15 @@
 //! Joining the pieces of one marker, then removing noise (paper §4 and §7,
 //! spec §4).
 //!
-//! A marker hidden for longer than the tracker can bridge comes back as a
-//! new trace. Two rules join such pieces before the noise test, so that a
-//! marker that was hidden once is not thrown away or counted twice:
+//! The tracker's identity layer joins the pieces of a marker on line from
+//! its neighbours' motion. What it could not join (a marker hidden for
+//! longer than `keep_lost_s`, a piece it did not trust) is joined here,
+//! before the noise test, so that a marker hidden once is not thrown away
+//! or counted twice:
 //! - **by rest position** (spec): pieces that do not overlap in time and
 //!   whose rest positions lie within `merge_radius` are one marker;
-//! - **by motion** (ours, for pieces that are both outside the rest phase):
-//!   piece B starts at most `max_gap` frames after piece A ends, and the
-//!   linear extrapolations of A forward and of B backward meet within
-//!   `max_jump` at the middle of the gap. Ends and starts are paired by
-//!   global assignment, cheapest total first, like markers in the tracker.
+//! - **into a gap** (ours): a long piece without a rest position goes into
+//!   the gap of the marker whose neighbourhood it occupies.
 //!
 //! Then the paper's rule: a trace measured in fewer than `noise_fraction`
 //! (1/4) of the frames is noise (a spurious reflection, a marker on the
@@ -35,114 +34,6 @@ pub struct DroppedTrace {
     pub first_frame: i64,
     /// Last internal frame in which it was measured.
     pub last_frame: i64,
-}
-
-/// Velocity (m per frame) from the first (`at_start`) or last few
-/// measurements; `None` with fewer than two.
-fn end_velocity(trace: &Trace, at_start: bool) -> Option<(i64, DVec3, DVec3)> {
-    const SPAN: usize = 4;
-    if trace.measured() < 2 {
-        return None;
-    }
-    let pts: Vec<(i64, DVec3)> = if at_start {
-        trace.measurements().take(SPAN).collect()
-    } else {
-        // Only the tail is needed; the decoder is sequential, so walk once.
-        let mut tail = std::collections::VecDeque::with_capacity(SPAN + 1);
-        for m in trace.measurements() {
-            if tail.len() == SPAN {
-                tail.pop_front();
-            }
-            tail.push_back(m);
-        }
-        tail.into_iter().collect()
-    };
-    let (first, last) = (pts.first()?, pts.last()?);
-    let span = (last.0 - first.0) as f64;
-    if span <= 0.0 {
-        return None;
-    }
-    let v = (last.1 - first.1) / span;
-    Some(if at_start {
-        (first.0, first.1, v)
-    } else {
-        (last.0, last.1, v)
-    })
-}
-
-/// Joins pieces whose motions continue each other across a gap of at most
-/// `max_gap` frames. Returns the traces (joined ones merged into the
-/// earlier piece, order kept) and the number of joins.
-pub fn join_by_motion(
-    traces: Vec<Trace>,
-    max_gap: i64,
-    max_jump_m: f64,
-    assigner: &mut Assigner,
-) -> (Vec<Trace>, usize) {
-    let ends: Vec<Option<(i64, DVec3, DVec3)>> =
-        traces.iter().map(|t| end_velocity(t, false)).collect();
-    let starts: Vec<Option<(i64, DVec3, DVec3)>> =
-        traces.iter().map(|t| end_velocity(t, true)).collect();
-    // Starts sorted by frame, to find those following an end quickly.
-    let mut by_start: Vec<(i64, usize)> = starts
-        .iter()
-        .enumerate()
-        .filter_map(|(i, s)| s.map(|s| (s.0, i)))
-        .collect();
-    by_start.sort_unstable();
-    let mut edges = Vec::new();
-    for (a, end) in ends.iter().enumerate() {
-        let Some((e, pa, va)) = *end else { continue };
-        let from = by_start.partition_point(|s| s.0 <= e);
-        for &(s, b) in &by_start[from..] {
-            if s - e - 1 > max_gap {
-                break;
-            }
-            let Some((_, pb, vb)) = starts[b] else {
-                continue;
-            };
-            let mid = (e + s) as f64 / 2.0;
-            let fwd = pa + va * (mid - e as f64);
-            let back = pb - vb * (s as f64 - mid);
-            let cost = fwd.distance(back);
-            if cost <= max_jump_m {
-                edges.push(Edge {
-                    row: a,
-                    col: b,
-                    cost,
-                });
-            }
-        }
-    }
-    let mut next = Vec::new();
-    assigner.solve(traces.len(), traces.len(), &edges, max_jump_m, &mut next);
-    let joins = next.iter().flatten().count();
-    if joins == 0 {
-        return (traces, 0);
-    }
-    let mut is_next = vec![false; traces.len()];
-    for b in next.iter().flatten() {
-        is_next[*b] = true;
-    }
-    let mut slots: Vec<Option<Trace>> = traces.into_iter().map(Some).collect();
-    let mut out = Vec::new();
-    for head in 0..slots.len() {
-        if is_next[head] {
-            continue;
-        }
-        let Some(mut joined) = slots[head].take() else {
-            continue;
-        };
-        let mut cur = head;
-        while let Some(b) = next.get(cur).copied().flatten() {
-            if let Some(piece) = slots[b].take() {
-                joined.append(&piece);
-            }
-            cur = b;
-        }
-        out.push(joined);
-    }
-    (out, joins)
 }
 
 /// Joins pieces that do not overlap in time and whose rest positions (given
@@ -260,32 +151,6 @@ mod tests {
             t.push(n, f(n), None);
         }
         t
-    }
-
-    #[test]
-    fn motion_join_pairs_continuing_pieces_only() {
-        let a_path = |n: i64| DVec3::new(0.002 * n as f64, 1.0, 0.0);
-        let b_path = |n: i64| DVec3::new(0.5, 1.0, 0.001 * n as f64);
-        let traces = vec![
-            piece(0, 0..50, a_path),
-            piece(1, 0..50, b_path),
-            // B's continuation after 30 frames, then A's after 40.
-            piece(2, 80..120, b_path),
-            piece(3, 90..130, a_path),
-            // Something far away starting after A ends.
-            piece(4, 60..70, |_| DVec3::new(2.0, 0.0, 0.0)),
-        ];
-        let mut asg = Assigner::default();
-        let (out, joins) = join_by_motion(traces, 120, 0.04, &mut asg);
-        assert_eq!(joins, 2);
-        assert_eq!(out.len(), 3);
-        assert_eq!(out[0].pieces, vec![0, 3]);
-        assert_eq!(out[1].pieces, vec![1, 2]);
-        assert_eq!(out[2].pieces, vec![4]);
-        // Too long a gap: no join.
-        let traces = vec![piece(0, 0..50, a_path), piece(1, 200..240, a_path)];
-        let (out, joins) = join_by_motion(traces, 120, 0.04, &mut asg);
-        assert_eq!((out.len(), joins), (2, 0));
     }
 
     #[test]

@@ -13,10 +13,10 @@ pub struct TrackingSettings {
     pub gate_mm: f64,
     /// Frames a trace survives without a marker before it ends.
     pub max_gap: u32,
-    /// Longest gap that is filled by interpolation (s).
+    /// Longest gap that is filled from the neighbours' motion (s).
     pub max_fill_s: f64,
-    /// Largest plausible disagreement between a gap's far end and a linear
-    /// extrapolation across it (mm); beyond it the fill (or join) is refused.
+    /// Radius (mm) within which a long piece without a rest position joins
+    /// the gap of the marker whose neighbourhood it occupies.
     pub max_jump_mm: f64,
     /// Pieces whose rest positions are this close are one marker (mm).
     pub merge_radius_mm: f64,
@@ -28,6 +28,25 @@ pub struct TrackingSettings {
     pub rest_window_s: Vec<f64>,
     /// Markers of one frame closer than this are duplicates (mm).
     pub duplicate_mm: f64,
+    /// Measurement noise the motion model assumes (mm, σ per axis).
+    pub noise_mm: f64,
+    /// Gate in standard deviations of a trace's prediction.
+    pub gate_sigma: f64,
+    /// Time a new trace is watched before it is compared with the markers
+    /// lost before it (s).
+    pub link_s: f64,
+    /// Time after which a trace nobody claims is a marker of its own (s).
+    pub confirm_s: f64,
+    /// Smallest radius (RMS distance, mm) within which a new trace follows
+    /// the path its neighbours predict for a lost marker.
+    pub link_min_mm: f64,
+    /// Largest such radius (mm).
+    pub link_max_mm: f64,
+    /// How long a lost marker can be found again on line (s).
+    pub keep_lost_s: f64,
+    /// Longest gap filled by interpolation (PCHIP) where the neighbours
+    /// say nothing (s); `max_fill_s` bounds fills from the neighbours.
+    pub max_pchip_s: f64,
 }
 
 impl TrackingSettings {
@@ -35,12 +54,25 @@ impl TrackingSettings {
     pub fn validate(&self) -> Result<()> {
         check_range("tracking.gate_mm", self.gate_mm, 1.0, 500.0)?;
         check_range("tracking.max_gap", f64::from(self.max_gap), 0.0, 100_000.0)?;
-        check_range("tracking.max_fill_s", self.max_fill_s, 0.0, 10.0)?;
+        check_range("tracking.max_fill_s", self.max_fill_s, 0.0, 60.0)?;
         check_range("tracking.max_jump_mm", self.max_jump_mm, 1.0, 1000.0)?;
         check_range("tracking.merge_radius_mm", self.merge_radius_mm, 0.0, 100.0)?;
         check_range("tracking.noise_fraction", self.noise_fraction, 0.0, 1.0)?;
         check_range("tracking.rest_motion_mm", self.rest_motion_mm, 0.01, 100.0)?;
         check_range("tracking.duplicate_mm", self.duplicate_mm, 0.0, 10.0)?;
+        check_range("tracking.noise_mm", self.noise_mm, 0.01, 10.0)?;
+        check_range("tracking.gate_sigma", self.gate_sigma, 2.0, 20.0)?;
+        check_range("tracking.link_s", self.link_s, 0.0, 2.0)?;
+        check_range("tracking.confirm_s", self.confirm_s, 0.05, 30.0)?;
+        check_range("tracking.link_min_mm", self.link_min_mm, 0.1, 100.0)?;
+        check_range(
+            "tracking.link_max_mm",
+            self.link_max_mm,
+            self.link_min_mm,
+            500.0,
+        )?;
+        check_range("tracking.keep_lost_s", self.keep_lost_s, 0.0, 3600.0)?;
+        check_range("tracking.max_pchip_s", self.max_pchip_s, 0.0, 10.0)?;
         match self.rest_window_s.as_slice() {
             [] => {}
             [a, b] if a.is_finite() && b.is_finite() && *a >= 0.0 && a < b => {}

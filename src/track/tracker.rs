@@ -1,14 +1,25 @@
-//! Frame-by-frame tracking by forward differencing (paper §4, spec §2).
+//! Frame-by-frame tracking (paper §4, spec §2), with a motion model.
 //!
-//! Each live trace predicts where its marker will be, `p̂(M) = 2p(M−1) −
-//! p(M−2)` (across a jump of k frames: last position + k × last velocity),
-//! and takes one marker of the new frame within the gate. Which trace takes
-//! which marker is decided for all of them at once ([`assign`]): the
-//! cheapest total distance, where a trace left without a marker costs the
-//! gate radius. Candidates come from a kd-tree of the frame's markers
-//! (for small frames, a direct scan of all pairs, which is cheaper). A
-//! trace that finds nothing for more than `max_gap` frames ends; markers
-//! nobody took start new traces.
+//! Each live trace predicts where its marker will be with a
+//! constant-acceleration Kalman filter ([`motion`](super::motion)), which
+//! also says how sure the prediction is; the paper's forward difference
+//! `p̂(M) = 2p(M−1) − p(M−2)` is the same predictor without either. A trace
+//! may take a marker within `gate_sigma` standard deviations of its
+//! prediction and within `gate_mm`. Which trace takes which marker is
+//! decided for all of them at once ([`assign`]): the cheapest total of
+//! squared normalised distances plus the log of each prediction's variance,
+//! so that where two traces could take one marker, the surer one does.
+//! Candidates come from a kd-tree of the frame's markers (for small frames,
+//! a direct scan of all pairs, which is cheaper). A trace that misses its
+//! marker ends once its prediction is too unsure to pick the right one
+//! again (the gate would exceed `gate_mm`), or after `max_gap` frames; a
+//! trace seen once ends at its first miss, so a storm of stray reflections
+//! cannot pile up live traces. Markers nobody took start new traces.
+//!
+//! Pieces of one marker are put back together on line by the identity
+//! layer ([`identity`](super::identity)), from the motion of the marker's
+//! neighbours; its identities are the tips the daemon shows live and the
+//! replay reports.
 //!
 //! The tracker keeps only the traces and a per-frame time line, so the live
 //! daemon can feed it for hours.
@@ -30,6 +41,8 @@ use kiddo::{ImmutableKdTree, SquaredEuclidean};
 use serde::Serialize;
 
 use super::assign::{Assigner, Edge};
+use super::identity::{Identities, IdentitySettings};
+use super::motion::{Motion, MotionParams};
 use crate::model::frame::MarkerFrame;
 use crate::model::trace::{Timeline, Trace};
 use crate::track::TrackingSettings;
@@ -60,6 +73,8 @@ pub struct TrackStats {
     /// The smallest distance seen between two established traces'
     /// predictions (m), when closer than twice the gate.
     pub closest_spacing_m: Option<f64>,
+    /// Traces joined on line to an earlier piece of the same marker.
+    pub joined: u64,
 }
 
 /// What the tracker hands on when the session is over.
@@ -67,6 +82,9 @@ pub struct TrackStats {
 pub struct Tracked {
     /// Every trace, in order of appearance (`trace.id` = index).
     pub traces: Vec<Trace>,
+    /// The markers found: for each, the ids of its traces in time order.
+    /// Traces in none are ghosts and fragments never confirmed.
+    pub identities: Vec<Vec<usize>>,
     /// Internal frame index → source frame number and time.
     pub timeline: Timeline,
     /// What the tracker counted, including the bad input it skipped.
@@ -77,18 +95,11 @@ pub struct Tracked {
 #[derive(Debug, Clone, Copy)]
 struct Live {
     trace: usize,
-    last: DVec3,
-    last_t: i64,
-    /// Motion per frame from the last two measurements.
-    velocity: DVec3,
-    /// The oldest of the last few measurements: across a gap the velocity
-    /// is taken over this longer baseline, because a two-sample difference
-    /// carries the full measurement noise, multiplied by the gap length.
-    base: (i64, DVec3),
-    recent: [(i64, DVec3); BASELINE],
-    recent_len: usize,
+    motion: Motion,
     measured: u32,
+    /// Prediction for the current frame and its variance per axis.
     prediction: DVec3,
+    variance: f64,
 }
 
 /// Up to this many trace × marker pairs per frame, candidates are found by
@@ -97,59 +108,24 @@ struct Live {
 /// typical tree capture of 24–70 markers (see benches/tracking.rs).
 const DIRECT_SCAN_MAX: usize = 4096;
 
-/// Measurements over which the velocity across a gap is taken.
-const BASELINE: usize = 5;
-
-impl Live {
-    fn new(trace: usize, p: DVec3, t: i64) -> Self {
-        let mut recent = [(t, p); BASELINE];
-        recent[0] = (t, p);
-        Live {
-            trace,
-            last: p,
-            last_t: t,
-            velocity: DVec3::ZERO,
-            base: (t, p),
-            recent,
-            recent_len: 1,
-            measured: 1,
-            prediction: p,
-        }
-    }
-
-    fn update(&mut self, p: DVec3, t: i64) {
-        let k = (t - self.last_t).max(1) as f64;
-        self.velocity = (p - self.last) / k;
-        self.last = p;
-        self.last_t = t;
-        self.measured += 1;
-        // Keep the last BASELINE measurements (a tiny ring, oldest at
-        // recent_len % BASELINE once full).
-        let slot = self.recent_len % BASELINE;
-        self.recent[slot] = (t, p);
-        self.recent_len += 1;
-        self.base = if self.recent_len >= BASELINE {
-            self.recent[self.recent_len % BASELINE]
-        } else {
-            self.recent[0]
-        };
-    }
-
-    /// `p̂(M) = 2p(M−1) − p(M−2)` for the next frame; across a gap of k
-    /// frames, the last position plus k × the velocity over the baseline.
-    fn predict(&self, t: i64) -> DVec3 {
-        let k = (t - self.last_t) as f64;
-        if k <= 1.0 || self.base.0 >= self.last_t {
-            return self.last + self.velocity * k;
-        }
-        let v = (self.last - self.base.1) / (self.last_t - self.base.0) as f64;
-        self.last + v * k
-    }
-}
+/// Added to the miss cost of a trace so that the log-variance term only
+/// breaks ties between traces and never refuses a marker inside the gate.
+const LOG_VARIANCE_ALLOWANCE: f64 = 12.0;
 
 /// The online tracker; feed it frames in order with [`Tracker::push`].
 pub struct Tracker {
     gate_m: f64,
+    gate_sigma: f64,
+    noise_m: f64,
+    params: MotionParams,
+    params_set: bool,
+    identities: Identities,
+    cfg: TrackingSettings,
+    /// Keep every trace's samples (a replay) or only the live state (the
+    /// daemon, whose memory must not grow with the session).
+    record: bool,
+    /// Id of the next trace.
+    next_trace: usize,
     max_gap: i64,
     duplicate_m: f64,
     traces: Vec<Trace>,
@@ -176,11 +152,20 @@ impl Tracker {
     /// `frame_rate` (if known) gives the frame interval until two frames
     /// have been seen.
     pub fn new(cfg: &TrackingSettings, frame_rate: Option<f64>) -> Self {
-        let dt = frame_rate
-            .filter(|r| r.is_finite() && *r > 0.0)
-            .map_or(0.01, |r| 1.0 / r);
+        let known = frame_rate.filter(|r| r.is_finite() && *r > 0.0);
+        let dt = known.map_or(0.01, |r| 1.0 / r);
+        let noise_m = cfg.noise_mm / 1000.0;
+        let identity_settings = identity_settings(cfg, dt);
         Tracker {
             gate_m: cfg.gate_mm / 1000.0,
+            gate_sigma: cfg.gate_sigma,
+            noise_m,
+            params: MotionParams::new(noise_m, dt),
+            params_set: known.is_some(),
+            identities: Identities::new(identity_settings),
+            cfg: cfg.clone(),
+            record: true,
+            next_trace: 0,
             max_gap: i64::from(cfg.max_gap),
             duplicate_m: cfg.duplicate_mm / 1000.0,
             traces: Vec::new(),
@@ -203,6 +188,14 @@ impl Tracker {
         }
     }
 
+    /// A tracker for the live daemon: the same tracking, but the traces'
+    /// samples are not kept (`traces()` stays empty), so memory stays flat.
+    pub fn live(cfg: &TrackingSettings, frame_rate: Option<f64>) -> Self {
+        let mut t = Tracker::new(cfg, frame_rate);
+        t.record = false;
+        t
+    }
+
     /// Counters so far.
     pub fn stats(&self) -> &TrackStats {
         &self.stats
@@ -213,23 +206,30 @@ impl Tracker {
         &self.traces
     }
 
-    /// The live traces measured in the latest frame: `(trace id, position)`.
+    /// The markers (identities) measured in the latest frame:
+    /// `(identity, position)`, identities numbered from 0 in the order they
+    /// were confirmed. This is what the daemon shows live.
     pub fn current(&self) -> impl Iterator<Item = (usize, DVec3)> + '_ {
-        let t = self.last_t;
-        self.live
-            .iter()
-            .filter(move |l| l.last_t == t)
-            .map(|l| (l.trace, l.last))
+        self.identities.current()
+    }
+
+    /// Mean and spread (m) of the first second of identity `i`: where it
+    /// was when first seen, for matching identities with a tree's tips.
+    pub fn first_position(&self, i: usize) -> Option<(DVec3, f64)> {
+        self.identities.first_position(i)
     }
 
     /// Ends the session and hands over the traces.
     pub fn finish(mut self) -> Tracked {
         self.stats.greedy_components = self.assigner.greedy_components;
+        let identities = self.identities.finish();
+        self.stats.joined = self.identities.joins as u64;
         for t in self.traces.iter_mut() {
             t.seal();
         }
         Tracked {
             traces: self.traces,
+            identities,
             timeline: self.timeline,
             stats: self.stats,
         }
@@ -239,67 +239,23 @@ impl Tracker {
     pub fn push(&mut self, frame: &MarkerFrame) {
         self.stats.frames += 1;
         let t = self.advance(frame);
+        self.identities.begin(t);
         self.clean_markers(frame);
         if self.points.is_empty() {
             self.stats.empty_frames += 1;
         }
         self.stats.markers += self.points.len() as u64;
 
-        // Traces that have missed more than max_gap frames end now.
-        let max_gap = self.max_gap;
-        let traces = &mut self.traces;
-        self.live.retain(|l| {
-            let alive = t - l.last_t - 1 <= max_gap;
-            if !alive {
-                if let Some(tr) = traces.get_mut(l.trace) {
-                    tr.seal();
-                }
-            }
-            alive
-        });
-        for l in self.live.iter_mut() {
-            l.prediction = l.predict(t);
-        }
+        self.end_lost_traces(t);
         if !self.warned {
             self.check_spacing();
         }
-
-        self.edges.clear();
-        let r2 = self.gate_m * self.gate_m;
-        if self.points.len() * self.live.len() <= DIRECT_SCAN_MAX {
-            // Few markers: comparing every pair is cheaper than building a tree.
-            for (row, l) in self.live.iter().enumerate() {
-                for (col, p) in self.points.iter().enumerate() {
-                    let d2 = l.prediction.distance_squared(DVec3::from_array(*p));
-                    if d2 <= r2 {
-                        self.edges.push(Edge {
-                            row,
-                            col,
-                            cost: d2.sqrt(),
-                        });
-                    }
-                }
-            }
-        } else if !self.points.is_empty() && !self.live.is_empty() {
-            if let Ok(tree) = ImmutableKdTree::<f64, 3>::new_from_slice(&self.points) {
-                for (row, l) in self.live.iter().enumerate() {
-                    let q = l.prediction.to_array();
-                    let found = tree.query(&q).within::<SquaredEuclidean<f64>>(r2).execute();
-                    for item in found {
-                        self.edges.push(Edge {
-                            row,
-                            col: item.item as usize,
-                            cost: item.distance.sqrt(),
-                        });
-                    }
-                }
-            }
-        }
+        self.find_edges();
         self.assigner.solve(
             self.live.len(),
             self.points.len(),
             &self.edges,
-            self.gate_m,
+            self.gate_sigma * self.gate_sigma + LOG_VARIANCE_ALLOWANCE,
             &mut self.out,
         );
 
@@ -313,21 +269,106 @@ impl Tracker {
                 continue;
             };
             self.taken[col] = true;
-            l.update(p, t);
-            if let Some(trace) = self.traces.get_mut(l.trace) {
-                trace.push(t, p, self.ids.get(col).copied().flatten());
+            l.motion.update(p, t, &self.params);
+            l.measured += 1;
+            if self.record {
+                if let Some(trace) = self.traces.get_mut(l.trace) {
+                    trace.push(t, p, self.ids.get(col).copied().flatten());
+                }
             }
+            self.identities.measured(l.trace, p);
         }
         for (col, p) in self.points.iter().enumerate() {
             if self.taken[col] {
                 continue;
             }
-            let id = self.traces.len();
+            let id = self.next_trace;
+            self.next_trace += 1;
             let p = DVec3::from_array(*p);
-            self.traces
-                .push(Trace::new(id, t, p, self.ids.get(col).copied().flatten()));
+            if self.record {
+                self.traces
+                    .push(Trace::new(id, t, p, self.ids.get(col).copied().flatten()));
+            }
             self.stats.traces_started += 1;
-            self.live.push(Live::new(id, p, t));
+            let motion = Motion::new(p, t, &self.params);
+            self.live.push(Live {
+                trace: id,
+                motion,
+                measured: 1,
+                prediction: p,
+                variance: 0.0,
+            });
+            self.identities.started(id, p);
+        }
+        self.identities.end();
+    }
+
+    /// Predicts every live trace for frame `t` and ends those that cannot
+    /// find their marker again: missed for more than `max_gap` frames, or
+    /// whose gate would have to exceed `gate_mm`.
+    fn end_lost_traces(&mut self, t: i64) {
+        let max_gap = self.max_gap;
+        let gate = self.gate_m / self.gate_sigma;
+        let params = self.params;
+        let traces = &mut self.traces;
+        let identities = &mut self.identities;
+        self.live.retain_mut(|l| {
+            let (p, s) = l.motion.predict(t, &params);
+            l.prediction = p;
+            l.variance = s;
+            let missed = t - l.motion.t() - 1;
+            let alive = missed <= 0 || (missed <= max_gap && s <= gate * gate);
+            if !alive {
+                if let Some(tr) = traces.get_mut(l.trace) {
+                    tr.seal();
+                }
+                identities.ended(l.trace);
+            }
+            alive
+        });
+    }
+
+    /// Candidate pairs (trace, marker) inside each trace's gate, costed by
+    /// the squared normalised distance plus the log of the variance.
+    fn find_edges(&mut self) {
+        self.edges.clear();
+        let r2 = self.gate_m * self.gate_m;
+        let g2 = self.gate_sigma * self.gate_sigma;
+        let r = self.params.r.max(1e-12);
+        // Within a fifth of the gate a marker is always a candidate, however
+        // sure the prediction: real markers jitter in ways no model expects.
+        let floor2 = r2 / 25.0;
+        let edge = |row: usize, col: usize, l: &Live, d2: f64| -> Option<Edge> {
+            let s = l.variance.max(r);
+            let m = d2 / s;
+            (d2 <= r2 && (m <= g2 || d2 <= floor2)).then(|| Edge {
+                row,
+                col,
+                cost: m.min(g2) + (s / r).ln().min(LOG_VARIANCE_ALLOWANCE),
+            })
+        };
+        if self.points.len() * self.live.len() <= DIRECT_SCAN_MAX {
+            // Few markers: comparing every pair is cheaper than building a tree.
+            for (row, l) in self.live.iter().enumerate() {
+                for (col, p) in self.points.iter().enumerate() {
+                    let d2 = l.prediction.distance_squared(DVec3::from_array(*p));
+                    if let Some(e) = edge(row, col, l, d2) {
+                        self.edges.push(e);
+                    }
+                }
+            }
+        } else if !self.points.is_empty() && !self.live.is_empty() {
+            if let Ok(tree) = ImmutableKdTree::<f64, 3>::new_from_slice(&self.points) {
+                for (row, l) in self.live.iter().enumerate() {
+                    let q = l.prediction.to_array();
+                    let found = tree.query(&q).within::<SquaredEuclidean<f64>>(r2).execute();
+                    for item in found {
+                        if let Some(e) = edge(row, item.item as usize, l, item.distance) {
+                            self.edges.push(e);
+                        }
+                    }
+                }
+            }
         }
     }
 
@@ -360,6 +401,7 @@ impl Tracker {
                     tr.seal();
                 }
             }
+            self.identities.restart();
             t = self.last_t + self.max_gap + 2;
             self.timeline.anchors.push((t, frame.frame));
             if restart {
@@ -386,6 +428,14 @@ impl Tracker {
             time = last_time + self.dt * steps;
         } else if !restart && !long_jump {
             self.dt = (time - last_time) / steps;
+            if !self.params_set && self.dt > 0.0 {
+                // The rate was not known: the first frame interval sets the
+                // filters' priors.
+                self.params = MotionParams::new(self.noise_m, self.dt);
+                self.identities
+                    .set_settings(identity_settings(&self.cfg, self.dt));
+                self.params_set = true;
+            }
         }
         for k in 1..(t - self.last_t) {
             let f = k as f64 / steps;
@@ -464,7 +514,7 @@ impl Tracker {
             self.live
                 .iter()
                 .enumerate()
-                .filter(|(_, l)| l.measured >= 10 && l.last_t == self.last_t - 1)
+                .filter(|(_, l)| l.measured >= 10 && l.motion.t() == self.last_t - 1)
                 .map(|(i, _)| i),
         );
         let live = &self.live;
@@ -499,6 +549,19 @@ impl Tracker {
                 self.timeline.times.last().copied().unwrap_or(0.0)
             );
         }
+    }
+}
+
+/// The identity layer's settings for a frame interval `dt` (s).
+fn identity_settings(cfg: &TrackingSettings, dt: f64) -> IdentitySettings {
+    let frames = |s: f64| (s / dt).round().max(1.0);
+    IdentitySettings {
+        link_frames: frames(cfg.link_s).max(3.0) as usize,
+        confirm_frames: frames(cfg.confirm_s).max(6.0) as usize,
+        link_min_m: cfg.link_min_mm / 1000.0,
+        link_max_m: cfg.link_max_mm / 1000.0,
+        keep_lost_frames: frames(cfg.keep_lost_s) as i64,
+        alpha: 1.0 / frames(2.0),
     }
 }
 

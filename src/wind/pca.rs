@@ -26,13 +26,28 @@ struct Moments {
     zz: f64,
 }
 
+impl Moments {
+    fn add(&mut self, o: &Moments) {
+        self.n += o.n;
+        self.x += o.x;
+        self.z += o.z;
+        self.xx += o.xx;
+        self.xz += o.xz;
+        self.zz += o.zz;
+    }
+}
+
 /// Sliding-window PCA of tip sway.
 #[derive(Debug, Clone)]
 pub struct SwayPca {
     window_s: f64,
     /// Below this RMS sway (m) the tree is taken as still: no estimate.
     min_sway_m: f64,
+    /// Per-frame moments inside a finite window (dropped as they leave it).
     frames: VecDeque<Moments>,
+    /// With an infinite window (a whole recording): the running sums of
+    /// every push, so memory stays constant however long the session.
+    total: Moments,
 }
 
 impl SwayPca {
@@ -43,6 +58,7 @@ impl SwayPca {
             window_s,
             min_sway_m,
             frames: VecDeque::new(),
+            total: Moments::default(),
         }
     }
 
@@ -63,6 +79,11 @@ impl SwayPca {
             m.xz += d.x * d.z;
             m.zz += d.z * d.z;
         }
+        if self.window_s.is_infinite() {
+            self.total.add(&m);
+            self.total.time_s = time_s;
+            return;
+        }
         self.frames.push_back(m);
         while self
             .frames
@@ -76,15 +97,11 @@ impl SwayPca {
     /// The downwind direction over the window, or `None` while the tree is
     /// still or the window is empty.
     pub fn estimate(&self) -> Option<WindEstimate> {
-        let mut s = Moments::default();
+        let mut s = self.total;
         for f in &self.frames {
-            s.n += f.n;
-            s.x += f.x;
-            s.z += f.z;
-            s.xx += f.xx;
-            s.xz += f.xz;
-            s.zz += f.zz;
+            s.add(f);
         }
+        let last_time = self.frames.back().map_or(self.total.time_s, |f| f.time_s);
         if s.n < 2.0 {
             return None;
         }
@@ -102,7 +119,7 @@ impl SwayPca {
             axis = -axis;
         }
         Some(WindEstimate {
-            time_s: self.frames.back().map_or(0.0, |f| f.time_s),
+            time_s: last_time,
             source: WindSource::Pca,
             direction: axis,
             speed_m_s: None,
@@ -153,5 +170,23 @@ mod tests {
             pca.push(k as f64 * 0.01, [DVec3::ZERO]);
         }
         assert!(pca.frames.len() <= 101);
+    }
+
+    #[test]
+    fn an_infinite_window_keeps_sums_not_samples_and_agrees_with_a_long_one() {
+        let wind = direction_of(120.0);
+        let mut whole = SwayPca::new(f64::INFINITY, 0.001);
+        let mut long = SwayPca::new(1e9, 0.001);
+        for k in 0..20_000 {
+            let t = k as f64 * 0.01;
+            let d = [wind * (0.01 + 0.02 * (t * 3.0).sin()) + DVec3::Z * 0.003 * t.cos()];
+            whole.push(t, d);
+            long.push(t, d);
+        }
+        assert!(whole.frames.is_empty(), "no per-sample memory");
+        let (a, b) = (whole.estimate().unwrap(), long.estimate().unwrap());
+        assert!(angle_between_deg(a.direction, b.direction) < 1e-9);
+        assert_eq!(a.time_s, b.time_s);
+        assert!(angle_between_deg(a.direction, wind) < 5.0);
     }
 }

@@ -217,25 +217,24 @@ fn an_unchanged_session_gives_one_tree_and_rebuild_gives_the_same_tree() {
         v["frames"] == 4000
     });
     std::thread::sleep(Duration::from_millis(1500));
-    assert_eq!(
-        status_of(http_port).unwrap()["trees"],
-        1,
-        "one still phase, no change: one tree"
+    let trees = status_of(http_port).unwrap()["trees"].as_u64().unwrap();
+    assert!(
+        (1..=2).contains(&trees),
+        "one still phase, then the wind once known, no other change: {trees} trees"
     );
 
-    // An explicit rebuild: the wind from the sway is known by now, so the
-    // input changed and a second tree comes. A third request on unchanged
-    // data must give the very same tree.
+    // Explicit rebuilds: the first takes the wind from the sway, known by
+    // now; a second request on unchanged data must give the very same tree.
     let rebuild = || post_rebuild(http_port);
     let wait_trees = |n: u64| {
         wait_status(http_port, &format!("tree {n}"), 20, |v| v["trees"] == n);
     };
     rebuild();
-    wait_trees(2);
+    wait_trees(trees + 1);
     let second = std::fs::read(out_dir.path().join("tree.glb")).unwrap();
     let second_tips = std::fs::read(out_dir.path().join("tips.json")).unwrap();
     rebuild();
-    wait_trees(3);
+    wait_trees(trees + 2);
     let third = std::fs::read(out_dir.path().join("tree.glb")).unwrap();
     assert!(
         second == third,

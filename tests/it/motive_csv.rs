@@ -233,7 +233,10 @@ fn malformed_rows_name_line_and_column() {
     assert!(e.contains("4 fields"), "{e}");
 
     let e = read_err(&quirk("bad_not_a_number.csv")).to_string();
-    assert!(e.contains("line 9, column 4") && e.contains("'abc'"), "{e}");
+    assert!(
+        e.contains("line 9, column 4") && e.contains("\"abc\""),
+        "{e}"
+    );
 
     let e = read_err(&quirk("bad_missing_header_row.csv")).to_string();
     assert!(e.contains("line 7") && e.contains("header row"), "{e}");
@@ -266,4 +269,106 @@ fn every_cut_of_a_real_file_errors_or_reads_never_panics() {
             }
         }
     }
+}
+
+/// `treemocap inspect FILE` with its address space limited to `mib` MiB
+/// (the shell's `ulimit -v`, so the limit binds the child only).
+fn inspect_in(mib: u64, file: &Path) -> std::process::Output {
+    std::process::Command::new("sh")
+        .arg("-c")
+        .arg(format!(
+            "ulimit -v {}; exec \"$0\" inspect \"$1\"",
+            mib * 1024
+        ))
+        .arg(env!("CARGO_BIN_EXE_treemocap"))
+        .arg(file)
+        .output()
+        .unwrap()
+}
+
+const ROW1: &str = "Format Version,1.23,Take Name,t,Capture Frame Rate,100,\
+                    Export Frame Rate,100,Length Units,Meters";
+
+/// Hostile first rows and absurd header rows are refused with one line
+/// naming their line, in memory bounded by the longest row treemocap reads
+/// (the issue's 10 MB file of 5 million fields took 880 MB). A wide file of
+/// real size reads under the same limit.
+#[test]
+fn absurd_rows_are_refused_in_bounded_memory() {
+    const LIMIT_MIB: u64 = 256;
+    let dir = tempfile::tempdir().unwrap();
+    let write = |name: &str, text: &str| {
+        let p = dir.path().join(name);
+        std::fs::write(&p, text).unwrap();
+        p
+    };
+    let cases = [
+        // 10 MB: the issue's first row of 5 million fields.
+        (
+            write("row1.csv", &format!("{ROW1}{}\n", ",a".repeat(5_000_000))),
+            "line 1: row is longer than 8 MiB",
+        ),
+        // 1 million one-byte fields, each a key: refused by count.
+        (
+            write("keys.csv", &format!("{ROW1}{}\n", ",k".repeat(1_000_000))),
+            "line 1, column 200001: row has more than 200000 fields",
+        ),
+        // A Type row of 1 million columns.
+        (
+            write(
+                "types.csv",
+                &format!("{ROW1}\n\n,Type{}\n", ",Marker".repeat(1_000_000)),
+            ),
+            "line 3, column 200001: row has more than 200000 fields",
+        ),
+        // Header rows without end before `Frame,Time`.
+        (
+            write(
+                "rows.csv",
+                &format!("{ROW1}\n{}", ",Name,x\n".repeat(100_000)),
+            ),
+            "line 18: more than 16 header rows",
+        ),
+    ];
+    for (file, expected) in &cases {
+        let out = inspect_in(LIMIT_MIB, file);
+        let e = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{}: {e}", file.display());
+        assert_eq!(e.lines().count(), 1, "{e}");
+        assert!(e.contains(expected), "{}: {e}", file.display());
+    }
+
+    // 20 000 markers (60 000 columns, rows of 600 KB): read, not refused.
+    let n = 20_000;
+    let mut t = format!("{ROW1}\n\n,Type");
+    t += &",Marker".repeat(3 * n);
+    t += "\n,Name";
+    for i in 0..n {
+        t += &format!(",M{i},M{i},M{i}");
+    }
+    t += "\n,ID";
+    for i in 0..n {
+        t += &format!(",{i},{i},{i}");
+    }
+    t += "\n,";
+    t += &",Position".repeat(3 * n);
+    t += "\nFrame,Time";
+    t += &",X,Y,Z".repeat(n);
+    for f in 0..3 {
+        t += &format!("\n{f},{}", f as f64 / 100.0);
+        t += &",0.123456,1.234567,-0.345678".repeat(n);
+    }
+    t += "\n";
+    let wide = write("wide.csv", &t);
+    let out = inspect_in(LIMIT_MIB, &wide);
+    let s = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(
+        s.contains("frames      3 ") && s.contains("20000 marker columns"),
+        "{s}"
+    );
 }

@@ -87,6 +87,11 @@ async fn fake(versions: Vec<Version>, rate: bool) -> (Fake, NatNetSettings) {
                 Ok(Packet::Connect(_)) => {
                     let v = versions[connects.min(versions.len() - 1)];
                     connects += 1;
+                    if connects > 1 {
+                        // A server slow to answer again: long enough for
+                        // the client's state to be seen meanwhile.
+                        tokio::time::sleep(Duration::from_millis(300)).await;
+                    }
                     if let Some(tx) = tx.take() {
                         let _ = tx.send(from);
                     }
@@ -175,7 +180,8 @@ fn bad_datagrams_are_counted_and_the_client_carries_on() {
         send(big).await;
         // An unknown message id.
         send(vec![77, 0, 2, 0, 1, 2]).await;
-        // A SERVERINFO from the data port: not the server's reply.
+        // A SERVERINFO on the data channel (Motive 1.x does this): skipped,
+        // never taken as the server's reply.
         send(server_info(Version::new(2, 9), 1)).await;
         // Good frames afterwards.
         for k in 2..5 {
@@ -191,7 +197,7 @@ fn bad_datagrams_are_counted_and_the_client_carries_on() {
         assert_eq!(got[0].markers[0].position.y, 1.5);
         let c = report.counters;
         assert_eq!((c.incomplete, c.invalid, c.unknown), (2, 1, 1));
-        assert_eq!(c.wrong_sender, 1);
+        assert_eq!((c.skipped, c.wrong_sender), (1, 0));
         assert_eq!(c.frames, 3);
         assert_eq!(report.version, Some(Version::new(3, 1)));
     });

@@ -7,6 +7,7 @@ use std::time::{Duration, Instant};
 
 use crate::common::natnet::{check_session, free_port, session};
 use treemocap::model::frame::MarkerFrame;
+use treemocap::protocol::natnet::select::{UpAxis, UpAxisSetting};
 use treemocap::protocol::natnet::session::RateSource;
 use treemocap::protocol::natnet::{Transport, Version, SUPPORTED_VERSIONS};
 use treemocap::serve::natnet::{self as server, ServeOptions, ServerStats};
@@ -303,9 +304,14 @@ fn multicast_inside_a_private_network_namespace() {
             "-n",
             "sh",
             "-c",
-            "ip link set lo up && ip link set lo multicast on && ip route add 224.0.0.0/4 dev lo && exec \"$0\" natnet_loopback::multicast_inside_a_private_network_namespace --exact --nocapture",
+            "ip link set lo up && ip link set lo multicast on && ip route add 224.0.0.0/4 dev lo && exec \"$0\" \"$1\" --exact --nocapture",
         ])
         .arg(&exe)
+        // This test's full name in the one test binary (`it`).
+        .arg(format!(
+            "{}::multicast_inside_a_private_network_namespace",
+            module_path!().trim_start_matches("it::")
+        ))
         .env("TREEMOCAP_IN_NETNS", "1")
         .output()
         .unwrap();
@@ -345,6 +351,146 @@ fn multicast_session() {
             report.unwrap();
             check_session(version, &sent, &got);
             server.await.unwrap().unwrap();
+        }
+        // A 2.x server on its own group and ports says neither: the
+        // client must be told (issue: 0 frames, and still exit 0).
+        let (group, data_port) = ("239.1.2.3".parse().unwrap(), free_port());
+        let version = Version::new(2, 9);
+        let stats = Arc::new(ServerStats::default());
+        let (server, _stop) = start_server(
+            path.clone(),
+            ServeOptions {
+                version,
+                speed: 4.0,
+                transport: Transport::Multicast,
+                command_port: 0,
+                data_port,
+                multicast_group: group,
+                stats: stats.clone(),
+                ..Default::default()
+            },
+        );
+        let opts = NatNetSettings {
+            command_port: command_port(&stats).await,
+            transport: TransportSetting::Multicast,
+            interface: Interface::Name("lo".into()),
+            multicast_group: Some(group),
+            data_port: Some(data_port),
+            ..Default::default()
+        };
+        let (report, got) = collect(opts, sent.len(), Duration::from_secs(20)).await;
+        report.unwrap();
+        check_session(version, &sent, &got);
+        server.await.unwrap().unwrap();
+    });
+    record_on_a_custom_group(&path, sent.len());
+}
+
+/// `treemocap record` with the group, data port and interface (by name) on
+/// the command line gets every frame; told the wrong group it gets none,
+/// says so and exits 1.
+fn record_on_a_custom_group(path: &std::path::Path, n: usize) {
+    let bin = env!("CARGO_BIN_EXE_treemocap");
+    let dir = tempfile::tempdir().unwrap();
+    for (group, want) in [("239.1.2.4", Some(n)), ("239.1.2.5", None)] {
+        let (cmd, data) = (free_port(), free_port());
+        let mut server = std::process::Command::new(bin)
+            .args([
+                "serve",
+                "--multicast",
+                "--natnet-version",
+                "2.9",
+                "--speed",
+                "4",
+            ])
+            .args(["--group", "239.1.2.4", "--interface", "127.0.0.1"])
+            .args([
+                "--command-port",
+                &cmd.to_string(),
+                "--data-port",
+                &data.to_string(),
+            ])
+            .arg(path)
+            .stderr(std::process::Stdio::null())
+            .spawn()
+            .unwrap();
+        std::thread::sleep(Duration::from_millis(300));
+        let out = dir.path().join(format!("{group}.log.csv"));
+        let rec = std::process::Command::new(bin)
+            .args([
+                "record",
+                "--natnet",
+                &format!("127.0.0.1:{cmd}"),
+                "--multicast",
+            ])
+            .args([
+                "--group",
+                group,
+                "--data-port",
+                &data.to_string(),
+                "--interface",
+                "lo",
+            ])
+            .args(["--seconds", "2"])
+            .arg(&out)
+            .output()
+            .unwrap();
+        let _ = server.kill();
+        let _ = server.wait();
+        let text = format!(
+            "{}{}",
+            String::from_utf8_lossy(&rec.stdout),
+            String::from_utf8_lossy(&rec.stderr)
+        );
+        match want {
+            Some(n) => {
+                assert!(rec.status.success(), "{text}");
+                let frames = treemocap::app::open::open(&out).unwrap().count();
+                assert_eq!(frames, n, "{text}");
+            }
+            None => {
+                assert_eq!(rec.status.code(), Some(1), "{text}");
+                assert!(text.contains("no frame came"), "{text}");
+                assert!(!out.exists());
+            }
+        }
+    }
+}
+
+/// Motive can stream Z up: asked (`up_axis = auto`), the server says so and
+/// the client turns the stream Y up; told `y` it takes the axes as they come.
+#[test]
+fn a_z_up_stream_is_turned_y_up() {
+    let dir = tempfile::tempdir().unwrap();
+    let (path, sent) = session(dir.path(), 13, 20, 4, 100.0);
+    let rt = runtime();
+    rt.block_on(async {
+        for setting in [UpAxisSetting::Auto, UpAxisSetting::Z, UpAxisSetting::Y] {
+            let stats = Arc::new(ServerStats::default());
+            let (server, _stop) = start_server(
+                path.clone(),
+                ServeOptions {
+                    up_axis: UpAxis::Z,
+                    speed: 4.0,
+                    ..loopback_server(&stats)
+                },
+            );
+            let opts = NatNetSettings {
+                command_port: command_port(&stats).await,
+                up_axis: setting,
+                ..Default::default()
+            };
+            let (report, got) = collect(opts, sent.len(), Duration::from_secs(10)).await;
+            report.unwrap();
+            server.await.unwrap().unwrap();
+            if setting == UpAxisSetting::Y {
+                // Taken as it comes: the height is in z.
+                let (a, b) = (sent[0].markers[0].position, got[0].markers[0].position);
+                assert_eq!(b.z, a.y as f32 as f64, "{a} {b}");
+                assert_eq!(b.y, -(a.z as f32) as f64, "{a} {b}");
+            } else {
+                check_session(Version::new(3, 1), &sent, &got);
+            }
         }
     });
 }

@@ -13,6 +13,7 @@ use std::time::{Duration, Instant};
 
 use crate::common::natnet::{check_session, free_port, session};
 use treemocap::format::pcap::{PcapOptions, PcapRecording};
+use treemocap::format::Recording;
 use treemocap::model::frame::MarkerFrame;
 use treemocap::protocol::natnet::{Version, SUPPORTED_VERSIONS};
 use treemocap::serve::natnet::{self as server, ServeOptions, ServerStats};
@@ -24,7 +25,9 @@ use treemocap::source::natnet::settings::NatNetSettings;
 fn tcpdump(out: &Path, ports: [u16; 2]) -> Child {
     let filter = format!("udp port {} or udp port {}", ports[0], ports[1]);
     let mut child = Command::new("tcpdump")
-        .args(["-i", "lo", "-U", "-s", "0", "-n", "-w"])
+        // Immediate mode: packets reach the file as they come, not when the
+        // kernel ring's block times out (a short capture would be empty).
+        .args(["-i", "lo", "--immediate-mode", "-U", "-s", "0", "-n", "-w"])
         .arg(out)
         .arg(&filter)
         .stdout(Stdio::null())
@@ -35,6 +38,19 @@ fn tcpdump(out: &Path, ports: [u16; 2]) -> Child {
     let ready = lines.next().and_then(|l| l.ok()).unwrap_or_default();
     assert!(ready.contains("listening on lo"), "tcpdump: {ready}");
     child
+}
+
+/// Waits until `path` has not grown for 300 ms (at most 5 s).
+fn settle(path: &Path) {
+    let size = || std::fs::metadata(path).map_or(0, |m| m.len());
+    let (mut last, mut still) = (size(), 0);
+    let deadline = Instant::now() + Duration::from_secs(5);
+    while still < 6 && Instant::now() < deadline {
+        std::thread::sleep(Duration::from_millis(50));
+        let now = size();
+        still = if now == last { still + 1 } else { 0 };
+        last = now;
+    }
 }
 
 /// Ends tcpdump as Ctrl-C would, so it writes out everything.
@@ -93,16 +109,28 @@ fn capture(dir: &Path, path: &Path, version: Version, n: usize) -> (PathBuf, Vec
         let _ = srv.await;
         got
     });
-    // Let the last datagrams reach tcpdump's file.
-    std::thread::sleep(Duration::from_millis(100));
+    // Let the last datagrams reach tcpdump's file: on a loaded machine
+    // tcpdump may not have read them yet; wait until the file stops growing.
+    settle(&out);
     stop(dump);
     (out, got)
 }
 
 fn read_capture(path: &Path, options: PcapOptions) -> (PcapRecording, Vec<MarkerFrame>) {
     let file = std::fs::File::open(path).unwrap();
-    let mut r = PcapRecording::new(Box::new(file), path.to_path_buf(), options)
-        .unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    let mut r =
+        PcapRecording::new(Box::new(file), path.to_path_buf(), options).unwrap_or_else(|e| {
+            // What tcpdump itself reads in the capture, to tell a bad
+            // capture from a bad reader.
+            let dump = Command::new("tcpdump")
+                .args(["-r"])
+                .arg(path)
+                .args(["-n", "-c", "12"])
+                .output()
+                .map(|o| String::from_utf8_lossy(&o.stdout).into_owned())
+                .unwrap_or_default();
+            panic!("{e}\ntcpdump -r says:\n{dump}")
+        });
     let frames = r.by_ref().collect::<treemocap::Result<Vec<_>>>().unwrap();
     (r, frames)
 }
@@ -131,8 +159,183 @@ fn captures_of_every_version_read_back_as_the_session() {
             "NatNet {version}: FrameRate answer"
         );
         assert!(rec.source().contains("treemocap"), "{}", rec.source());
+        assert_eq!(rec.info().format, treemocap::format::Format::Pcap);
         // What the capture holds is what the client got, frame for frame.
         check_session(version, &sent, &frames);
         assert_eq!(frames, live, "NatNet {version}");
     }
+}
+
+/// The records of a legacy pcap file written on this machine (tcpdump:
+/// little-endian, microseconds): link type and (seconds, micros, bytes).
+fn pcap_records(bytes: &[u8]) -> (u32, Vec<(u32, u32, Vec<u8>)>) {
+    let le = |at: usize| u32::from_le_bytes(bytes[at..at + 4].try_into().unwrap());
+    assert_eq!(le(0), 0xa1b2_c3d4, "a little-endian microsecond pcap");
+    let mut out = Vec::new();
+    let mut at = 24;
+    while at + 16 <= bytes.len() {
+        let len = le(at + 8) as usize;
+        out.push((le(at), le(at + 4), bytes[at + 16..at + 16 + len].to_vec()));
+        at += 16 + len;
+    }
+    (le(20), out)
+}
+
+/// The same packets as pcapng: a section header, one interface, enhanced
+/// packet blocks (what Wireshark writes).
+fn to_pcapng(link: u32, records: &[(u32, u32, Vec<u8>)]) -> Vec<u8> {
+    let mut out = Vec::new();
+    let mut block = |kind: u32, body: &[u8]| {
+        let len = (12 + body.len().div_ceil(4) * 4) as u32;
+        out.extend_from_slice(&kind.to_le_bytes());
+        out.extend_from_slice(&len.to_le_bytes());
+        out.extend_from_slice(body);
+        out.resize(out.len() + (4 - body.len() % 4) % 4, 0);
+        out.extend_from_slice(&len.to_le_bytes());
+    };
+    let mut shb = 0x1a2b_3c4d_u32.to_le_bytes().to_vec();
+    shb.extend_from_slice(&[1, 0, 0, 0]);
+    shb.extend_from_slice(&u64::MAX.to_le_bytes());
+    block(0x0a0d_0d0a, &shb);
+    let mut idb = (link as u16).to_le_bytes().to_vec();
+    idb.extend_from_slice(&[0, 0, 0, 0, 4, 0]);
+    block(1, &idb);
+    for (sec, usec, data) in records {
+        let ts = u64::from(*sec) * 1_000_000 + u64::from(*usec);
+        let mut epb = 0u32.to_le_bytes().to_vec();
+        epb.extend_from_slice(&((ts >> 32) as u32).to_le_bytes());
+        epb.extend_from_slice(&(ts as u32).to_le_bytes());
+        epb.extend_from_slice(&(data.len() as u32).to_le_bytes());
+        epb.extend_from_slice(&(data.len() as u32).to_le_bytes());
+        epb.extend_from_slice(data);
+        block(6, &epb);
+    }
+    out
+}
+
+/// A legacy pcap of `records`.
+fn to_pcap(link: u32, records: &[(u32, u32, Vec<u8>)]) -> Vec<u8> {
+    let mut out = 0xa1b2_c3d4_u32.to_le_bytes().to_vec();
+    out.extend_from_slice(&[2, 0, 4, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 4, 0]);
+    out.extend_from_slice(&link.to_le_bytes());
+    for (sec, usec, data) in records {
+        for x in [*sec, *usec, data.len() as u32, data.len() as u32] {
+            out.extend_from_slice(&x.to_le_bytes());
+        }
+        out.extend_from_slice(data);
+    }
+    out
+}
+
+/// pcapng reads like pcap; a capture cut after the handshake needs the
+/// version and measures the rate; `inspect` and `serve` take captures.
+#[test]
+fn pcapng_cut_captures_and_the_command_line() {
+    let dir = tempfile::tempdir().unwrap();
+    let (path, sent) = session(dir.path(), 32, 60, 5, 100.0);
+    let v = Version::new(3, 1);
+    let (pcap, live) = capture(dir.path(), &path, v, sent.len());
+    let (_, frames) = read_capture(&pcap, PcapOptions::default());
+    assert_eq!(frames, live);
+
+    let (link, records) = pcap_records(&std::fs::read(&pcap).unwrap());
+    let ng = dir.path().join("natnet.pcapng");
+    std::fs::write(&ng, to_pcapng(link, &records)).unwrap();
+    let (rec, ng_frames) = read_capture(&ng, PcapOptions::default());
+    assert_eq!((rec.version(), rec.frame_rate()), (Some(v), 100.0));
+    assert_eq!(ng_frames, live);
+
+    // Cut from the first frame on: no SERVERINFO, no FrameRate answer.
+    let first = records
+        .iter()
+        .position(|r| r.2.len() > 46 && r.2[42] == 7 && r.2[43] == 0)
+        .expect("a frame in the capture");
+    let cut = dir.path().join("cut.pcap");
+    std::fs::write(&cut, to_pcap(link, &records[first..])).unwrap();
+    let file = std::fs::File::open(&cut).unwrap();
+    let e = PcapRecording::new(Box::new(file), cut.clone(), PcapOptions::default())
+        .err()
+        .expect("no version in a cut capture")
+        .to_string();
+    assert!(e.contains("--natnet-version"), "{e}");
+    let options = PcapOptions {
+        version: Some(v),
+        ..Default::default()
+    };
+    let (rec, cut_frames) = read_capture(&cut, options);
+    // Without SERVERINFO the server's clock is unknown: no latency.
+    let strip = |f: &[MarkerFrame]| -> Vec<_> {
+        f.iter()
+            .map(|f| (f.frame, f.time_s, f.markers.clone()))
+            .collect()
+    };
+    assert_eq!(strip(&cut_frames), strip(&live));
+    assert!(
+        (rec.frame_rate() - 100.0).abs() < 0.01,
+        "measured {}",
+        rec.frame_rate()
+    );
+    assert!(rec.warnings().iter().any(|w| w.contains("measured")));
+
+    // The command line: inspect reads it, serve streams it again.
+    let bin = env!("CARGO_BIN_EXE_treemocap");
+    let out = Command::new(bin)
+        .args(["inspect", "--json", "--natnet-version", "3.1"])
+        .arg(&cut)
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{text}{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let json: serde_json::Value = serde_json::from_str(&text).unwrap();
+    assert_eq!(json["frames"], sent.len());
+    let (cmd, data) = (free_port(), free_port());
+    let mut server = Command::new(bin)
+        .args(["serve", "--bind", "127.0.0.1", "--speed", "4"])
+        .args([
+            "--command-port",
+            &cmd.to_string(),
+            "--data-port",
+            &data.to_string(),
+        ])
+        .arg(&ng)
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    std::thread::sleep(Duration::from_millis(300));
+    let again = receive(cmd, sent.len());
+    let _ = server.kill();
+    let _ = server.wait();
+    check_session(v, &sent, &again);
+}
+
+/// Our client against a server on `cmd`, until `n` frames came.
+fn receive(cmd: u16, n: usize) -> Vec<MarkerFrame> {
+    let rt = tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()
+        .unwrap();
+    rt.block_on(async {
+        let (sink, rx) = frame_channel(10_000);
+        let (stop, shutdown) = tokio::sync::watch::channel(false);
+        let settings = NatNetSettings {
+            command_port: cmd,
+            ..Default::default()
+        };
+        let status = NatNetStatus::default();
+        let cli =
+            tokio::spawn(async move { client::run(&settings, &status, sink, shutdown).await });
+        let deadline = Instant::now() + Duration::from_secs(10);
+        let mut got = Vec::new();
+        while got.len() < n && Instant::now() < deadline {
+            got.extend(rx.try_iter());
+            tokio::time::sleep(Duration::from_millis(10)).await;
+        }
+        let _ = stop.send(true);
+        cli.await.unwrap().unwrap();
+        got
+    })
 }

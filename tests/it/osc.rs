@@ -221,7 +221,7 @@ fn every_bridge_family_becomes_the_right_frames() {
             )
         });
         assert_eq!(
-            counts.garbage + counts.bad_args + counts.broken_frames,
+            counts.failed_decode + counts.invalid + counts.incomplete,
             0,
             "{family}: {counts:?}"
         );
@@ -298,12 +298,12 @@ fn garbage_and_wrong_type_tags_are_counted_and_survived() {
         expected.clone()
     });
     assert_eq!(
-        counts.garbage,
+        counts.failed_decode,
         expected["garbage"].as_u64().unwrap(),
         "{counts:?}"
     );
     assert_eq!(
-        counts.bad_args,
+        counts.invalid,
         expected["bad_args"].as_u64().unwrap(),
         "{counts:?}"
     );
@@ -413,7 +413,7 @@ fn record_osc_writes_what_python_osc_sent() {
     assert!(
         printed
             .iter()
-            .any(|l| l.contains("100 frames") && l.contains("bad_args 0")),
+            .any(|l| l.contains("100 frames") && l.contains("invalid 0")),
         "progress lines: {printed:#?}"
     );
     let mut reader = treemocap::app::open::log(&out).unwrap();

@@ -108,7 +108,12 @@ fn http_routes_and_live_websocket() {
         .block_on(tokio::net::TcpListener::bind("127.0.0.1:0"))
         .unwrap();
     let addr = listener.local_addr().unwrap();
-    let server = rt.spawn(http::serve(listener, state));
+    let server = rt.spawn(http::serve(
+        listener,
+        state,
+        treemocap::serve::limits::HttpLimits::default(),
+        Arc::default(),
+    ));
     let base = format!("http://{addr}");
 
     // Before the first tree: 404 with a reason.

@@ -97,6 +97,12 @@ fn record_natnet_writes_the_served_session() {
         "{:?}",
         reader.info()
     );
+    // The server's own rate (not the 120 Hz default), and said so.
+    assert_eq!(reader.info().frame_rate, 100.0);
+    assert!(
+        stdout.contains("frame rate 100 Hz (the server's FrameRate answer)"),
+        "{stdout}"
+    );
     let got: Vec<MarkerFrame> = reader.by_ref().map(|f| f.unwrap()).collect();
     assert_eq!(got.len(), sent.len(), "every served frame recorded");
     for (g, s) in got.iter().zip(&sent) {
@@ -138,4 +144,58 @@ fn record_natnet_with_nothing_listening_says_so() {
         .output()
         .unwrap();
     assert_eq!(bad.status.code(), Some(2));
+}
+
+/// A server that answers but never sends a frame: `record` says so, leaves
+/// no file and exits 1 (it used to write an empty log and exit 0).
+#[test]
+fn record_natnet_with_no_frame_fails_with_a_message() {
+    use treemocap::protocol::natnet::{decode, encode, Packet, Sender, ServerInfo, Version};
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("silent.log.csv");
+    let server = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
+    let port = server.local_addr().unwrap().port();
+    let answer = std::thread::spawn(move || {
+        server
+            .set_read_timeout(Some(Duration::from_millis(200)))
+            .unwrap();
+        let info = Packet::ServerInfo(ServerInfo {
+            sender: Sender {
+                name: "quiet".into(),
+                version: [1, 0, 0, 0],
+                natnet_version: [3, 1, 0, 0],
+            },
+            connection: None,
+        });
+        let info = encode(&info, Version::new(3, 1)).unwrap();
+        let mut buf = [0u8; 2048];
+        let mut quiet = 0;
+        while quiet < 10 {
+            match server.recv_from(&mut buf) {
+                Ok((n, from)) => {
+                    quiet = 0;
+                    if let Ok(Packet::Connect(_)) = decode(&buf[..n], Version::new(3, 1)) {
+                        let _ = server.send_to(&info, from);
+                    }
+                }
+                Err(_) => quiet += 1,
+            }
+        }
+    });
+    let rec = Command::new(env!("CARGO_BIN_EXE_treemocap"))
+        .args([
+            "record",
+            "--natnet",
+            &format!("127.0.0.1:{port}"),
+            "--unicast",
+        ])
+        .arg(&out)
+        .args(["--seconds", "1"])
+        .output()
+        .unwrap();
+    let _ = answer.join();
+    let err = String::from_utf8_lossy(&rec.stderr);
+    assert_eq!(rec.status.code(), Some(1), "{err}");
+    assert!(err.contains("no frame came from natnet"), "{err}");
+    assert!(!out.exists());
 }

@@ -32,8 +32,9 @@ fn ha5dzs_18_unlabeled_columns_give_17_tips_and_one_flash() {
     // 349, and 1053 present in row 669 only.
     assert_eq!(summary.traces, 18);
     assert_eq!(summary.tips, 17);
-    assert_eq!(summary.dropped.len(), 1);
-    assert_eq!(summary.dropped[0].measured, 1);
+    // The one-row flash is never confirmed as a marker: a ghost.
+    assert_eq!(summary.ghosts, 1);
+    assert!(summary.dropped.is_empty());
     assert_eq!(summary.tracking.markers, 15 * 1353 + 1005 + 1004 + 1);
     // The markers barely move: the whole take is the rest window.
     assert_eq!(summary.rest_source, RestSource::Auto);
@@ -81,7 +82,9 @@ fn cmuphyscomp_six_markers_with_data_become_six_tips() {
     let (tips, summary) = run("cmuphyscomp_sample_take_v1.21.csv");
     // 9 Marker columns, 3 of them empty in every row; rigid bodies are not tips.
     assert_eq!(summary.frames, 250);
-    assert_eq!(summary.traces, 6);
+    // The motion model ends a trace where its marker jitters beyond the
+    // gate; the identity layer joins the pieces back into six markers.
+    assert!(summary.traces >= 6);
     assert_eq!(summary.tips, 6);
     assert!(summary.dropped.is_empty());
     let expected = [
@@ -138,7 +141,7 @@ fn tips_command_writes_tips_json_and_a_png() {
     );
     let stdout = String::from_utf8(out.stdout).unwrap();
     assert!(stdout.contains("markers found: 17 tips"), "{stdout}");
-    assert!(stdout.contains("dropped as noise: 1 traces"), "{stdout}");
+    assert!(stdout.contains("1 ghosts never confirmed"), "{stdout}");
     let v: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
     assert_eq!(v["version"], 1);

@@ -33,6 +33,8 @@ pub struct WriteSpec {
     pub units: String,
     /// POINT:LABELS (split into LABELS2… past 255); may be longer than the point count.
     pub labels: Vec<String>,
+    /// POINT:DESCRIPTIONS (at most 255 are written), if any.
+    pub descriptions: Vec<String>,
     /// POINT:Y_SCREEN ("+Z", "+Y"), if any.
     pub y_screen: Option<String>,
     /// Header first frame.
@@ -62,6 +64,7 @@ impl Default for WriteSpec {
             rate: 100.0,
             units: "mm".into(),
             labels: Vec::new(),
+            descriptions: Vec::new(),
             y_screen: Some("+Z".into()),
             first_frame: 1,
             analog_channels: 0,
@@ -147,6 +150,16 @@ pub fn encode(spec: &WriteSpec) -> Vec<u8> {
             name,
             Value::Chars {
                 strings: chunk.to_vec(),
+                array: true,
+            },
+        ));
+    }
+    if !spec.descriptions.is_empty() {
+        list.push((
+            1,
+            "DESCRIPTIONS",
+            Value::Chars {
+                strings: spec.descriptions.iter().take(255).cloned().collect(),
                 array: true,
             },
         ));

@@ -384,7 +384,10 @@ fn units(params: &Params, warnings: &mut Vec<String>) -> Result<(String, f64), F
         other => {
             return Err(err(
                 params.get("POINT", "UNITS").map_or(0, |p| p.offset),
-                format!("POINT:UNITS '{other}' is not a length treemocap knows (mm, cm, m)"),
+                format!(
+                    "POINT:UNITS \"{}\" is not a length treemocap knows (mm, cm, m)",
+                    crate::error::excerpt(other)
+                ),
             ))
         }
     };
@@ -406,9 +409,10 @@ fn up_axis(params: &Params, up: UpChoice, warnings: &mut Vec<String>) -> UpAxis 
             (Some("+Z" | "Z"), _) => UpAxis::Z,
             (Some(y), x) => {
                 warnings.push(format!(
-                    "POINT:Y_SCREEN is '{y}' (X_SCREEN {}); only +Y and +Z are understood, assuming Z up \
+                    "POINT:Y_SCREEN is \"{}\" (X_SCREEN \"{}\"); only +Y and +Z are understood, assuming Z up \
                      (set c3d.up_axis to override)",
-                    x.unwrap_or("absent")
+                    crate::error::excerpt(y),
+                    crate::error::excerpt(x.unwrap_or("absent"))
                 ));
                 UpAxis::Z
             }

@@ -81,6 +81,9 @@ impl UpAxisSetting {
 pub struct C3dOptions {
     /// `c3d.up_axis` from the config.
     pub up_axis: UpAxisSetting,
+    /// `replay.strict` (`--strict`): refuse a file that holds fewer frames
+    /// than it declares instead of reading the complete ones.
+    pub strict: bool,
 }
 
 /// Header byte 1 of a C3D file; what `detect` looks for.
@@ -257,9 +260,23 @@ impl<R: Read + Seek + Send> C3dReader<R> {
             (room / layout.frame_bytes as u64).min(layout.frames)
         };
         if frames_available < layout.frames {
-            warnings.push(format!(
-                "the file declares {} frames but ends after {frames_available} complete ones",
+            // A capture cut short (a full disk, an interrupted copy): ezc3d
+            // and py-c3d read the complete frames, and so do we, saying so
+            // once; --strict refuses the file.
+            let msg = format!(
+                "the file declares {} frames but holds {frames_available} complete ones",
                 layout.frames
+            );
+            if options.strict {
+                let end = layout.data_offset + frames_available * layout.frame_bytes as u64;
+                return Err(Error::parse(
+                    path,
+                    Location::Offset(end),
+                    format!("{msg}; refused (--strict)"),
+                ));
+            }
+            warnings.push(format!(
+                "{msg}; reading those (--strict refuses such files)"
             ));
         }
         source
@@ -356,18 +373,9 @@ impl<R: Read + Seek + Send> Iterator for C3dReader<R> {
             return None;
         }
         if self.next >= self.frames_available {
+            // Frames declared beyond the end of the file were warned about
+            // at open (or refused with `strict`).
             self.done = true;
-            if self.next < self.layout.frames {
-                let at = self.layout.data_offset + self.next * self.layout.frame_bytes as u64;
-                return Some(Err(Error::parse(
-                    &self.path,
-                    Location::Offset(at),
-                    format!(
-                        "file is truncated: it ends inside frame {} of {} declared (each {} bytes)",
-                        self.next, self.layout.frames, self.layout.frame_bytes
-                    ),
-                )));
-            }
             return None;
         }
         let frame = self.read_frame();

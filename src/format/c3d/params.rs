@@ -181,13 +181,16 @@ pub fn decode(sec: &[u8], base: u64, p: Processor) -> Result<Params, FormatError
         let name = String::from_utf8_lossy(name_bytes)
             .trim()
             .to_ascii_uppercase();
+        // The name as messages quote it: a name is file content and may
+        // hold newlines or escape codes.
+        let shown = crate::error::excerpt(&name);
         let off_at = pos + 2 + n;
         let ob = take(
             sec,
             off_at,
             2,
             base,
-            &format!("the record offset of '{name}'"),
+            &format!("the record offset of \"{shown}\""),
         )?;
         let offset = p.i16([ob[0], ob[1]]);
         let end = if offset == 0 {
@@ -196,7 +199,7 @@ pub fn decode(sec: &[u8], base: u64, p: Processor) -> Result<Params, FormatError
             return Err(FormatError {
                 at: base + off_at as u64,
                 msg: format!(
-                    "parameter '{name}': offset to the next record is negative ({offset})"
+                    "parameter \"{shown}\": offset to the next record is negative ({offset})"
                 ),
             });
         } else {
@@ -206,11 +209,11 @@ pub fn decode(sec: &[u8], base: u64, p: Processor) -> Result<Params, FormatError
         if id < 0 {
             groups.push((id.unsigned_abs(), name));
         } else {
-            let kb = take(sec, body, 2, base, &format!("parameter '{name}'"))?;
+            let kb = take(sec, body, 2, base, &format!("parameter \"{shown}\""))?;
             let kind = ParamType::from_code(kb[0] as i8).ok_or_else(|| FormatError {
                 at: base + body as u64,
                 msg: format!(
-                    "parameter '{name}': type {} is not one of -1 (char), 1 (byte), 2 (int16), 4 (float)",
+                    "parameter \"{shown}\": type {} is not one of -1 (char), 1 (byte), 2 (int16), 4 (float)",
                     kb[0] as i8
                 ),
             })?;
@@ -220,7 +223,7 @@ pub fn decode(sec: &[u8], base: u64, p: Processor) -> Result<Params, FormatError
                 body + 2,
                 ndims,
                 base,
-                &format!("parameter '{name}' dimensions"),
+                &format!("parameter \"{shown}\" dimensions"),
             )?
             .iter()
             .map(|&d| d as usize)
@@ -237,7 +240,7 @@ pub fn decode(sec: &[u8], base: u64, p: Processor) -> Result<Params, FormatError
                 body + 2 + ndims,
                 bytes,
                 base,
-                &format!("parameter '{name}' data ({bytes} bytes)"),
+                &format!("parameter \"{shown}\" data ({bytes} bytes)"),
             )?;
             raw.push((
                 id.unsigned_abs(),
@@ -421,7 +424,7 @@ mod tests {
         let param_record = 4 + 2 + 4 + 2 + 1;
         for cut in param_record + 3..param_record + 9 {
             let e = decode(&sec[..cut], 0, Processor::Intel).unwrap_err();
-            assert!(e.msg.contains("'X'"), "{cut}: {}", e.msg);
+            assert!(e.msg.contains("\"X\""), "{cut}: {}", e.msg);
         }
     }
 }

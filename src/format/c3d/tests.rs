@@ -145,7 +145,13 @@ fn z_up_is_turned_to_y_up_and_units_are_metres() {
         ..Default::default()
     };
     let read = |spec: &WriteSpec, up: UpAxisSetting| {
-        let (r, f) = read_all(encode(spec), &C3dOptions { up_axis: up });
+        let (r, f) = read_all(
+            encode(spec),
+            &C3dOptions {
+                up_axis: up,
+                ..Default::default()
+            },
+        );
         (r.info().up_axis.clone(), f[0].markers[0].position)
     };
     let z = WriteSpec {
@@ -333,7 +339,7 @@ fn bad_files_get_clear_errors() {
 }
 
 #[test]
-fn truncated_data_yields_the_complete_frames_then_an_error() {
+fn a_capture_cut_short_reads_its_complete_frames_and_strict_refuses_it() {
     let good = small();
     // Frames are 16 bytes from block 3 (byte 1024) on; cut inside frame 6.
     let cut = 1024 + 6 * 16 + 5;
@@ -343,22 +349,35 @@ fn truncated_data_yields_the_complete_frames_then_an_error() {
         &C3dOptions::default(),
     )
     .unwrap();
+    assert_eq!(r.warnings().len(), 1, "{:?}", r.warnings());
     assert!(
-        r.warnings()[0].contains("declares 10 frames"),
+        r.warnings()[0].contains("declares 10 frames but holds 6 complete ones"),
         "{:?}",
         r.warnings()
     );
     for _ in 0..6 {
         assert!(r.next().unwrap().is_ok());
     }
-    let e = r.next().unwrap().unwrap_err().to_string();
+    assert!(r.next().is_none(), "no error after the complete frames");
+    assert_eq!(r.warnings().len(), 1, "warned once");
+
+    let strict = C3dOptions {
+        strict: true,
+        ..Default::default()
+    };
+    let e = C3dReader::from_bytes(Path::new("cut.c3d"), good[..cut].to_vec(), &strict)
+        .err()
+        .unwrap()
+        .to_string();
     assert!(
         e.contains("cut.c3d")
             && e.contains(&format!("byte {}", 1024 + 96))
-            && e.contains("frame 6"),
+            && e.contains("declares 10 frames but holds 6")
+            && e.contains("--strict"),
         "{e}"
     );
-    assert!(r.next().is_none());
+    // A whole file is read the same with or without strict.
+    assert!(C3dReader::from_bytes(Path::new("ok.c3d"), good, &strict).is_ok());
 }
 
 fn find(hay: &[u8], needle: &[u8]) -> Option<usize> {

@@ -328,18 +328,7 @@ pub fn decode(datagram: &[u8], version: Version) -> Result<Packet, DecodeError> 
             r.pos = r.bytes.len();
             Packet::Request(s)
         }
-        id::RESPONSE => {
-            if n == 4 {
-                Packet::Response(Response::Value(r.arr("value")?))
-            } else if !payload.contains(&0) {
-                let s = String::from_utf8_lossy(r.take(n, "text")?).into_owned();
-                Packet::Response(Response::Unterminated(s))
-            } else {
-                let s = r.cstr("text")?;
-                r.padding("text")?;
-                Packet::Response(Response::Text(s))
-            }
-        }
+        id::RESPONSE => Packet::Response(decode_response(&mut r)?),
         id::MESSAGESTRING => {
             let s = r.cstr("text")?;
             r.padding("text")?;
@@ -373,6 +362,21 @@ pub fn decode(datagram: &[u8], version: Version) -> Result<Packet, DecodeError> 
     };
     r.end()?;
     Ok(packet)
+}
+
+/// Four bytes (an int or a float), a NUL-terminated string, or a string
+/// filling the payload.
+fn decode_response(r: &mut PayloadReader) -> DecodeResult<Response> {
+    let n = r.bytes.len();
+    Ok(if n == 4 {
+        Response::Value(r.arr("value")?)
+    } else if !r.bytes.contains(&0) {
+        Response::Unterminated(String::from_utf8_lossy(r.take(n, "text")?).into_owned())
+    } else {
+        let s = r.cstr("text")?;
+        r.padding("text")?;
+        Response::Text(s)
+    })
 }
 
 fn empty(r: &mut PayloadReader, p: Packet) -> DecodeResult<Packet> {
@@ -515,28 +519,7 @@ fn decode_description(r: &mut PayloadReader, v: Version, kind: i32) -> DecodeRes
             }
             Description::Skeleton { name, id, bones }
         }
-        3 => {
-            let mut d = ForcePlateDescription {
-                id: r.i32("force plate id")?,
-                serial: r.cstr("force plate serial")?,
-                width: r.f32("force plate width")?,
-                length: r.f32("force plate length")?,
-                origin: r.vec3("force plate origin")?,
-                ..Default::default()
-            };
-            let mut cal = Vec::with_capacity(144);
-            for _ in 0..144 {
-                cal.push(r.f32("force plate calibration matrix")?);
-            }
-            d.calibration = cal;
-            for c in &mut d.corners {
-                *c = r.vec3("force plate corners")?;
-            }
-            d.plate_type = r.i32("force plate type")?;
-            d.channel_data_type = r.i32("force plate channel data type")?;
-            d.channels = decode_names(r, "force plate channel name", "force plate channel count")?;
-            Description::ForcePlate(Box::new(d))
-        }
+        3 => Description::ForcePlate(Box::new(decode_force_plate(r)?)),
         4 => Description::Device(DeviceDescription {
             id: r.i32("device id")?,
             name: r.cstr("device name")?,
@@ -550,34 +533,7 @@ fn decode_description(r: &mut PayloadReader, v: Version, kind: i32) -> DecodeRes
             position: r.vec3("camera position")?,
             orientation: r.quat("camera orientation")?,
         },
-        6 => {
-            let name = r.cstr("asset name")?;
-            let asset_type = r.i32("asset type")?;
-            let id = r.i32("asset id")?;
-            let n = r.count("asset rigid body count", 20)?;
-            let mut rigid_bodies = Vec::with_capacity(n);
-            for _ in 0..n {
-                rigid_bodies.push(decode_rb_description(r, v)?);
-            }
-            let n = r.count("asset marker count", 23)?;
-            let mut markers = Vec::with_capacity(n);
-            for _ in 0..n {
-                markers.push(AssetMarkerDescription {
-                    name: r.cstr("asset marker name")?,
-                    id: r.i32("asset marker id")?,
-                    position: r.vec3("asset marker position")?,
-                    size: r.f32("asset marker size")?,
-                    params: r.i16("asset marker params")?,
-                });
-            }
-            Description::Asset(AssetDescription {
-                name,
-                asset_type,
-                id,
-                rigid_bodies,
-                markers,
-            })
-        }
+        6 => Description::Asset(decode_asset_description(r, v)?),
         other => {
             r.pos -= if v.has_section_sizes() { 8 } else { 4 };
             return Err(r.invalid(
@@ -585,6 +541,60 @@ fn decode_description(r: &mut PayloadReader, v: Version, kind: i32) -> DecodeRes
                 format!("unknown description type {other}"),
             ));
         }
+    })
+}
+
+/// Type 3 (3.0+ layout).
+fn decode_force_plate(r: &mut PayloadReader) -> DecodeResult<ForcePlateDescription> {
+    let mut d = ForcePlateDescription {
+        id: r.i32("force plate id")?,
+        serial: r.cstr("force plate serial")?,
+        width: r.f32("force plate width")?,
+        length: r.f32("force plate length")?,
+        origin: r.vec3("force plate origin")?,
+        ..Default::default()
+    };
+    let mut cal = Vec::with_capacity(144);
+    for _ in 0..144 {
+        cal.push(r.f32("force plate calibration matrix")?);
+    }
+    d.calibration = cal;
+    for c in &mut d.corners {
+        *c = r.vec3("force plate corners")?;
+    }
+    d.plate_type = r.i32("force plate type")?;
+    d.channel_data_type = r.i32("force plate channel data type")?;
+    d.channels = decode_names(r, "force plate channel name", "force plate channel count")?;
+    Ok(d)
+}
+
+/// Type 6 (4.1+).
+fn decode_asset_description(r: &mut PayloadReader, v: Version) -> DecodeResult<AssetDescription> {
+    let name = r.cstr("asset name")?;
+    let asset_type = r.i32("asset type")?;
+    let id = r.i32("asset id")?;
+    let n = r.count("asset rigid body count", 20)?;
+    let mut rigid_bodies = Vec::with_capacity(n);
+    for _ in 0..n {
+        rigid_bodies.push(decode_rb_description(r, v)?);
+    }
+    let n = r.count("asset marker count", 23)?;
+    let mut markers = Vec::with_capacity(n);
+    for _ in 0..n {
+        markers.push(AssetMarkerDescription {
+            name: r.cstr("asset marker name")?,
+            id: r.i32("asset marker id")?,
+            position: r.vec3("asset marker position")?,
+            size: r.f32("asset marker size")?,
+            params: r.i16("asset marker params")?,
+        });
+    }
+    Ok(AssetDescription {
+        name,
+        asset_type,
+        id,
+        rigid_bodies,
+        markers,
     })
 }
 
@@ -673,152 +683,180 @@ fn decode_analog(
     Ok(out)
 }
 
+/// A frame: its sections in wire order, each in its own function.
 fn decode_frame(r: &mut PayloadReader, v: Version) -> DecodeResult<FrameOfData> {
     let mut f = FrameOfData {
         frame_number: r.i32("frame number")?,
         ..Default::default()
     };
+    decode_marker_sets(r, v, &mut f)?;
+    decode_rigid_bodies(r, v, &mut f)?;
+    if v.at_least(2, 1) {
+        decode_skeletons(r, v, &mut f)?;
+    }
+    if v.has_section_sizes() {
+        decode_assets(r, v, &mut f)?;
+    }
+    if v.at_least(2, 3) {
+        decode_labeled_markers(r, v, &mut f)?;
+    }
+    if v.at_least(2, 9) {
+        f.force_plates = decode_analog(r, v, FORCE_PLATE_FIELDS)?;
+    }
+    if v.at_least(2, 11) {
+        f.devices = decode_analog(r, v, DEVICE_FIELDS)?;
+    }
+    decode_frame_trailer(r, v, &mut f)?;
+    Ok(f)
+}
 
+/// Field names of the force plate and device sections, for errors.
+const FORCE_PLATE_FIELDS: [&str; 5] = [
+    "force plate count",
+    "force plate section size",
+    "force plate id",
+    "force plate channel count",
+    "force plate sample count",
+];
+const DEVICE_FIELDS: [&str; 5] = [
+    "device count",
+    "device section size",
+    "device id",
+    "device channel count",
+    "device sample count",
+];
+
+/// Positions packed as f32 triples in a block already bounds-checked.
+fn positions(block: &[u8]) -> Vec<[f32; 3]> {
+    block
+        .chunks_exact(12)
+        .map(|c| [le_f32(c, 0), le_f32(c, 4), le_f32(c, 8)])
+        .collect()
+}
+
+/// The named marker sets and the legacy "other markers" list.
+fn decode_marker_sets(r: &mut PayloadReader, v: Version, f: &mut FrameOfData) -> DecodeResult<()> {
     let n = r.count("marker set count", 5)?;
     let sz = r.section_start(v, "marker set section size")?;
     f.marker_sets.reserve_exact(n);
     for _ in 0..n {
         let name = r.cstr("marker set name")?;
         let m = r.count("marker set marker count", 12)?;
-        let block = r.take(m * 12, "marker set marker positions")?;
-        let markers = block
-            .chunks_exact(12)
-            .map(|c| [le_f32(c, 0), le_f32(c, 4), le_f32(c, 8)])
-            .collect();
+        let markers = positions(r.take(m * 12, "marker set marker positions")?);
         f.marker_sets.push(MarkerSetData { name, markers });
     }
     r.section_end(sz, "marker set section size")?;
 
     let n = r.count("other marker count", 12)?;
     let sz = r.section_start(v, "other marker section size")?;
-    let block = r.take(n * 12, "other marker positions")?;
-    f.other_markers = block
-        .chunks_exact(12)
-        .map(|c| [le_f32(c, 0), le_f32(c, 4), le_f32(c, 8)])
-        .collect();
-    r.section_end(sz, "other marker section size")?;
+    f.other_markers = positions(r.take(n * 12, "other marker positions")?);
+    r.section_end(sz, "other marker section size")
+}
 
+fn decode_rigid_bodies(r: &mut PayloadReader, v: Version, f: &mut FrameOfData) -> DecodeResult<()> {
     let n = r.count("rigid body count", rb_min_size(v))?;
     let sz = r.section_start(v, "rigid body section size")?;
     f.rigid_bodies.reserve_exact(n);
     for _ in 0..n {
         f.rigid_bodies.push(decode_rb(r, v)?);
     }
-    r.section_end(sz, "rigid body section size")?;
+    r.section_end(sz, "rigid body section size")
+}
 
-    if v.at_least(2, 1) {
-        let n = r.count("skeleton count", 8)?;
-        let sz = r.section_start(v, "skeleton section size")?;
-        f.skeletons.reserve_exact(n);
-        for _ in 0..n {
-            let id = r.i32("skeleton id")?;
-            let nb = r.count("skeleton bone count", rb_min_size(v))?;
-            let mut bones = Vec::with_capacity(nb);
-            for _ in 0..nb {
-                bones.push(decode_rb(r, v)?);
-            }
-            f.skeletons.push(SkeletonData { id, bones });
+/// 2.1+.
+fn decode_skeletons(r: &mut PayloadReader, v: Version, f: &mut FrameOfData) -> DecodeResult<()> {
+    let n = r.count("skeleton count", 8)?;
+    let sz = r.section_start(v, "skeleton section size")?;
+    f.skeletons.reserve_exact(n);
+    for _ in 0..n {
+        let id = r.i32("skeleton id")?;
+        let nb = r.count("skeleton bone count", rb_min_size(v))?;
+        let mut bones = Vec::with_capacity(nb);
+        for _ in 0..nb {
+            bones.push(decode_rb(r, v)?);
         }
-        r.section_end(sz, "skeleton section size")?;
+        f.skeletons.push(SkeletonData { id, bones });
     }
+    r.section_end(sz, "skeleton section size")
+}
 
-    if v.has_section_sizes() {
-        let n = r.count("asset count", 12)?;
-        let sz = r.section_start(v, "asset section size")?;
-        f.assets.reserve_exact(n);
-        for _ in 0..n {
-            let id = r.i32("asset id")?;
-            let nb = r.count("asset rigid body count", 38)?;
-            let mut rigid_bodies = Vec::with_capacity(nb);
-            for _ in 0..nb {
-                rigid_bodies.push(AssetRigidBody {
-                    id: r.i32("asset rigid body id")?,
-                    position: r.vec3("asset rigid body position")?,
-                    orientation: r.quat("asset rigid body orientation")?,
-                    mean_error: r.f32("asset rigid body mean error")?,
-                    params: r.i16("asset rigid body params")?,
-                });
-            }
-            let nm = r.count("asset marker count", 26)?;
-            let mut markers = Vec::with_capacity(nm);
-            for _ in 0..nm {
-                markers.push(AssetMarker {
-                    id: r.i32("asset marker id")?,
-                    position: r.vec3("asset marker position")?,
-                    size: r.f32("asset marker size")?,
-                    params: r.i16("asset marker params")?,
-                    residual: r.f32("asset marker residual")?,
-                });
-            }
-            f.assets.push(AssetData {
-                id,
-                rigid_bodies,
-                markers,
+/// 4.1+.
+fn decode_assets(r: &mut PayloadReader, v: Version, f: &mut FrameOfData) -> DecodeResult<()> {
+    let n = r.count("asset count", 12)?;
+    let sz = r.section_start(v, "asset section size")?;
+    f.assets.reserve_exact(n);
+    for _ in 0..n {
+        let id = r.i32("asset id")?;
+        let nb = r.count("asset rigid body count", 38)?;
+        let mut rigid_bodies = Vec::with_capacity(nb);
+        for _ in 0..nb {
+            rigid_bodies.push(AssetRigidBody {
+                id: r.i32("asset rigid body id")?,
+                position: r.vec3("asset rigid body position")?,
+                orientation: r.quat("asset rigid body orientation")?,
+                mean_error: r.f32("asset rigid body mean error")?,
+                params: r.i16("asset rigid body params")?,
             });
         }
-        r.section_end(sz, "asset section size")?;
+        let nm = r.count("asset marker count", 26)?;
+        let mut markers = Vec::with_capacity(nm);
+        for _ in 0..nm {
+            markers.push(AssetMarker {
+                id: r.i32("asset marker id")?,
+                position: r.vec3("asset marker position")?,
+                size: r.f32("asset marker size")?,
+                params: r.i16("asset marker params")?,
+                residual: r.f32("asset marker residual")?,
+            });
+        }
+        f.assets.push(AssetData {
+            id,
+            rigid_bodies,
+            markers,
+        });
     }
+    r.section_end(sz, "asset section size")
+}
 
-    if v.at_least(2, 3) {
-        let with_params = v.at_least(2, 6);
-        let with_residual = v.major >= 3;
-        let size = 20 + if with_params { 2 } else { 0 } + if with_residual { 4 } else { 0 };
-        let n = r.count("labeled marker count", size)?;
-        let sz = r.section_start(v, "labeled marker section size")?;
-        // The count was checked against the bytes left, so the whole list
-        // is one block: one bounds check instead of six per marker.
-        let block = r.take(n * size, "labeled markers")?;
-        f.labeled_markers.reserve_exact(n);
-        f.labeled_markers.extend(block.chunks_exact(size).map(|c| {
-            let mut m = LabeledMarker {
-                id: le_i32(c, 0),
-                position: [le_f32(c, 4), le_f32(c, 8), le_f32(c, 12)],
-                size: le_f32(c, 16),
-                ..Default::default()
-            };
-            if with_params {
-                m.params = i16::from_le_bytes([c[20], c[21]]);
-            }
-            if with_residual {
-                m.residual = le_f32(c, 22);
-            }
-            m
-        }));
-        r.section_end(sz, "labeled marker section size")?;
-    }
+/// 2.3+: the list a tree rig reads (the point cloud from 3.0).
+fn decode_labeled_markers(
+    r: &mut PayloadReader,
+    v: Version,
+    f: &mut FrameOfData,
+) -> DecodeResult<()> {
+    let with_params = v.at_least(2, 6);
+    let with_residual = v.major >= 3;
+    let size = 20 + if with_params { 2 } else { 0 } + if with_residual { 4 } else { 0 };
+    let n = r.count("labeled marker count", size)?;
+    let sz = r.section_start(v, "labeled marker section size")?;
+    // The count was checked against the bytes left, so the whole list
+    // is one block: one bounds check instead of six per marker.
+    let block = r.take(n * size, "labeled markers")?;
+    f.labeled_markers.reserve_exact(n);
+    f.labeled_markers.extend(block.chunks_exact(size).map(|c| {
+        let mut m = LabeledMarker {
+            id: le_i32(c, 0),
+            position: [le_f32(c, 4), le_f32(c, 8), le_f32(c, 12)],
+            size: le_f32(c, 16),
+            ..Default::default()
+        };
+        if with_params {
+            m.params = i16::from_le_bytes([c[20], c[21]]);
+        }
+        if with_residual {
+            m.residual = le_f32(c, 22);
+        }
+        m
+    }));
+    r.section_end(sz, "labeled marker section size")
+}
 
-    if v.at_least(2, 9) {
-        f.force_plates = decode_analog(
-            r,
-            v,
-            [
-                "force plate count",
-                "force plate section size",
-                "force plate id",
-                "force plate channel count",
-                "force plate sample count",
-            ],
-        )?;
-    }
-    if v.at_least(2, 11) {
-        f.devices = decode_analog(
-            r,
-            v,
-            [
-                "device count",
-                "device section size",
-                "device id",
-                "device channel count",
-                "device sample count",
-            ],
-        )?;
-    }
-
+/// Latency, timecode, timestamps, params and the end-of-data tag.
+fn decode_frame_trailer(
+    r: &mut PayloadReader,
+    v: Version,
+    f: &mut FrameOfData,
+) -> DecodeResult<()> {
     if v.major < 3 {
         f.software_latency = r.f32("software latency")?;
     }
@@ -846,5 +884,5 @@ fn decode_frame(r: &mut PayloadReader, v: Version) -> DecodeResult<FrameOfData> 
         r.pos -= 4;
         return Err(r.invalid("end of data tag", format!("{eod}, expected 0")));
     }
-    Ok(f)
+    Ok(())
 }

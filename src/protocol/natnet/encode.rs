@@ -244,70 +244,76 @@ fn encode_modeldef(w: &mut PayloadWriter, m: &ModelDef, v: Version) -> EncodeRes
         }
         w.i32(kind);
         let sz = w.section_start(v);
-        match d {
-            Description::MarkerSet { name, markers } => {
-                w.cstr(name);
-                encode_names(w, markers, "marker set marker count")?;
-            }
-            Description::RigidBody(r) => encode_rb_description(w, r, v)?,
-            Description::Skeleton { name, id, bones } => {
-                w.cstr(name);
-                w.i32(*id);
-                w.count(bones.len(), "skeleton bone count")?;
-                for b in bones {
-                    encode_rb_description(w, b, v)?;
-                }
-            }
-            Description::ForcePlate(p) => {
-                w.i32(p.id);
-                w.cstr(&p.serial);
-                w.f32(p.width);
-                w.f32(p.length);
-                w.vec3(&p.origin);
-                for i in 0..144 {
-                    w.f32(p.calibration.get(i).copied().unwrap_or(0.0));
-                }
-                p.corners.iter().for_each(|c| w.vec3(c));
-                w.i32(p.plate_type);
-                w.i32(p.channel_data_type);
-                encode_names(w, &p.channels, "force plate channel count")?;
-            }
-            Description::Device(d) => {
-                w.i32(d.id);
-                w.cstr(&d.name);
-                w.cstr(&d.serial);
-                w.i32(d.device_type);
-                w.i32(d.channel_data_type);
-                encode_names(w, &d.channels, "device channel count")?;
-            }
-            Description::Camera {
-                name,
-                position,
-                orientation,
-            } => {
-                w.cstr(name);
-                w.vec3(position);
-                w.quat(orientation);
-            }
-            Description::Asset(a) => {
-                w.cstr(&a.name);
-                w.i32(a.asset_type);
-                w.i32(a.id);
-                w.count(a.rigid_bodies.len(), "asset rigid body count")?;
-                for b in &a.rigid_bodies {
-                    encode_rb_description(w, b, v)?;
-                }
-                w.count(a.markers.len(), "asset marker count")?;
-                for m in &a.markers {
-                    w.cstr(&m.name);
-                    w.i32(m.id);
-                    w.vec3(&m.position);
-                    w.f32(m.size);
-                    w.i16(m.params);
-                }
+        encode_description(w, d, v)?;
+        w.section_end(sz);
+    }
+    Ok(())
+}
+
+/// One description's body (after its type and, 4.1+, its size).
+fn encode_description(w: &mut PayloadWriter, d: &Description, v: Version) -> EncodeResult<()> {
+    match d {
+        Description::MarkerSet { name, markers } => {
+            w.cstr(name);
+            encode_names(w, markers, "marker set marker count")?;
+        }
+        Description::RigidBody(r) => encode_rb_description(w, r, v)?,
+        Description::Skeleton { name, id, bones } => {
+            w.cstr(name);
+            w.i32(*id);
+            w.count(bones.len(), "skeleton bone count")?;
+            for b in bones {
+                encode_rb_description(w, b, v)?;
             }
         }
-        w.section_end(sz);
+        Description::ForcePlate(p) => {
+            w.i32(p.id);
+            w.cstr(&p.serial);
+            w.f32(p.width);
+            w.f32(p.length);
+            w.vec3(&p.origin);
+            for i in 0..144 {
+                w.f32(p.calibration.get(i).copied().unwrap_or(0.0));
+            }
+            p.corners.iter().for_each(|c| w.vec3(c));
+            w.i32(p.plate_type);
+            w.i32(p.channel_data_type);
+            encode_names(w, &p.channels, "force plate channel count")?;
+        }
+        Description::Device(d) => {
+            w.i32(d.id);
+            w.cstr(&d.name);
+            w.cstr(&d.serial);
+            w.i32(d.device_type);
+            w.i32(d.channel_data_type);
+            encode_names(w, &d.channels, "device channel count")?;
+        }
+        Description::Camera {
+            name,
+            position,
+            orientation,
+        } => {
+            w.cstr(name);
+            w.vec3(position);
+            w.quat(orientation);
+        }
+        Description::Asset(a) => {
+            w.cstr(&a.name);
+            w.i32(a.asset_type);
+            w.i32(a.id);
+            w.count(a.rigid_bodies.len(), "asset rigid body count")?;
+            for b in &a.rigid_bodies {
+                encode_rb_description(w, b, v)?;
+            }
+            w.count(a.markers.len(), "asset marker count")?;
+            for m in &a.markers {
+                w.cstr(&m.name);
+                w.i32(m.id);
+                w.vec3(&m.position);
+                w.f32(m.size);
+                w.i16(m.params);
+            }
+        }
     }
     Ok(())
 }
@@ -349,87 +355,20 @@ fn encode_analog(
     Ok(())
 }
 
+/// A frame: its sections in wire order, each in its own function.
 fn encode_frame(w: &mut PayloadWriter, f: &FrameOfData, v: Version) -> EncodeResult<()> {
     w.i32(f.frame_number);
-
-    w.count(f.marker_sets.len(), "marker set count")?;
-    let sz = w.section_start(v);
-    for s in &f.marker_sets {
-        w.cstr(&s.name);
-        w.count(s.markers.len(), "marker set marker count")?;
-        s.markers.iter().for_each(|p| w.vec3(p));
-    }
-    w.section_end(sz);
-
-    w.count(f.other_markers.len(), "other marker count")?;
-    let sz = w.section_start(v);
-    f.other_markers.iter().for_each(|p| w.vec3(p));
-    w.section_end(sz);
-
-    w.count(f.rigid_bodies.len(), "rigid body count")?;
-    let sz = w.section_start(v);
-    for b in &f.rigid_bodies {
-        encode_rb(w, b, v)?;
-    }
-    w.section_end(sz);
-
+    encode_marker_sets(w, f, v)?;
+    encode_rigid_bodies(w, f, v)?;
     if v.at_least(2, 1) {
-        w.count(f.skeletons.len(), "skeleton count")?;
-        let sz = w.section_start(v);
-        for s in &f.skeletons {
-            w.i32(s.id);
-            w.count(s.bones.len(), "skeleton bone count")?;
-            for b in &s.bones {
-                encode_rb(w, b, v)?;
-            }
-        }
-        w.section_end(sz);
+        encode_skeletons(w, f, v)?;
     }
-
     if v.has_section_sizes() {
-        w.count(f.assets.len(), "asset count")?;
-        let sz = w.section_start(v);
-        for a in &f.assets {
-            w.i32(a.id);
-            w.count(a.rigid_bodies.len(), "asset rigid body count")?;
-            for b in &a.rigid_bodies {
-                w.i32(b.id);
-                w.vec3(&b.position);
-                w.quat(&b.orientation);
-                w.f32(b.mean_error);
-                w.i16(b.params);
-            }
-            w.count(a.markers.len(), "asset marker count")?;
-            for m in &a.markers {
-                w.i32(m.id);
-                w.vec3(&m.position);
-                w.f32(m.size);
-                w.i16(m.params);
-                w.f32(m.residual);
-            }
-        }
-        w.section_end(sz);
+        encode_assets(w, f, v)?;
     }
-
     if v.at_least(2, 3) {
-        w.count(f.labeled_markers.len(), "labeled marker count")?;
-        let sz = w.section_start(v);
-        let with_params = v.at_least(2, 6);
-        let with_residual = v.major >= 3;
-        for m in &f.labeled_markers {
-            w.i32(m.id);
-            w.vec3(&m.position);
-            w.f32(m.size);
-            if with_params {
-                w.i16(m.params);
-            }
-            if with_residual {
-                w.f32(m.residual);
-            }
-        }
-        w.section_end(sz);
+        encode_labeled_markers(w, f, v)?;
     }
-
     if v.at_least(2, 9) {
         encode_analog(w, &f.force_plates, v, "force plate count")?;
     }
@@ -437,6 +376,12 @@ fn encode_frame(w: &mut PayloadWriter, f: &FrameOfData, v: Version) -> EncodeRes
         encode_analog(w, &f.devices, v, "device count")?;
     }
 
+    encode_frame_trailer(w, f, v);
+    Ok(())
+}
+
+/// Latency, timecode, timestamps, params and the end-of-data tag.
+fn encode_frame_trailer(w: &mut PayloadWriter, f: &FrameOfData, v: Version) {
     if v.major < 3 {
         w.f32(f.software_latency);
     }
@@ -460,5 +405,98 @@ fn encode_frame(w: &mut PayloadWriter, f: &FrameOfData, v: Version) -> EncodeRes
         w.i16(f.params);
     }
     w.i32(0);
+}
+
+/// The named marker sets and the legacy "other markers" list.
+fn encode_marker_sets(w: &mut PayloadWriter, f: &FrameOfData, v: Version) -> EncodeResult<()> {
+    w.count(f.marker_sets.len(), "marker set count")?;
+    let sz = w.section_start(v);
+    for s in &f.marker_sets {
+        w.cstr(&s.name);
+        w.count(s.markers.len(), "marker set marker count")?;
+        s.markers.iter().for_each(|p| w.vec3(p));
+    }
+    w.section_end(sz);
+
+    w.count(f.other_markers.len(), "other marker count")?;
+    let sz = w.section_start(v);
+    f.other_markers.iter().for_each(|p| w.vec3(p));
+    w.section_end(sz);
+
+    Ok(())
+}
+
+/// The rigid bodies.
+fn encode_rigid_bodies(w: &mut PayloadWriter, f: &FrameOfData, v: Version) -> EncodeResult<()> {
+    w.count(f.rigid_bodies.len(), "rigid body count")?;
+    let sz = w.section_start(v);
+    for b in &f.rigid_bodies {
+        encode_rb(w, b, v)?;
+    }
+    w.section_end(sz);
+
+    Ok(())
+}
+
+/// 2.1+.
+fn encode_skeletons(w: &mut PayloadWriter, f: &FrameOfData, v: Version) -> EncodeResult<()> {
+    w.count(f.skeletons.len(), "skeleton count")?;
+    let sz = w.section_start(v);
+    for s in &f.skeletons {
+        w.i32(s.id);
+        w.count(s.bones.len(), "skeleton bone count")?;
+        for b in &s.bones {
+            encode_rb(w, b, v)?;
+        }
+    }
+    w.section_end(sz);
+    Ok(())
+}
+
+/// 4.1+.
+fn encode_assets(w: &mut PayloadWriter, f: &FrameOfData, v: Version) -> EncodeResult<()> {
+    w.count(f.assets.len(), "asset count")?;
+    let sz = w.section_start(v);
+    for a in &f.assets {
+        w.i32(a.id);
+        w.count(a.rigid_bodies.len(), "asset rigid body count")?;
+        for b in &a.rigid_bodies {
+            w.i32(b.id);
+            w.vec3(&b.position);
+            w.quat(&b.orientation);
+            w.f32(b.mean_error);
+            w.i16(b.params);
+        }
+        w.count(a.markers.len(), "asset marker count")?;
+        for m in &a.markers {
+            w.i32(m.id);
+            w.vec3(&m.position);
+            w.f32(m.size);
+            w.i16(m.params);
+            w.f32(m.residual);
+        }
+    }
+    w.section_end(sz);
+    Ok(())
+}
+
+/// 2.3+.
+fn encode_labeled_markers(w: &mut PayloadWriter, f: &FrameOfData, v: Version) -> EncodeResult<()> {
+    w.count(f.labeled_markers.len(), "labeled marker count")?;
+    let sz = w.section_start(v);
+    let with_params = v.at_least(2, 6);
+    let with_residual = v.major >= 3;
+    for m in &f.labeled_markers {
+        w.i32(m.id);
+        w.vec3(&m.position);
+        w.f32(m.size);
+        if with_params {
+            w.i16(m.params);
+        }
+        if with_residual {
+            w.f32(m.residual);
+        }
+    }
+    w.section_end(sz);
     Ok(())
 }

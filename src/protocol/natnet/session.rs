@@ -117,6 +117,16 @@ impl Default for SessionSettings {
     }
 }
 
+/// Which of the server's channels a datagram came by.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Source {
+    /// Its command port: replies (and frames from servers that send them
+    /// from there).
+    Command,
+    /// Its data port or the multicast group: frames only.
+    Data,
+}
+
 /// Which socket a datagram arrived on.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Channel {
@@ -562,7 +572,7 @@ impl Session {
             return;
         }
         let mid = peek_id(datagram);
-        if !self.is_from_server(from, channel, mid) {
+        let Some(source) = self.source_of(from, channel) else {
             self.counters.wrong_sender += 1;
             if self.should_warn() {
                 tracing::warn!(
@@ -572,16 +582,17 @@ impl Session {
                 );
             }
             return;
-        }
+        };
         self.last_heard = now;
-        if channel == Channel::Data
+        if source == Source::Data
             && mid != Some(id::FRAMEOFDATA)
             && mid.is_some_and(|m| message_name(m) != "unknown message")
         {
-            // Motive 1.x multicasts SERVERINFO on the data channel.
+            // Motive 1.x multicasts SERVERINFO on the data channel; only
+            // the command port's replies count (a version change above all).
             self.counters.skipped += 1;
             tracing::debug!(
-                "skipped {} on the data channel",
+                "skipped {} from the data channel",
                 message_name(mid.unwrap_or(0))
             );
             return;
@@ -594,18 +605,22 @@ impl Session {
         }
     }
 
-    /// The sender rule of the module docs.
-    fn is_from_server(&self, from: SocketAddr, channel: Channel, mid: Option<u16>) -> bool {
+    /// The sender rule of the module docs: which of the server's channels
+    /// a datagram came by, or None when it is not from the server.
+    fn source_of(&self, from: SocketAddr, channel: Channel) -> Option<Source> {
         if from.ip() != self.server.ip() {
-            return false;
+            return None;
         }
         match channel {
             // The data socket is bound to the group: only the source matters.
-            Channel::Data => true,
-            Channel::Command if mid == Some(id::FRAMEOFDATA) => {
-                from.port() == self.server.port() || self.data_port.is_none_or(|p| p == from.port())
-            }
-            Channel::Command => from.port() == self.server.port(),
+            Channel::Data => Some(Source::Data),
+            Channel::Command if from.port() == self.server.port() => Some(Source::Command),
+            // Unicast frames come from the data port (any port of the
+            // server's address while it is unknown: 2.x does not say).
+            Channel::Command => self
+                .data_port
+                .is_none_or(|p| p == from.port())
+                .then_some(Source::Data),
         }
     }
 
@@ -665,7 +680,10 @@ impl Session {
         }
         self.next_connect = None;
         self.renegotiating = false;
-        self.state = State::Streaming;
+        // Still failing until a frame decodes again.
+        if self.state != State::DecodeFailing {
+            self.state = State::Streaming;
+        }
         let old = self.version;
         self.adopt(info);
         if first {
@@ -689,10 +707,15 @@ impl Session {
         }
     }
 
-    /// Takes the version and clock from a SERVERINFO.
+    /// Takes the version, clock and data port from a SERVERINFO (a restarted
+    /// server may have another data port).
     fn adopt(&mut self, info: ServerInfo) {
         self.version = info.sender.natnet();
         self.clock_frequency = info.connection.map_or(0, |c| c.clock_frequency);
+        self.data_port = self
+            .settings
+            .data_port
+            .or(info.connection.map(|c| c.data_port).filter(|&p| p != 0));
         tracing::info!(
             "connected to {} (NatNet {}) at {}",
             info.sender.name,
@@ -722,10 +745,6 @@ impl Session {
                 Transport::Unicast
             }
         }));
-        self.data_port = self
-            .settings
-            .data_port
-            .or(conn.map(|c| c.data_port).filter(|&p| p != 0));
         if self.transport != Some(Transport::Unicast) {
             let group = self
                 .settings
@@ -1235,7 +1254,9 @@ mod tests {
         s.handle(t0, stranger, Channel::Command, &frame(1, V31));
         s.handle(t0, other_port, Channel::Command, &frame(2, V31));
         s.handle(t0, stranger, Channel::Data, &frame(3, V31));
-        assert_eq!(s.counters().wrong_sender, 6);
+        // The data port is the server's, but only frames count from there.
+        assert_eq!(s.counters().wrong_sender, 5);
+        assert_eq!(s.counters().skipped, 1);
         assert!(actions(&mut s).is_empty());
         assert_eq!(s.server().unwrap().version, V31);
         // Frames come from the data port (unicast) or to the group (data).

@@ -58,6 +58,30 @@ impl<'de> serde::Deserialize<'de> for Version {
     }
 }
 
+/// An optional version written as `""` when unset (TOML has no null):
+/// `#[serde(with = "unset_if_empty")]`.
+pub mod unset_if_empty {
+    use super::Version;
+    use serde::{Deserialize, Deserializer, Serializer};
+
+    /// `""` for None.
+    pub fn serialize<S: Serializer>(v: &Option<Version>, s: S) -> Result<S::Ok, S::Error> {
+        match v {
+            Some(v) => s.collect_str(v),
+            None => s.serialize_str(""),
+        }
+    }
+
+    /// None for `""`.
+    pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<Option<Version>, D::Error> {
+        let text = String::deserialize(d)?;
+        if text.trim().is_empty() {
+            return Ok(None);
+        }
+        text.parse().map(Some).map_err(serde::de::Error::custom)
+    }
+}
+
 impl std::str::FromStr for Version {
     type Err = String;
     fn from_str(s: &str) -> Result<Self, Self::Err> {

@@ -367,6 +367,13 @@ function trigger(reason) {
   return t.replaceAll('_', ' ');
 }
 
+/** Input the sources rejected: `/status` counts it by source and kind. */
+function badInput(b) {
+  if (b == null) return null;
+  if (typeof b === 'number') return b;
+  return Object.values(b).reduce((sum, v) => sum + (badInput(v) ?? 0), 0);
+}
+
 function stillLine(s) {
   const st = s.still;
   if (!st) return '–';
@@ -394,7 +401,7 @@ function renderStatus() {
       ['tips live', `${fmt.n(s.tips_live)} of ${fmt.n(s.tips)}`],
       ['frames', fmt.n(s.frames)],
       ['dropped', fmt.n(s.dropped), s.dropped > 0],
-      ['bad input', fmt.n(s.bad_input), s.bad_input > 0],
+      ['bad input', fmt.n(badInput(s.bad_input)), badInput(s.bad_input) > 0],
       ['still phase', stillLine(s)],
       ['analyses', fmt.n(s.analyses)],
       ['trees', `${fmt.n(s.trees)}${s.tree_version ? ` (version ${s.tree_version})` : ''}`],

@@ -88,7 +88,6 @@ impl LiveSource for NatNetSource {
             ("wrong sender".into(), c.wrong_sender),
             ("skipped".into(), c.skipped),
             ("reconnects".into(), c.reconnects),
-            ("renegotiations".into(), c.renegotiations),
         ]
     }
 

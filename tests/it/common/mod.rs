@@ -1,2 +1,3 @@
 pub mod crowns;
 pub mod natnet;
+pub mod running;

@@ -1,0 +1,279 @@
+//! Scoring the marker stage against a synthetic session's truth: what the
+//! accuracy tests assert and what `examples/track_stress.rs` tabulates.
+//!
+//! Identity comes from the source columns: every measured sample of an
+//! output tip remembers the column it came from, and the truth says which
+//! tip (or ghost) each column shows.
+
+use std::collections::HashMap;
+
+use glam::DVec3;
+
+use super::{Synthetic, Truth};
+use crate::model::tips::Tips;
+use crate::model::trace::{SampleKind, Trace};
+use crate::track::gaps::{self, GapSettings};
+
+/// Gap-length bins of the fill table (frames), the last one ending at 2 s.
+pub fn fill_bins(frame_rate: f64) -> [(i64, i64); 3] {
+    [(1, 10), (11, 50), (51, (2.0 * frame_rate).round() as i64)]
+}
+
+/// One wind-phase gap of a true tip, filled by us and by PCHIP.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FillScore {
+    /// Frames missing.
+    pub len: i64,
+    /// Mean distance (m) of our fill from the noiseless truth, when the
+    /// whole gap was filled.
+    pub ours: Option<f64>,
+    /// The same for PCHIP on the true marker's own samples (perfect
+    /// identity, no length limit).
+    pub pchip: Option<f64>,
+}
+
+/// What one session scored.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Score {
+    /// Tips the marker stage reported.
+    pub tips_found: usize,
+    /// Tips the simulator placed.
+    pub tips_placed: usize,
+    /// Measured samples inside an output tip that came from another tip's
+    /// marker or from a ghost.
+    pub wrong_samples: usize,
+    /// Output tips beyond one per true tip: pieces of a marker left apart,
+    /// or ghosts reported as tips.
+    pub fragments: usize,
+    /// True tips that no output tip follows.
+    pub missed_tips: usize,
+    /// Distance of each output tip's rest position from its true tip's (m).
+    pub rest_errors: Vec<f64>,
+    /// Every wind-phase gap of a followed tip, ours beside PCHIP.
+    pub fills: Vec<FillScore>,
+    /// Fills whose two ends are samples of different markers.
+    pub bridged: usize,
+}
+
+impl Score {
+    /// Largest rest error (m).
+    pub fn rest_max(&self) -> f64 {
+        self.rest_errors.iter().copied().fold(0.0, f64::max)
+    }
+
+    /// (gaps, gaps we filled, our mean error, PCHIP's mean error on those
+    /// same gaps) for gaps of `lo..=hi` frames; errors weighted by frames.
+    pub fn fill_bin(&self, lo: i64, hi: i64) -> (usize, usize, f64, f64) {
+        let sel: Vec<&FillScore> = self
+            .fills
+            .iter()
+            .filter(|f| (lo..=hi).contains(&f.len))
+            .collect();
+        let (mut ours, mut pchip, mut frames, mut filled) = (0.0, 0.0, 0.0, 0);
+        for f in &sel {
+            if let (Some(o), Some(p)) = (f.ours, f.pchip) {
+                ours += o * f.len as f64;
+                pchip += p * f.len as f64;
+                frames += f.len as f64;
+                filled += 1;
+            }
+        }
+        let n = frames.max(1.0);
+        (sel.len(), filled, ours / n, pchip / n)
+    }
+
+    /// Adds another session's score.
+    pub fn merge(&mut self, o: &Score) {
+        self.tips_found += o.tips_found;
+        self.tips_placed += o.tips_placed;
+        self.wrong_samples += o.wrong_samples;
+        self.fragments += o.fragments;
+        self.missed_tips += o.missed_tips;
+        self.rest_errors.extend_from_slice(&o.rest_errors);
+        self.fills.extend_from_slice(&o.fills);
+        self.bridged += o.bridged;
+    }
+}
+
+/// Which true tip (`Some`) or ghost (`None`) each measured sample of a
+/// trace came from, with its internal frame.
+fn owners<'a>(
+    trace: &'a Trace,
+    truth: &'a Truth,
+) -> impl Iterator<Item = (i64, Option<usize>)> + 'a {
+    let mut runs = trace.sources().iter().peekable();
+    let mut col = None;
+    trace.measurements().map(move |(frame, _)| {
+        while let Some(r) = runs.next_if(|r| r.frame <= frame) {
+            col = r.id;
+        }
+        let who = col
+            .and_then(|c| truth.columns.get(c as usize))
+            .and_then(|c| c.tip);
+        (frame, who)
+    })
+}
+
+/// Scores `tips` (the marker stage's output on `syn`'s frames).
+pub fn score(tips: &Tips, syn: &Synthetic) -> Score {
+    let truth = &syn.truth;
+    let mut s = Score {
+        tips_found: tips.tips.len(),
+        tips_placed: truth.tips.len(),
+        ..Score::default()
+    };
+    let mut claimed = vec![0usize; truth.tips.len()];
+    let mut ours: Vec<Option<&crate::model::tips::Tip>> = vec![None; truth.tips.len()];
+    for tip in &tips.tips {
+        let mut counts: HashMap<Option<usize>, usize> = HashMap::new();
+        let mut owner_at: HashMap<i64, Option<usize>> = HashMap::new();
+        for (frame, who) in owners(&tip.trace, truth) {
+            *counts.entry(who).or_default() += 1;
+            owner_at.insert(frame, who);
+        }
+        let Some((&owner, &n)) = counts
+            .iter()
+            .max_by_key(|(k, n)| (**n, k.map_or(0, |v| v + 1)))
+        else {
+            continue;
+        };
+        let total: usize = counts.values().sum();
+        s.wrong_samples += total - n;
+        for f in tip.trace.fills() {
+            if owner_at.get(&f.from) != owner_at.get(&f.to) {
+                s.bridged += 1;
+            }
+        }
+        let Some(k) = owner else {
+            s.fragments += 1;
+            continue;
+        };
+        claimed[k] += 1;
+        if claimed[k] > 1 {
+            if std::env::var_os("TRACK_DEBUG").is_some() {
+                eprintln!(
+                    "fragment of true tip {k}: frames {}..{} measured {} rest {:?} (true {:?})",
+                    tip.trace.first_frame(),
+                    tip.trace.last_frame(),
+                    tip.trace.measured(),
+                    tip.rest,
+                    truth.tips[k].rest
+                );
+            }
+            s.fragments += 1;
+            continue;
+        }
+        ours[k] = Some(tip);
+        s.rest_errors.push(tip.rest.distance(truth.tips[k].rest));
+    }
+    s.missed_tips = claimed.iter().filter(|c| **c == 0).count();
+    let baseline = pchip_baseline(tips, syn);
+    for (k, tip) in ours.iter().enumerate() {
+        let filled: HashMap<i64, DVec3> = tip
+            .map(|t| {
+                t.trace
+                    .samples()
+                    .filter(|x| x.kind == SampleKind::Filled)
+                    .map(|x| {
+                        (
+                            tips.timeline.source_frame(x.frame).unwrap_or(-1),
+                            x.position,
+                        )
+                    })
+                    .collect()
+            })
+            .unwrap_or_default();
+        for g in truth.gaps.iter().filter(|g| g.tip == k) {
+            if truth.time_of(g.first_frame) < truth.wind.0 + truth.wind_ramp_s
+                || g.first_frame == 0
+                || g.last_frame + 1 >= truth.frames as i64
+            {
+                continue;
+            }
+            let err = |get: &dyn Fn(i64) -> Option<DVec3>| -> Option<f64> {
+                let mut sum = 0.0;
+                for f in g.first_frame..=g.last_frame {
+                    sum += get(f)?.distance(truth.position(k, truth.time_of(f)));
+                }
+                Some(sum / (g.last_frame - g.first_frame + 1) as f64)
+            };
+            let base = &baseline[k];
+            s.fills.push(FillScore {
+                len: g.last_frame - g.first_frame + 1,
+                ours: err(&|f| filled.get(&f).copied()),
+                pchip: err(&|f| base.get(&f).copied()),
+            });
+        }
+    }
+    s
+}
+
+/// PCHIP fills of every true tip's own samples (perfect identity), by
+/// source frame.
+fn pchip_baseline(tips: &Tips, syn: &Synthetic) -> Vec<HashMap<i64, DVec3>> {
+    let n = syn.truth.tips.len();
+    let mut traces: Vec<Option<Trace>> = (0..n).map(|_| None).collect();
+    for frame in &syn.frames {
+        for m in &frame.markers {
+            let Some(k) =
+                m.id.and_then(|c| syn.truth.columns.get(c as usize))
+                    .and_then(|c| c.tip)
+            else {
+                continue;
+            };
+            match traces[k].as_mut() {
+                Some(t) => t.push(frame.frame, m.position, None),
+                None => traces[k] = Some(Trace::new(k, frame.frame, m.position, None)),
+            }
+        }
+    }
+    let settings = GapSettings {
+        max_fill_s: 0.0,
+        max_pchip_s: 1e9,
+        neighbours: false,
+    };
+    traces
+        .into_iter()
+        .map(|t| {
+            let Some(t) = t else { return HashMap::new() };
+            let mut one = [t];
+            gaps::fill_gaps(&mut one, &tips.timeline, settings);
+            one[0]
+                .samples()
+                .filter(|x| x.kind == SampleKind::Filled)
+                .map(|x| (x.frame, x.position))
+                .collect()
+        })
+        .collect()
+}
+
+/// Smallest distance between two true tips at any frame (noiseless).
+pub fn smallest_spacing(truth: &Truth) -> f64 {
+    let mut best = f64::INFINITY;
+    let step = (truth.frame_rate / 50.0).max(1.0) as usize;
+    for f in (0..truth.frames).step_by(step) {
+        let t = truth.time_of(f as i64);
+        let p: Vec<_> = (0..truth.tips.len())
+            .map(|k| truth.position(k, t))
+            .collect();
+        for i in 0..p.len() {
+            for j in i + 1..p.len() {
+                best = best.min(p[i].distance(p[j]));
+            }
+        }
+    }
+    best
+}
+
+/// Largest displacement of any tip from its rest position (m), sampled.
+pub fn largest_sway(truth: &Truth) -> f64 {
+    let step = (truth.frame_rate / 50.0).max(1.0) as usize;
+    let mut best: f64 = 0.0;
+    for f in (0..truth.frames).step_by(step) {
+        let t = truth.time_of(f as i64);
+        for k in 0..truth.tips.len() {
+            best = best.max(truth.position(k, t).distance(truth.tips[k].rest));
+        }
+    }
+    best
+}

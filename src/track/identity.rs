@@ -1,0 +1,611 @@
+//! Identities: which traces are pieces of one marker (ours; the paper
+//! tracks frame to frame only, spec §4 joins pieces by rest position).
+//!
+//! The frame-to-frame tracker ends a trace as soon as its prediction is too
+//! unsure to pick the right marker (a long occlusion in a strong wind).
+//! Here, on line and frame by frame, such pieces are put back together:
+//!
+//! - Every marker of the tree moves with its neighbours (they hang on the
+//!   same limb or fork). For each identity we keep its `NEIGHBOURS` nearest
+//!   identities and, for each, how much their offset varies
+//!   (`var_ij`, an exponential average): a neighbour that moves with it
+//!   varies little.
+//! - When an identity misses a frame, the positions of it and of its
+//!   neighbours are noted. From then on its position is predicted from the
+//!   neighbours' motion since: `p̂ = p₀ + Σ wⱼ (pⱼ − pⱼ₀)`, weights
+//!   `1/var_ij` (a local linear model of the neighbours, after Federolf
+//!   2013), which follows the sway of the tree through seconds of gap,
+//!   where extrapolating the marker's own motion fails within a tenth.
+//! - A new trace is only a *candidate*. After `link_frames` measurements
+//!   (and again at 2×, 4×, … up to `confirm_frames`) its path is compared
+//!   with the predicted paths of the identities whose traces ended before
+//!   it began; the RMS distance, in units of the prediction's expected error,
+//!   is the cost, and candidates and lost identities are paired by global
+//!   assignment. So a piece is joined only when its motion over a tenth of
+//!   a second and its neighbours agree.
+//! - A candidate that nobody claims becomes a new identity once it has been
+//!   measured in `confirm_frames` frames. Ghost reflections live shorter
+//!   (they are never confirmed, and a static ghost does not follow the
+//!   predicted sway, so it is not joined); they stay loose traces and are
+//!   dropped as noise.
+
+use std::collections::{BTreeMap, HashMap, VecDeque};
+
+use glam::DVec3;
+
+use super::assign::{Assigner, Edge};
+
+/// Neighbours kept per identity.
+const NEIGHBOURS: usize = 8;
+/// Error of the neighbours' prediction per metre they moved since the gap
+/// began (a tip swings further or less far than its neighbours).
+const MOVED_ERROR: f64 = 0.3;
+/// Variance a new neighbour pair starts with (m²): (50 mm)², unknown.
+const VAR0: f64 = 0.05 * 0.05;
+
+/// Settings of the identity layer, in frames and metres.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct IdentitySettings {
+    /// Measurements of a new trace before it is first compared.
+    pub(crate) link_frames: usize,
+    /// Measurements after which an unclaimed trace is a marker of its own.
+    pub(crate) confirm_frames: usize,
+    /// Smallest and largest join radius (RMS distance to the predicted path).
+    pub(crate) link_min_m: f64,
+    pub(crate) link_max_m: f64,
+    /// Frames a lost identity can still be joined.
+    pub(crate) keep_lost_frames: i64,
+    /// Weight of a new frame in the neighbour statistics (1 / frames).
+    pub(crate) alpha: f64,
+}
+
+/// A neighbour of an identity and how much their offset varies.
+#[derive(Debug, Clone, Copy)]
+struct Neighbour {
+    id: usize,
+    mean: DVec3,
+    var: f64,
+    seen: bool,
+}
+
+/// What an identity looked like when its current gap began.
+#[derive(Debug, Clone)]
+struct Gap {
+    /// Last measured frame before the gap.
+    from: i64,
+    p0: DVec3,
+    /// (neighbour, its position at `from`, weight).
+    snap: Vec<(usize, DVec3, f64)>,
+    /// Expected error of the prediction for a long gap (m).
+    spread: f64,
+    /// Predicted positions for the frames of the gap (the most recent).
+    preds: VecDeque<(i64, DVec3)>,
+    last_pred: DVec3,
+    /// Largest predicted displacement since the gap began (m): the
+    /// neighbours' model errs in proportion to how far they moved.
+    moved: f64,
+    /// The trace has ended: the identity waits for a candidate.
+    ended: bool,
+}
+
+/// One marker: the traces that are its pieces, and its neighbourhood.
+#[derive(Debug, Clone)]
+struct Ident {
+    pieces: Vec<usize>,
+    /// The trace carrying it now, if any.
+    trace: Option<usize>,
+    last: (i64, DVec3),
+    prev: (i64, DVec3),
+    neighbours: Vec<Neighbour>,
+    gap: Option<Gap>,
+    /// Mean and RMS spread of its first `confirm_frames` measurements: the
+    /// live daemon matches identities to a tree's tips with it.
+    first: (DVec3, f64),
+}
+
+/// A young trace waiting to be joined or confirmed.
+#[derive(Debug, Clone)]
+struct Candidate {
+    samples: Vec<(i64, DVec3)>,
+    next_eval: usize,
+}
+
+/// Who a live trace belongs to.
+#[derive(Debug, Clone, Copy)]
+enum Owner {
+    Ident(usize),
+    Candidate,
+}
+
+/// The identity layer; the tracker feeds it every frame.
+#[derive(Debug)]
+pub(crate) struct Identities {
+    s: IdentitySettings,
+    idents: Vec<Ident>,
+    owner: HashMap<usize, Owner>,
+    /// By trace id (ordered, so that ties are broken the same every run).
+    candidates: BTreeMap<usize, Candidate>,
+    /// Candidates whose trace ended this frame, before they were judged.
+    dying: Vec<(usize, Candidate)>,
+    /// Identities whose trace ended, joinable for `keep_lost_frames`.
+    lost: Vec<usize>,
+    /// Position of each identity measured in the current frame.
+    cur: Vec<Option<DVec3>>,
+    /// Identities with a trace or a joinable gap: the only ones a frame
+    /// looks at, so the cost does not grow with the session.
+    active: Vec<usize>,
+    frame: i64,
+    next_refresh: i64,
+    assigner: Assigner,
+    edges: Vec<Edge>,
+    out: Vec<Option<usize>>,
+    /// Pieces joined to an earlier piece.
+    pub(crate) joins: usize,
+}
+
+impl Identities {
+    pub(crate) fn new(s: IdentitySettings) -> Self {
+        Identities {
+            s,
+            idents: Vec::new(),
+            owner: HashMap::new(),
+            candidates: BTreeMap::new(),
+            dying: Vec::new(),
+            lost: Vec::new(),
+            cur: Vec::new(),
+            active: Vec::new(),
+            frame: 0,
+            next_refresh: 0,
+            assigner: Assigner::default(),
+            edges: Vec::new(),
+            out: Vec::new(),
+            joins: 0,
+        }
+    }
+
+    /// New settings (the frame rate became known).
+    pub(crate) fn set_settings(&mut self, s: IdentitySettings) {
+        self.s = s;
+    }
+
+    /// Starts frame `t`.
+    pub(crate) fn begin(&mut self, t: i64) {
+        self.frame = t;
+        for &i in &self.active {
+            self.cur[i] = None;
+        }
+    }
+
+    /// A new trace began with `p` in this frame.
+    pub(crate) fn started(&mut self, trace: usize, p: DVec3) {
+        self.owner.insert(trace, Owner::Candidate);
+        self.candidates.insert(
+            trace,
+            Candidate {
+                samples: vec![(self.frame, p)],
+                next_eval: self.s.link_frames.max(1),
+            },
+        );
+    }
+
+    /// Trace `trace` was measured at `p` in this frame.
+    pub(crate) fn measured(&mut self, trace: usize, p: DVec3) {
+        match self.owner.get(&trace) {
+            Some(Owner::Ident(i)) => {
+                let i = *i;
+                self.cur[i] = Some(p);
+                let id = &mut self.idents[i];
+                id.prev = id.last;
+                id.last = (self.frame, p);
+                id.gap = None;
+            }
+            Some(Owner::Candidate) => {
+                if let Some(c) = self.candidates.get_mut(&trace) {
+                    c.samples.push((self.frame, p));
+                }
+            }
+            None => {}
+        }
+    }
+
+    /// Trace `trace` ended (too long without a marker, or a restart).
+    pub(crate) fn ended(&mut self, trace: usize) {
+        match self.owner.remove(&trace) {
+            Some(Owner::Ident(i)) => {
+                if self.idents[i].gap.is_none() {
+                    self.open_gap(i);
+                }
+                let id = &mut self.idents[i];
+                id.trace = None;
+                if let Some(g) = id.gap.as_mut() {
+                    g.ended = true;
+                    self.lost.push(i);
+                }
+            }
+            Some(Owner::Candidate) => {
+                // A short piece between two occlusions: judged at the end
+                // of the frame, so its samples are not lost.
+                if let Some(c) = self.candidates.remove(&trace) {
+                    if c.samples.len() >= 3 {
+                        self.dying.push((trace, c));
+                    }
+                }
+            }
+            None => {}
+        }
+    }
+
+    /// Ends every trace and forgets the lost identities (a source restart:
+    /// nothing may be joined across it).
+    pub(crate) fn restart(&mut self) {
+        let mut traces: Vec<usize> = self.owner.keys().copied().collect();
+        traces.sort_unstable();
+        for t in traces {
+            self.ended(t);
+        }
+        for &i in &self.lost {
+            self.idents[i].gap = None;
+        }
+        self.lost.clear();
+        self.candidates.clear();
+    }
+
+    /// Finishes the frame: gaps, predictions, statistics, joins.
+    pub(crate) fn end(&mut self) {
+        let t = self.frame;
+        self.note_gaps();
+        self.predict(t);
+        self.learn();
+        self.judge_dying();
+        self.evaluate(false);
+        if t >= self.next_refresh {
+            self.refresh_neighbours(t);
+            self.next_refresh = t + (1.0 / self.s.alpha / 2.0).max(8.0) as i64;
+        }
+        let keep = self.s.keep_lost_frames;
+        let idents = &mut self.idents;
+        self.lost.retain(|&i| {
+            let alive = idents[i].gap.as_ref().is_some_and(|g| t - g.from <= keep);
+            if !alive {
+                idents[i].gap = None;
+            }
+            alive
+        });
+        self.active
+            .retain(|&i| idents[i].trace.is_some() || idents[i].gap.is_some());
+    }
+
+    /// At the end of the session: pending candidates get a last chance to
+    /// be joined; returns the pieces of every identity.
+    pub(crate) fn finish(&mut self) -> Vec<Vec<usize>> {
+        self.evaluate(true);
+        self.idents.iter().map(|i| i.pieces.clone()).collect()
+    }
+
+    /// Mean and spread of identity `i`'s first measurements.
+    pub(crate) fn first_position(&self, i: usize) -> Option<(DVec3, f64)> {
+        self.idents.get(i).map(|id| id.first)
+    }
+
+    /// Identities measured in this frame, with their position.
+    pub(crate) fn current(&self) -> impl Iterator<Item = (usize, DVec3)> + '_ {
+        self.cur
+            .iter()
+            .enumerate()
+            .filter_map(|(i, p)| p.map(|p| (i, p)))
+    }
+
+    /// Identities that missed this frame start a gap.
+    fn note_gaps(&mut self) {
+        for k in 0..self.active.len() {
+            let i = self.active[k];
+            let id = &self.idents[i];
+            if self.cur[i].is_none() && id.gap.is_none() && id.trace.is_some() {
+                self.open_gap(i);
+            }
+        }
+    }
+
+    /// Notes where identity `i` and its neighbours were at its last
+    /// measurement: the origin of its predicted path.
+    fn open_gap(&mut self, i: usize) {
+        let id = &self.idents[i];
+        let from = id.last.0;
+        let mut snap = Vec::new();
+        let mut wsum = 0.0;
+        for n in id.neighbours.iter().filter(|n| n.seen) {
+            let Some(j) = self.idents.get(n.id) else {
+                continue;
+            };
+            let pj = if j.last.0 == from {
+                j.last.1
+            } else if j.prev.0 == from {
+                j.prev.1
+            } else {
+                continue;
+            };
+            let w = 1.0 / n.var.max(1e-8);
+            wsum += w;
+            snap.push((n.id, pj, w));
+        }
+        let spread = if wsum > 0.0 {
+            (2.0 / wsum).sqrt()
+        } else {
+            self.s.link_max_m
+        };
+        let p0 = id.last.1;
+        self.idents[i].gap = Some(Gap {
+            from,
+            p0,
+            snap,
+            spread,
+            preds: VecDeque::new(),
+            last_pred: p0,
+            moved: 0.0,
+            ended: false,
+        });
+    }
+
+    /// Predicts every identity in a gap from its neighbours' motion.
+    fn predict(&mut self, t: i64) {
+        let cap = self.s.confirm_frames + 2;
+        for &i in &self.active {
+            let Some(g) = self.idents[i].gap.as_ref() else {
+                continue;
+            };
+            let (mut num, mut wsum) = (DVec3::ZERO, 0.0);
+            for &(j, pj0, w) in &g.snap {
+                if let Some(pj) = self.cur.get(j).copied().flatten() {
+                    num += (pj - pj0) * w;
+                    wsum += w;
+                }
+            }
+            let pred = if wsum > 0.0 {
+                g.p0 + num / wsum
+            } else {
+                g.last_pred
+            };
+            if let Some(g) = self.idents[i].gap.as_mut() {
+                g.last_pred = pred;
+                g.moved = g.moved.max(pred.distance(g.p0));
+                g.preds.push_back((t, pred));
+                if g.preds.len() > cap {
+                    g.preds.pop_front();
+                }
+            }
+        }
+    }
+
+    /// Updates the offset statistics of every pair measured in this frame.
+    fn learn(&mut self) {
+        let a = self.s.alpha;
+        for &i in &self.active {
+            let Some(pi) = self.cur[i] else { continue };
+            let cur = &self.cur;
+            for n in self.idents[i].neighbours.iter_mut() {
+                let Some(pj) = cur.get(n.id).copied().flatten() else {
+                    continue;
+                };
+                let o = pi - pj;
+                if !n.seen {
+                    n.mean = o;
+                    n.seen = true;
+                }
+                let d = o - n.mean;
+                n.mean += d * a;
+                n.var = (1.0 - a) * (n.var + a * d.length_squared());
+            }
+        }
+    }
+
+    /// Each identity's nearest identities, keeping the statistics of the
+    /// neighbours it already had.
+    fn refresh_neighbours(&mut self, t: i64) {
+        let horizon = (1.0 / self.s.alpha) as i64;
+        let recent: Vec<(usize, DVec3)> = self
+            .active
+            .iter()
+            .map(|&i| (i, &self.idents[i]))
+            .filter(|(_, id)| t - id.last.0 <= horizon)
+            .map(|(i, id)| (i, id.last.1))
+            .collect();
+        for &(i, pi) in &recent {
+            if self.idents[i].gap.is_some() {
+                continue;
+            }
+            let mut near: Vec<(f64, usize)> = recent
+                .iter()
+                .filter(|(j, _)| *j != i)
+                .map(|(j, pj)| (pi.distance_squared(*pj), *j))
+                .collect();
+            let k = NEIGHBOURS.min(near.len());
+            if k == 0 {
+                continue;
+            }
+            near.select_nth_unstable_by(k - 1, |a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+            near.truncate(k);
+            near.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+            let old = std::mem::take(&mut self.idents[i].neighbours);
+            self.idents[i].neighbours = near
+                .iter()
+                .map(|&(_, j)| {
+                    old.iter()
+                        .find(|n| n.id == j)
+                        .copied()
+                        .unwrap_or(Neighbour {
+                            id: j,
+                            mean: DVec3::ZERO,
+                            var: VAR0,
+                            seen: false,
+                        })
+                })
+                .collect();
+        }
+    }
+
+    /// Compares candidates due for it with the lost identities, joins the
+    /// best pairs, and confirms candidates nobody claims. `all`: every
+    /// candidate is due (end of session).
+    fn evaluate(&mut self, all: bool) {
+        let confirm_frames = self.s.confirm_frames;
+        let due: Vec<usize> = self
+            .candidates
+            .iter()
+            .filter(|(_, c)| {
+                let n = c.samples.len();
+                if all {
+                    n >= 3
+                } else {
+                    n >= c.next_eval
+                }
+            })
+            .map(|(t, _)| *t)
+            .collect();
+        if due.is_empty() {
+            return;
+        }
+        self.edges.clear();
+        if !self.lost.is_empty() {
+            for (row, trace) in due.iter().enumerate() {
+                let Some(cand) = self.candidates.get(trace) else {
+                    continue;
+                };
+                let born = cand.samples[0].0;
+                for (col, &i) in self.lost.iter().enumerate() {
+                    let Some(g) = self.idents[i].gap.as_ref() else {
+                        continue;
+                    };
+                    if g.from >= born {
+                        continue;
+                    }
+                    if let Some(cost) = path_cost(&cand.samples, g, &self.s) {
+                        self.edges.push(Edge { row, col, cost });
+                    }
+                }
+            }
+        }
+        self.assigner
+            .solve(due.len(), self.lost.len(), &self.edges, 1.0, &mut self.out);
+        let mut joined_ids = Vec::new();
+        for (row, trace) in due.iter().enumerate() {
+            let claimed = self.out.get(row).copied().flatten();
+            let Some(cand) = self.candidates.get_mut(trace) else {
+                continue;
+            };
+            if let Some(col) = claimed {
+                let i = self.lost[col];
+                joined_ids.push(i);
+                let Some(cand) = self.candidates.remove(trace) else {
+                    continue;
+                };
+                self.join(*trace, cand, i);
+            } else if cand.samples.len() >= confirm_frames
+                || (all && cand.samples.len() >= confirm_frames / 2)
+            {
+                let Some(cand) = self.candidates.remove(trace) else {
+                    continue;
+                };
+                self.confirm(*trace, cand);
+            } else {
+                cand.next_eval = (cand.next_eval * 2).min(confirm_frames);
+            }
+        }
+        self.lost.retain(|i| !joined_ids.contains(i));
+    }
+
+    /// Short pieces that ended go to the lost identity whose predicted path
+    /// they follow best (within its radius); the identity stays lost.
+    fn judge_dying(&mut self) {
+        for (trace, cand) in std::mem::take(&mut self.dying) {
+            let born = cand.samples[0].0;
+            let best = self
+                .lost
+                .iter()
+                .filter_map(|&i| {
+                    let g = self.idents[i].gap.as_ref()?;
+                    if g.from >= born {
+                        return None;
+                    }
+                    path_cost(&cand.samples, g, &self.s).map(|c| (c, i))
+                })
+                .min_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+            if let Some((_, i)) = best {
+                let id = &mut self.idents[i];
+                id.pieces.push(trace);
+                if let Some(&last) = cand.samples.last() {
+                    id.prev = id.last;
+                    id.last = last;
+                }
+                self.joins += 1;
+            }
+        }
+    }
+
+    /// Candidate `trace` is the next piece of identity `i`.
+    fn join(&mut self, trace: usize, cand: Candidate, i: usize) {
+        let last = *cand.samples.last().unwrap_or(&(self.frame, DVec3::ZERO));
+        let id = &mut self.idents[i];
+        id.pieces.push(trace);
+        id.trace = Some(trace);
+        id.prev = id.last;
+        id.last = last;
+        id.gap = None;
+        if last.0 == self.frame {
+            self.cur[i] = Some(last.1);
+        }
+        self.owner.insert(trace, Owner::Ident(i));
+        self.joins += 1;
+    }
+
+    /// Candidate `trace` is a marker of its own.
+    fn confirm(&mut self, trace: usize, cand: Candidate) {
+        let i = self.idents.len();
+        let n = cand.samples.len().max(1) as f64;
+        let mean = cand.samples.iter().map(|s| s.1).sum::<DVec3>() / n;
+        let spread = (cand
+            .samples
+            .iter()
+            .map(|s| s.1.distance_squared(mean))
+            .sum::<f64>()
+            / n)
+            .sqrt();
+        let last = *cand.samples.last().unwrap_or(&(self.frame, mean));
+        let prev = cand.samples.iter().rev().nth(1).copied().unwrap_or(last);
+        self.idents.push(Ident {
+            pieces: vec![trace],
+            trace: Some(trace),
+            last,
+            prev,
+            neighbours: Vec::new(),
+            gap: None,
+            first: (mean, spread),
+        });
+        self.cur.push((last.0 == self.frame).then_some(last.1));
+        self.active.push(i);
+        self.owner.insert(trace, Owner::Ident(i));
+        // Neighbours at once, so that a marker hidden soon after it was
+        // confirmed can already be predicted.
+        self.next_refresh = self.frame;
+    }
+}
+
+/// RMS distance between a candidate's samples and a lost identity's
+/// predicted path, in units of the join radius; `None` beyond it or when
+/// the prediction does not cover the samples.
+fn path_cost(samples: &[(i64, DVec3)], g: &Gap, s: &IdentitySettings) -> Option<f64> {
+    let mut sum = 0.0;
+    let mut n = 0usize;
+    for &(t, p) in samples {
+        if let Ok(k) = g.preds.binary_search_by_key(&t, |x| x.0) {
+            sum += p.distance_squared(g.preds[k].1);
+            n += 1;
+        }
+    }
+    if n * 2 < samples.len() || n == 0 {
+        return None;
+    }
+    let rms = (sum / n as f64).sqrt();
+    let radius = (s.link_min_m + 3.0 * g.spread + MOVED_ERROR * g.moved).min(s.link_max_m);
+    let cost = rms / radius;
+    (cost <= 1.0).then_some(cost)
+}

@@ -1,0 +1,115 @@
+//! Live tips: the tracker run frame by frame, its markers labelled with the
+//! current tree's tips. The daemon shows these; they are the very samples a
+//! replay of the same frames puts in its tips (same tracker, same
+//! decisions), not a second, simpler follower.
+//!
+//! A tree names its captured tips by marker index and rest position. Each
+//! marker the tracker confirms is matched to the nearest unclaimed tip whose
+//! rest position lies within `match_radius` of where the marker was in its
+//! first second (a marker seen from the still phase on matches its tip to
+//! a fraction of a millimetre); markers that match no tip (first seen
+//! in the wind, or not on the tree) are not shown.
+
+use std::collections::HashMap;
+
+use glam::DVec3;
+
+use super::tracker::Tracker;
+use super::TrackingSettings;
+use crate::model::frame::MarkerFrame;
+
+/// The live tracker and its labels.
+pub struct LiveTips {
+    tracker: Tracker,
+    match_radius: f64,
+    /// The tree's tips: (marker index, rest position).
+    tips: Vec<(usize, DVec3)>,
+    /// Tracker identity → index into `tips`.
+    label: HashMap<usize, usize>,
+    /// Which of `tips` are claimed.
+    claimed: Vec<bool>,
+    /// Identities already tried and not matched (not retried every frame).
+    unmatched: HashMap<usize, usize>,
+}
+
+impl LiveTips {
+    /// A live tracker with the marker stage's settings; `frame_rate` when
+    /// known.
+    pub fn new(settings: &TrackingSettings, frame_rate: Option<f64>, match_radius_m: f64) -> Self {
+        LiveTips {
+            tracker: Tracker::live(settings, frame_rate),
+            match_radius: match_radius_m,
+            tips: Vec::new(),
+            label: HashMap::new(),
+            claimed: Vec::new(),
+            unmatched: HashMap::new(),
+        }
+    }
+
+    /// A new tree: label the markers with its tips.
+    pub fn set_tips(&mut self, tips: &[(usize, DVec3)]) {
+        self.tips = tips.to_vec();
+        self.label.clear();
+        self.unmatched.clear();
+        self.claimed = vec![false; tips.len()];
+    }
+
+    /// Whether there is a tree to label with.
+    pub fn is_empty(&self) -> bool {
+        self.tips.is_empty()
+    }
+
+    /// Tracks one frame; returns `(marker index, position)` of the tree's
+    /// tips measured in it, by marker index.
+    pub fn update(&mut self, frame: &MarkerFrame) -> Vec<(usize, DVec3)> {
+        self.tracker.push(frame);
+        let current: Vec<(usize, DVec3)> = self.tracker.current().collect();
+        let mut seen = Vec::with_capacity(current.len());
+        for (identity, p) in current {
+            let k = match self.label.get(&identity) {
+                Some(k) => Some(*k),
+                None => self.match_identity(identity),
+            };
+            if let Some(&(marker, _)) = k.and_then(|k| self.tips.get(k)) {
+                seen.push((marker, p));
+            }
+        }
+        seen.sort_by_key(|s| s.0);
+        seen
+    }
+
+    /// Displacements from rest of the tips seen (for the sway PCA).
+    pub fn displacements<'a>(
+        &'a self,
+        seen: &'a [(usize, DVec3)],
+    ) -> impl Iterator<Item = DVec3> + 'a {
+        seen.iter()
+            .filter_map(|(m, p)| self.tips.iter().find(|t| t.0 == *m).map(|t| *p - t.1))
+    }
+
+    fn match_identity(&mut self, identity: usize) -> Option<usize> {
+        if self.unmatched.get(&identity) == Some(&self.tips.len()) {
+            return None;
+        }
+        let (first, _) = self.tracker.first_position(identity)?;
+        let best = self
+            .tips
+            .iter()
+            .enumerate()
+            .filter(|(k, _)| !self.claimed[*k])
+            .map(|(k, t)| (t.1.distance(first), k))
+            .filter(|(d, _)| *d <= self.match_radius)
+            .min_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+        match best {
+            Some((_, k)) => {
+                self.claimed[k] = true;
+                self.label.insert(identity, k);
+                Some(k)
+            }
+            None => {
+                self.unmatched.insert(identity, self.tips.len());
+                None
+            }
+        }
+    }
+}
