@@ -101,7 +101,7 @@ fn picture(c: &mut Criterion) {
     let mut group = c.benchmark_group("picture");
     group.sample_size(10);
     group.bench_function("tree_png_maple_70_50000", |b| {
-        b.iter(|| black_box(treemocap::render::picture::tree_png(&tree).expect("png")))
+        b.iter(|| black_box(treemocap::render::picture::tree_png(&tree, None).expect("png")))
     });
     group.finish();
 }

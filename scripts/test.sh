@@ -35,5 +35,19 @@ if ! command -v tcpdump >/dev/null; then
   flock /tmp/apt.lock apt-get install -y -qq tcpdump >/dev/null
 fi
 
+# animate (issue 13): the animated tree.glb is played by three.js in headless
+# Chromium and imported by Blender in background mode, both Debian's packages
+# (Blender's glTF importer needs numpy from Debian too). Blender is ~220 MB and
+# installs in about 2 minutes; it is skipped when already there.
+debs=()
+command -v chromium >/dev/null || debs+=(chromium)
+command -v blender >/dev/null || debs+=(blender)
+dpkg -s python3-numpy >/dev/null 2>&1 || debs+=(python3-numpy)
+if [ ${#debs[@]} -gt 0 ]; then
+  echo "== installing Debian test peers: ${debs[*]}"
+  flock /tmp/apt.lock apt-get update -qq
+  flock /tmp/apt.lock apt-get install -y -qq "${debs[@]}" >/dev/null
+fi
+
 echo "== cargo test"
 cargo test --all-targets "$@"

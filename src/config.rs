@@ -8,6 +8,7 @@ use std::path::Path;
 
 use serde::{Deserialize, Serialize};
 
+use crate::animate::AnimateSettings;
 use crate::error::{check_range, excerpt, Error, Result};
 use crate::reconstruct::forest::{ConfiguredTree, ForestSettings};
 use crate::reconstruct::ReconstructSettings;
@@ -47,6 +48,8 @@ pub struct Config {
     pub reconstruct: ReconstructSettings,
     /// `[forest]`: several trees in one capture (docs/forest.md).
     pub forest: ForestSettings,
+    /// `[animate]`: the captured motion on the tree (docs/animation.md).
+    pub animate: AnimateSettings,
 }
 
 /// Reading recorded sessions.
@@ -289,6 +292,7 @@ impl Config {
         self.reconstruct.validate()?;
         self.forest.validate()?;
         crate::reconstruct::forest::settings::validate_trees(&self.trees)?;
+        self.animate.validate()?;
         Ok(())
     }
 

@@ -8,6 +8,7 @@
 //! `serve` (HTTP, OSC, NatNet server) ← `app` (one module per command) and
 //! `daemon` (threads and channels). Only `app` and `daemon` name files.
 
+pub mod animate;
 pub mod app;
 pub mod config;
 pub mod daemon;

@@ -66,8 +66,9 @@ enum Command {
     },
     /// Run the whole job on a recorded session: track the markers, find the
     /// tips' rest positions, estimate the wind, reconstruct the tree. Writes
-    /// tips.json, tree.glb, tree.json and tree.png to --out (default:
-    /// output.dir of the config, "out").
+    /// tips.json, tree.glb (the tree swaying as captured: a skin and an
+    /// animation), tree.json and tree.png to --out (default: output.dir of
+    /// the config, "out").
     Replay {
         /// A Motive CSV export, a C3D file, a NatNet capture (pcap/pcapng)
         /// or a treemocap log (detected by content).
@@ -81,6 +82,9 @@ enum Command {
         /// Output folder (overrides output.dir).
         #[arg(long, value_name = "DIR")]
         out: Option<PathBuf>,
+        /// Write the still tree.glb (no skin, no animation).
+        #[arg(long)]
+        still: bool,
     },
     /// Find the branch tips in a recording: track the markers, fill gaps,
     /// drop noise, average each marker over the still phase. Prints a table
@@ -143,7 +147,8 @@ enum Command {
     /// NatNet client can be tested without a rig.
     Serve(ServeArgs),
     /// Re-run the particle flow on saved tips (tips.json) and write
-    /// tree.glb, tree.json and tree.png.
+    /// tree.glb, tree.json and tree.png. When the tips file carries the tips'
+    /// trajectories (`tips --json --traces`), tree.glb is animated with them.
     Reconstruct {
         /// A tips.json written by `treemocap replay` (or by hand).
         tips: PathBuf,
@@ -152,6 +157,9 @@ enum Command {
         /// Output folder (default: output.dir from the config).
         #[arg(long, value_name = "DIR")]
         out: Option<PathBuf>,
+        /// Write the still tree.glb even when the tips have trajectories.
+        #[arg(long)]
+        still: bool,
     },
     /// Show a finished session in the live page, with a timeline to scrub:
     /// a recording (the marker stage runs on it) or an output folder
@@ -483,11 +491,12 @@ fn run(command: Command) -> Result<()> {
             config,
             out,
             natnet_version,
+            still,
         } => {
             let mut config = config.load()?;
             config.replay.natnet_version = natnet_version.or(config.replay.natnet_version);
             let out = out.unwrap_or_else(|| PathBuf::from(&config.output.dir));
-            let report = treemocap::app::replay::run(&file, &config, &out)?;
+            let report = treemocap::app::replay::run_with(&file, &config, still, &out)?;
             say!("{report}")?;
             Ok(())
         }
@@ -546,10 +555,15 @@ fn run(command: Command) -> Result<()> {
             say!("{summary}")?;
             Ok(())
         }
-        Command::Reconstruct { tips, config, out } => {
+        Command::Reconstruct {
+            tips,
+            config,
+            out,
+            still,
+        } => {
             let config = config.load()?;
             let out = out.unwrap_or_else(|| PathBuf::from(&config.output.dir));
-            let report = treemocap::app::reconstruct::command(&tips, &config, &out)?;
+            let report = treemocap::app::reconstruct::command(&tips, &config, still, &out)?;
             say!("{report}")?;
             Ok(())
         }

@@ -4,7 +4,7 @@
 
 use glam::DVec3;
 use treemocap::config::Config;
-use treemocap::render::outputs::build_model;
+use treemocap::render::outputs::{build_model, Motion};
 use treemocap::render::picture::tree_png;
 
 #[path = "../../tests/it/common/crowns.rs"]
@@ -19,9 +19,17 @@ pub fn share(scale: &Scale) -> Vec<Row> {
     let mut config = Config::default();
     config.reconstruct.total_tips = total;
     let (outputs, build_s) = timed(|| {
-        build_model(&tips, DVec3::new(2.0, 0.0, 0.0), &config.reconstruct).expect("reconstruct")
+        build_model(
+            &tips,
+            DVec3::new(2.0, 0.0, 0.0),
+            &config.reconstruct,
+            Motion::Still,
+        )
+        .expect("reconstruct")
     });
-    let picture_s = best_of(3, || timed(|| tree_png(&outputs.tree).expect("png")).1);
+    let picture_s = best_of(3, || {
+        timed(|| tree_png(&outputs.tree, None).expect("png")).1
+    });
     println!(
         "picture: {} nodes; reconstruction {build_s:.3} s, tree.png {picture_s:.3} s",
         outputs.tree.nodes.len()

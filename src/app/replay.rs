@@ -15,7 +15,7 @@ use crate::error::Result;
 use crate::model::tips::Tips;
 use crate::model::wind::{WindEstimate, WindSource};
 use crate::reconstruct::forest::sway;
-use crate::render::outputs::Report;
+use crate::render::outputs::{Motion, Report};
 use crate::track::{self, Summary};
 use crate::wind::{fan::configured_fan_wind, pca::SwayPca, WindSelector};
 
@@ -34,8 +34,15 @@ pub struct ReplayReport {
     pub files: Vec<PathBuf>,
 }
 
-/// Runs the whole job on `file` and writes the results into `out_dir`.
+/// Runs the whole job on `file` and writes the results into `out_dir`;
+/// tree.glb carries the session's motion as an animation.
 pub fn run(file: &Path, config: &Config, out_dir: &Path) -> Result<ReplayReport> {
+    run_with(file, config, false, out_dir)
+}
+
+/// [`run`], with `still` choosing the still tree.glb (no skin, no
+/// animation).
+pub fn run_with(file: &Path, config: &Config, still: bool, out_dir: &Path) -> Result<ReplayReport> {
     let mut rec = open_recording(file, config)?;
     let (mut tips, summary) = track::process(rec.as_mut(), &config.tracking)?;
 
@@ -51,7 +58,19 @@ pub fn run(file: &Path, config: &Config, out_dir: &Path) -> Result<ReplayReport>
     } else {
         Vec::new()
     };
-    let tree = run_and_write(&tips.captured(), &links, wind_vector, config, out_dir)?;
+    let motion = if still {
+        Motion::Still
+    } else {
+        Motion::Traces(&tips, &config.animate)
+    };
+    let tree = run_and_write(
+        &tips.captured(),
+        &links,
+        wind_vector,
+        config,
+        motion,
+        out_dir,
+    )?;
     let mut files = vec![tips_path];
     files.extend(tree.files.iter().cloned());
     Ok(ReplayReport {

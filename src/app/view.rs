@@ -119,6 +119,7 @@ fn read_tree(dir: &Path) -> Result<Option<Arc<TreeSnapshot>>> {
         tips_json: read("tips.json")?,
         nodes: Vec::new(),
         trees: Vec::new(),
+        rig: None,
     })))
 }
 

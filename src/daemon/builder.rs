@@ -10,11 +10,12 @@ use crossbeam_channel::Sender;
 use glam::DVec3;
 
 use super::shared::{lock, Shared, TreeRequest};
+use crate::animate::Rig;
 use crate::app::files::write_atomic;
 use crate::error::Result;
 use crate::reconstruct::forest::{self, ForestCache};
 use crate::render::forest::{forest_model, forest_picture};
-use crate::render::outputs::Outputs;
+use crate::render::outputs::{Motion, Outputs};
 use crate::serve::http;
 use crate::serve::osc::{tree_datagrams, OscSender};
 use crate::serve::snapshot::{SnapshotNode, SnapshotTree, TreeSnapshot};
@@ -34,6 +35,7 @@ pub(crate) fn run(shared: &Arc<Shared>, tips_tx: Sender<Vec<(usize, DVec3)>>) {
     let mut cache = ForestCache::default();
     while let Some(request) = shared.requests.take() {
         let started = Instant::now();
+        let animate = lock(&shared.recon_config).animate.clone();
         let outputs = match build_forest(shared, &request, &mut cache) {
             Ok(o) => o,
             Err(e) => {
@@ -42,11 +44,18 @@ pub(crate) fn run(shared: &Arc<Shared>, tips_tx: Sender<Vec<(usize, DVec3)>>) {
                 continue;
             }
         };
+        // How the tree sways with the live tips (daemon::pose); a tree
+        // alone only: several trees are published still (docs/forest.md).
+        let rig = if outputs.report.forest.is_none() {
+            Rig::new(&outputs.tree, &animate).ok().map(Arc::new)
+        } else {
+            None
+        };
         version += 1;
         publish(
             shared,
             request,
-            outputs,
+            (outputs, rig),
             version,
             started,
             &tips_tx,
@@ -70,7 +79,13 @@ fn build_forest(
         &config.forest,
         &config.reconstruct,
     )?;
-    forest_model(&plan, request.wind, &config.reconstruct, Some(cache))
+    forest_model(
+        &plan,
+        request.wind,
+        &config.reconstruct,
+        Motion::Rigged,
+        Some(cache),
+    )
 }
 
 /// Every tree of several as the snapshot carries it (none for a tree
@@ -100,7 +115,7 @@ fn snapshot_trees(shared: &Shared, outputs: &Outputs) -> Vec<SnapshotTree> {
 fn publish(
     shared: &Shared,
     request: TreeRequest,
-    outputs: Outputs,
+    (outputs, rig): (Outputs, Option<Arc<Rig>>),
     version: u64,
     started: Instant,
     tips_tx: &Sender<Vec<(usize, DVec3)>>,
@@ -116,6 +131,7 @@ fn publish(
         tree_json: outputs.tree_json,
         tips_json: request.tips_json,
         trees,
+        rig,
     });
     let _ = shared.tree_tx.send(Some(snapshot.clone()));
     let tips = request
@@ -135,6 +151,7 @@ fn publish(
         &outputs.tree,
         &outputs.trees,
         outputs.report.forest.is_some(),
+        None,
     )
     .map_err(|e| tracing::error!("tree.png: {e}"))
     .ok();

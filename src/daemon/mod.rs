@@ -27,6 +27,7 @@ pub mod handoff;
 mod live_tips;
 mod osc_control;
 mod pipeline;
+mod pose;
 pub mod progress;
 pub mod rest_estimate;
 mod shared;

@@ -12,12 +12,14 @@ use glam::DVec3;
 
 use super::handoff::{AnalysisHandoff, Job};
 use super::live_tips::LiveTips as ViewerTips;
+use super::pose::LivePose;
 use super::shared::{lock, Shared};
 use super::window::FrameWindow;
 use crate::error::Result;
 use crate::format::log::LogHeader;
 use crate::model::frame::MarkerFrame;
 use crate::serve::osc::{tips_datagram, wind_datagram, OscSender};
+use crate::serve::pose::{pose_datagrams, pose_message};
 use crate::source::channel::{FrameReceiver, FrameSink};
 use crate::track::live::LiveTips;
 use crate::wind::pca::SwayPca;
@@ -43,6 +45,8 @@ pub(crate) struct Pipeline {
     next_analysis: f64,
     rate: RateEstimate,
     osc: Option<OscSender>,
+    /// The current tree swayed by the live tips (issue 13).
+    pose: LivePose,
     /// The recording (`daemon.record`), which survives a full disk.
     recorder: Option<crate::app::recording::Recorder>,
     /// Where the window goes for analysis: a snapshot (shared chunks, no
@@ -106,6 +110,7 @@ impl Pipeline {
             live_tips: ViewerTips::new(c.tracking.max_fill_s),
             claimed: Vec::new(),
             by_x: Vec::new(),
+            pose: LivePose::new(&c.animate),
             pca: SwayPca::new(c.wind.pca_window_s, c.wind.pca_min_sway_mm / 1000.0),
             next_pca: f64::NEG_INFINITY,
             next_analysis: f64::NEG_INFINITY,
@@ -228,8 +233,7 @@ impl Pipeline {
     /// The live tips of this frame → viewers, OSC, and the sway PCA.
     fn follow(&mut self, frame: &MarkerFrame, seen: &[(usize, DVec3)]) {
         let now = frame.time_s;
-        let shared = &self.shared;
-        shared
+        self.shared
             .status
             .tips_live
             .store(seen.len() as u64, Ordering::Relaxed);
@@ -238,6 +242,8 @@ impl Pipeline {
         if let Some(o) = self.osc.as_mut() {
             o.send(&tips_datagram(frame.frame, now, seen));
         }
+        self.send_pose(frame.frame, now, seen);
+        let shared = &self.shared;
         if now >= self.next_pca {
             self.next_pca = now + shared.config.wind.pca_window_s;
             if let Some(e) = self.pca.estimate() {
@@ -245,6 +251,28 @@ impl Pipeline {
                 if let Some(o) = self.osc.as_mut() {
                     o.send(&wind_datagram(&e));
                 }
+            }
+        }
+    }
+
+    /// The current tree swayed by this frame's live tips, to the `/live`
+    /// viewers (a JSON `pose` event) and OSC, when someone listens and a
+    /// pose is due.
+    fn send_pose(&mut self, frame: i64, now: f64, seen: &[(usize, DVec3)]) {
+        let viewers = self.shared.hub.has_viewers();
+        if !viewers && self.osc.is_none() {
+            return;
+        }
+        let tree = self.shared.tree_tx.borrow().clone();
+        let Some(p) = self.pose.update(tree.as_deref(), frame, now, seen) else {
+            return;
+        };
+        if viewers {
+            self.shared.hub.publish_event(pose_message(&p));
+        }
+        if let Some(o) = self.osc.as_mut() {
+            for d in pose_datagrams(&p) {
+                o.send(&d);
             }
         }
     }

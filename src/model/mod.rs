@@ -3,8 +3,10 @@
 //! of treemocap but the error type.
 
 pub mod frame;
+pub mod motion;
 pub mod recording;
 pub mod tips;
+pub mod tips_traces;
 pub mod trace;
 pub mod tree;
 pub mod wind;

@@ -6,7 +6,7 @@ use glam::DVec3;
 
 use crate::error::Result;
 use crate::model::tree::{Kind, Tree};
-use crate::reconstruct::mesh::Mesh;
+use crate::reconstruct::mesh::{Bind, Mesh};
 use crate::reconstruct::ReconstructSettings;
 use crate::rng::Rng;
 
@@ -64,10 +64,12 @@ pub fn leaves(tree: &Tree, cfg: &ReconstructSettings, seed: u64) -> Result<Mesh>
             let mid = base + axis * (0.5 * cfg.leaf_size);
             let (left, right) = (mid + across, mid - across);
             let normal = (right - base).cross(tip - base);
-            let i0 = mesh.vertex(base, normal)?;
-            let i1 = mesh.vertex(right, normal)?;
-            let i2 = mesh.vertex(tip, normal)?;
-            let i3 = mesh.vertex(left, normal)?;
+            // The leaf follows the point of the segment it grows from.
+            let bind = Bind::between(chain[k - 1], chain[k], f)?;
+            let i0 = mesh.vertex(base, normal, bind)?;
+            let i1 = mesh.vertex(right, normal, bind)?;
+            let i2 = mesh.vertex(tip, normal, bind)?;
+            let i3 = mesh.vertex(left, normal, bind)?;
             mesh.triangle(i0, i1, i2);
             mesh.triangle(i0, i2, i3);
         }

@@ -13,6 +13,41 @@ use crate::error::Result;
 use crate::model::tree::Tree;
 use crate::reconstruct::error::ReconstructError;
 
+/// Which skeleton nodes a vertex follows when the tree moves (the skin of
+/// the animated glTF): `nodes[0]` with `weight`, `nodes[1]` with the rest.
+/// A ring vertex follows its own node; a leaf follows the point of the
+/// segment it grows from.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Bind {
+    /// The two nodes (equal when the vertex follows one).
+    pub nodes: [u32; 2],
+    /// Weight of `nodes[0]`, 0 to 1.
+    pub weight: f32,
+}
+
+impl Bind {
+    /// Follows node `n` alone.
+    pub fn node(n: usize) -> Result<Bind> {
+        let n = node_index(n)?;
+        Ok(Bind {
+            nodes: [n, n],
+            weight: 1.0,
+        })
+    }
+
+    /// Follows the point `f` (0 to 1) of the way from node `a` to node `b`.
+    pub fn between(a: usize, b: usize, f: f64) -> Result<Bind> {
+        Ok(Bind {
+            nodes: [node_index(a)?, node_index(b)?],
+            weight: (1.0 - f).clamp(0.0, 1.0) as f32,
+        })
+    }
+}
+
+fn node_index(n: usize) -> Result<u32> {
+    u32::try_from(n).map_err(|_| ReconstructError::TooLarge { what: "the tree" }.into())
+}
+
 /// A triangle mesh as glTF wants it: f32 positions and unit normals, u32
 /// indices, counter-clockwise triangles seen from outside.
 #[derive(Debug, Clone, Default, PartialEq)]
@@ -21,15 +56,18 @@ pub struct Mesh {
     pub positions: Vec<[f32; 3]>,
     /// Unit vertex normals.
     pub normals: Vec<[f32; 3]>,
+    /// The skeleton nodes each vertex follows.
+    pub binds: Vec<Bind>,
     /// Three indices per triangle.
     pub indices: Vec<u32>,
 }
 
 impl Mesh {
-    /// Adds a vertex and returns its index.
-    pub fn vertex(&mut self, p: DVec3, n: DVec3) -> Result<u32> {
+    /// Adds a vertex that follows `bind` and returns its index.
+    pub fn vertex(&mut self, p: DVec3, n: DVec3, bind: Bind) -> Result<u32> {
         let i = u32::try_from(self.positions.len())
             .map_err(|_| ReconstructError::TooLarge { what: "the mesh" })?;
+        self.binds.push(bind);
         self.positions.push(p.as_vec3().to_array());
         self.normals.push(
             n.try_normalize()
@@ -76,10 +114,11 @@ pub fn branches(tree: &Tree, sides: usize) -> Result<Mesh> {
         for i in 0..points.len() {
             let (n, b) = frames[i];
             let first = mesh.positions.len();
+            let bind = Bind::node(chain[i])?;
             for j in 0..sides {
                 let (s, co) = (TAU * j as f64 / sides as f64).sin_cos();
                 let dir = n * co + b * s;
-                mesh.vertex(points[i] + dir * radii[i], dir)?;
+                mesh.vertex(points[i] + dir * radii[i], dir, bind)?;
             }
             rings.push(first as u32);
         }
@@ -95,7 +134,7 @@ pub fn branches(tree: &Tree, sides: usize) -> Result<Mesh> {
         if children[chain[last]].is_empty() {
             cap(
                 &mut mesh,
-                points[last],
+                (points[last], Bind::node(chain[last])?),
                 tangents[last],
                 frames[last],
                 radii[last],
@@ -105,7 +144,7 @@ pub fn branches(tree: &Tree, sides: usize) -> Result<Mesh> {
         if is_trunk_chain {
             cap(
                 &mut mesh,
-                points[0],
+                (points[0], Bind::node(chain[0])?),
                 -tangents[0],
                 frames[0],
                 radii[0],
@@ -116,20 +155,21 @@ pub fn branches(tree: &Tree, sides: usize) -> Result<Mesh> {
     Ok(mesh)
 }
 
-/// A flat disc closing a cylinder end, facing `outward`.
+/// A flat disc closing a cylinder end, facing `outward`; its vertices
+/// follow the end's node.
 fn cap(
     mesh: &mut Mesh,
-    centre: DVec3,
+    (centre, bind): (DVec3, Bind),
     outward: DVec3,
     (n, b): (DVec3, DVec3),
     radius: f64,
     sides: usize,
 ) -> Result<()> {
-    let c = mesh.vertex(centre, outward)?;
+    let c = mesh.vertex(centre, outward, bind)?;
     let mut ring = Vec::with_capacity(sides);
     for j in 0..sides {
         let (s, co) = (TAU * j as f64 / sides as f64).sin_cos();
-        ring.push(mesh.vertex(centre + (n * co + b * s) * radius, outward)?);
+        ring.push(mesh.vertex(centre + (n * co + b * s) * radius, outward, bind)?);
     }
     // The ring runs counter-clockwise around the chain's tangent; a cap
     // facing backwards must wind the other way.

@@ -12,10 +12,11 @@ use serde::Serialize;
 use serde_json::json;
 
 use crate::error::Result;
+use crate::model::motion::TreeMotion;
 use crate::model::tree::{Kind, Tree};
 use crate::reconstruct::forest::{self, AssignRule, BaseSource, ForestCache, ForestPlan};
 use crate::reconstruct::{leaves, mesh, ReconstructSettings};
-use crate::render::outputs::{build_model, Outputs, Report};
+use crate::render::outputs::{build_model, Motion, Outputs, Report};
 
 /// One tree of the outputs.
 #[derive(Debug, Clone)]
@@ -99,10 +100,11 @@ pub fn forest_model(
     plan: &ForestPlan,
     wind: DVec3,
     cfg: &ReconstructSettings,
+    motion: Motion<'_>,
     cache: Option<&mut ForestCache>,
 ) -> Result<Outputs> {
     if plan.is_single() {
-        let mut out = build_model(&plan.trees[0].tips, wind, cfg)?;
+        let mut out = build_model(&plan.trees[0].tips, wind, cfg, motion)?;
         out.trees = vec![member(plan, 0, Arc::new(out.tree.clone()), true)];
         return Ok(out);
     }
@@ -167,6 +169,8 @@ pub fn forest_model(
         glb,
         tree_json,
         png: Vec::new(),
+        // Several trees are written still (docs/forest.md).
+        motion: None,
         report,
     })
 }
@@ -176,18 +180,29 @@ pub fn forest_outputs(
     plan: &ForestPlan,
     wind: DVec3,
     cfg: &ReconstructSettings,
+    motion: Motion<'_>,
 ) -> Result<Outputs> {
-    let mut out = forest_model(plan, wind, cfg, None)?;
-    out.png = forest_picture(&out.tree, &out.trees, out.report.forest.is_some())?;
+    let mut out = forest_model(plan, wind, cfg, motion, None)?;
+    out.png = forest_picture(
+        &out.tree,
+        &out.trees,
+        out.report.forest.is_some(),
+        out.motion.as_ref(),
+    )?;
     Ok(out)
 }
 
-/// tree.png of outputs (their `tree`, `trees`, and whether they are a
-/// forest): the one-tree picture for a tree alone, every tree named
-/// otherwise.
-pub fn forest_picture(tree: &Tree, trees: &[Member], forest: bool) -> Result<Vec<u8>> {
+/// tree.png of outputs (their `tree`, `trees`, whether they are a forest,
+/// and the tree's motion): the one-tree picture for a tree alone, every
+/// tree named (and still) otherwise.
+pub fn forest_picture(
+    tree: &Tree,
+    trees: &[Member],
+    forest: bool,
+    motion: Option<&TreeMotion>,
+) -> Result<Vec<u8>> {
     if !forest {
-        return super::picture::tree_png(tree);
+        return super::picture::tree_png(tree, motion);
     }
     let named: Vec<(&str, &Tree)> = trees.iter().map(|m| (m.name.as_str(), &*m.tree)).collect();
     super::picture::forest_png(&named)
@@ -237,6 +252,7 @@ fn forest_report(
             .iter()
             .map(|(_, l)| l.as_ref().map_or(0, |m| m.triangles() / 2))
             .sum(),
+        animation: None,
         files: Vec::new(),
         forest: Some(ForestReport {
             trees: members

@@ -1,13 +1,18 @@
 //! The tree as binary glTF 2.0 (.glb): the branch mesh, the leaves as a
 //! second mesh (when there are any), and the skeleton as a LINES primitive
 //! (one line per node–parent pair) so a viewer can show the structure the
-//! flow produced. The JSON part is built with `gltf-json`; the GLB container
-//! (a 12-byte header and two chunks) is written here.
+//! flow produced. With a [`Movement`] other than `Still` the meshes are
+//! skinned to one joint per tree node and may carry the captured motion as
+//! an animation (`super::animation`, docs/animation.md). The JSON part is
+//! built with `gltf-json`; the GLB container (a 12-byte header and two
+//! chunks) is written here.
 
 use gltf_json as json;
 use json::validation::{Checked::Valid, USize64};
 
+use super::animation::Skin;
 use crate::error::Result;
+use crate::model::motion::TreeMotion;
 use crate::model::tree::Tree;
 use crate::reconstruct::mesh::Mesh;
 use crate::render::error::RenderError;
@@ -16,11 +21,60 @@ const GLB_MAGIC: u32 = 0x4654_6C67; // "glTF"
 const CHUNK_JSON: u32 = 0x4E4F_534A; // "JSON"
 const CHUNK_BIN: u32 = 0x004E_4942; // "BIN\0"
 
+/// What the file carries beyond the still tree. In every case the still
+/// tree is what a viewer shows when it ignores skins and animations.
+#[derive(Debug, Clone, Copy)]
+pub enum Movement<'a> {
+    /// The still tree only.
+    Still,
+    /// A skin (a joint per tree node, weights on every vertex) in the bind
+    /// pose, without animation: for viewers that sway the tree live.
+    Rigged,
+    /// The skin and the captured motion as an animation.
+    Animated(&'a TreeMotion),
+}
+
 /// Encodes the tree and its meshes as a .glb file's bytes.
-pub fn to_glb(tree: &Tree, branches: &Mesh, leaves: Option<&Mesh>) -> Result<Vec<u8>> {
+pub fn to_glb(
+    tree: &Tree,
+    branches: &Mesh,
+    leaves: Option<&Mesh>,
+    movement: Movement<'_>,
+) -> Result<Vec<u8>> {
     let mut b = Builder::default();
-    let scene_nodes = b.tree_nodes(tree, branches, leaves)?;
-    b.finish_scene("tree", scene_nodes)
+    let skin = match movement {
+        Movement::Still => None,
+        Movement::Rigged => Some(Skin::new(&mut b, tree, None)?),
+        Movement::Animated(m) => Some(Skin::new(&mut b, tree, Some(m))?),
+    };
+    let bark = b.material("bark", [0.40, 0.29, 0.20, 1.0], false);
+    let mut scene_nodes = Vec::new();
+    if let Some(mesh) = b.triangle_mesh("branches", branches, bark, skin.as_ref())? {
+        scene_nodes.push(b.node("branches", mesh, skin.as_ref()));
+    }
+    if let Some(leaves) = leaves.filter(|m| !m.indices.is_empty()) {
+        let leaf = b.material("leaf", [0.27, 0.52, 0.16, 1.0], true);
+        if let Some(mesh) = b.triangle_mesh("leaves", leaves, leaf, skin.as_ref())? {
+            scene_nodes.push(b.node("leaves", mesh, skin.as_ref()));
+        }
+    }
+    if let Some(mesh) = b.skeleton(tree, skin.as_ref())? {
+        scene_nodes.push(b.node("skeleton", mesh, skin.as_ref()));
+    }
+    if let Some(skin) = &skin {
+        scene_nodes.push(skin.root());
+        if let Movement::Animated(motion) = movement {
+            skin.animate(&mut b, tree, motion)?;
+        }
+    }
+    let scene = b.root.push(json::Scene {
+        extensions: None,
+        extras: Default::default(),
+        name: Some("tree".into()),
+        nodes: scene_nodes,
+    });
+    b.root.scene = Some(scene);
+    b.finish()
 }
 
 /// One tree of a forest: its name, skeleton and meshes.
@@ -52,9 +106,10 @@ pub fn forest_glb(trees: &[ForestTree<'_>]) -> Result<Vec<u8>> {
     b.finish_scene("forest", scene_nodes)
 }
 
-struct Builder {
-    root: json::Root,
-    bin: Vec<u8>,
+/// The glTF document being built and its binary chunk.
+pub(super) struct Builder {
+    pub(super) root: json::Root,
+    pub(super) bin: Vec<u8>,
     /// Shared by every tree's branches, made before the first mesh.
     bark: Option<json::Index<json::Material>>,
     /// Shared by every tree's leaves, made with the first leaves.
@@ -103,8 +158,8 @@ impl Builder {
             }
         };
         let mut nodes = Vec::new();
-        if let Some(mesh) = self.triangle_mesh("branches", branches, bark)? {
-            nodes.push(self.node("branches", mesh));
+        if let Some(mesh) = self.triangle_mesh("branches", branches, bark, None)? {
+            nodes.push(self.node("branches", mesh, None));
         }
         if let Some(leaves) = leaves.filter(|m| !m.indices.is_empty()) {
             let leaf = match self.leaf {
@@ -115,12 +170,12 @@ impl Builder {
                     m
                 }
             };
-            if let Some(mesh) = self.triangle_mesh("leaves", leaves, leaf)? {
-                nodes.push(self.node("leaves", mesh));
+            if let Some(mesh) = self.triangle_mesh("leaves", leaves, leaf, None)? {
+                nodes.push(self.node("leaves", mesh, None));
             }
         }
-        if let Some(mesh) = self.skeleton(tree)? {
-            nodes.push(self.node("skeleton", mesh));
+        if let Some(mesh) = self.skeleton(tree, None)? {
+            nodes.push(self.node("skeleton", mesh, None));
         }
         Ok(nodes)
     }
@@ -157,10 +212,10 @@ impl Builder {
     }
 
     /// Appends `bytes` (4-byte aligned) as a buffer view.
-    fn view(
+    pub(super) fn view(
         &mut self,
         bytes: Vec<u8>,
-        target: json::buffer::Target,
+        target: Option<json::buffer::Target>,
     ) -> json::Index<json::buffer::View> {
         while !self.bin.len().is_multiple_of(4) {
             self.bin.push(0);
@@ -174,7 +229,7 @@ impl Builder {
             byte_offset: Some(USize64::from(offset)),
             byte_stride: None,
             name: None,
-            target: Some(Valid(target)),
+            target: target.map(Valid),
             extensions: None,
             extras: Default::default(),
         })
@@ -187,7 +242,7 @@ impl Builder {
             .flatten()
             .flat_map(|v| v.to_le_bytes())
             .collect();
-        let view = self.view(bytes, json::buffer::Target::ArrayBuffer);
+        let view = self.view(bytes, Some(json::buffer::Target::ArrayBuffer));
         let (min, max) = if bounds {
             let mut lo = [f32::INFINITY; 3];
             let mut hi = [f32::NEG_INFINITY; 3];
@@ -224,7 +279,7 @@ impl Builder {
 
     fn indices(&mut self, data: &[u32]) -> json::Index<json::Accessor> {
         let bytes: Vec<u8> = data.iter().flat_map(|v| v.to_le_bytes()).collect();
-        let view = self.view(bytes, json::buffer::Target::ElementArrayBuffer);
+        let view = self.view(bytes, Some(json::buffer::Target::ElementArrayBuffer));
         self.root.push(json::Accessor {
             buffer_view: Some(view),
             byte_offset: None,
@@ -248,6 +303,7 @@ impl Builder {
         name: &str,
         mesh: &Mesh,
         material: json::Index<json::Material>,
+        skin: Option<&Skin>,
     ) -> Result<Option<json::Index<json::Mesh>>> {
         if mesh.indices.is_empty() {
             return Ok(None);
@@ -264,6 +320,9 @@ impl Builder {
         let mut attributes = std::collections::BTreeMap::new();
         attributes.insert(Valid(json::mesh::Semantic::Positions), positions);
         attributes.insert(Valid(json::mesh::Semantic::Normals), normals);
+        if let Some(skin) = skin {
+            skin.bind(self, &mesh.binds, &mut attributes)?;
+        }
         Ok(Some(self.mesh(
             name,
             attributes,
@@ -273,7 +332,11 @@ impl Builder {
         )))
     }
 
-    fn skeleton(&mut self, tree: &Tree) -> Result<Option<json::Index<json::Mesh>>> {
+    fn skeleton(
+        &mut self,
+        tree: &Tree,
+        skin: Option<&Skin>,
+    ) -> Result<Option<json::Index<json::Mesh>>> {
         let positions: Vec<[f32; 3]> = tree
             .nodes
             .iter()
@@ -304,6 +367,13 @@ impl Builder {
         let idx = self.indices(&lines);
         let mut attributes = std::collections::BTreeMap::new();
         attributes.insert(Valid(json::mesh::Semantic::Positions), pos);
+        if let Some(skin) = skin {
+            // Each skeleton vertex is its node.
+            let binds = (0..tree.nodes.len())
+                .map(crate::reconstruct::mesh::Bind::node)
+                .collect::<Result<Vec<_>>>()?;
+            skin.bind(self, &binds, &mut attributes)?;
+        }
         Ok(Some(self.mesh(
             "skeleton",
             attributes,
@@ -341,10 +411,16 @@ impl Builder {
         })
     }
 
-    fn node(&mut self, name: &str, mesh: json::Index<json::Mesh>) -> json::Index<json::Node> {
+    fn node(
+        &mut self,
+        name: &str,
+        mesh: json::Index<json::Mesh>,
+        skin: Option<&Skin>,
+    ) -> json::Index<json::Node> {
         self.root.push(json::Node {
             mesh: Some(mesh),
             name: Some(name.into()),
+            skin: skin.map(Skin::index),
             ..Default::default()
         })
     }

@@ -2,8 +2,10 @@
 //! the traces as a plot. Pure functions; writing the bytes somewhere is the
 //! caller's business (`app`, `daemon`, `serve`).
 
+mod animation;
 pub mod error;
 pub mod forest;
+pub mod frames;
 pub mod gltf;
 pub mod json;
 pub mod outputs;

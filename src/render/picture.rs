@@ -1,11 +1,14 @@
 //! tree.png: the reconstructed skeleton seen from the front (x–y) and the
 //! side (z–y) at the same scale, branches drawn as thick as they are (at
 //! least one pixel), captured tips as red dots, with a scale bar, so a user
-//! can judge a result without a 3D viewer.
+//! can judge a result without a 3D viewer. With the captured motion, the
+//! tree's two extreme poses along the main direction of the sway are drawn
+//! lightly behind it, and each captured tip's path as a thin light line.
 
 use glam::DVec3;
 
 use crate::error::Result;
+use crate::model::motion::TreeMotion;
 use crate::model::tree::{Kind, Tree};
 use crate::render::raster::{Canvas, Rgb};
 
@@ -21,25 +24,68 @@ const TIP_FILL: Rgb = [220, 30, 30];
 const TIP_EDGE: Rgb = [90, 0, 0];
 const INK: Rgb = [30, 30, 30];
 const GROUND: Rgb = [170, 170, 170];
+/// The two extreme poses and the tips' paths: light, behind the tree.
+const GHOST: [Rgb; 2] = [[214, 196, 178], [178, 198, 222]];
+const PATH: Rgb = [236, 150, 150];
 
 /// A view: title, the horizontal coordinate of a point, its lowest value
 /// and its span.
 type View = (&'static str, fn(DVec3) -> f64, f64, f64);
 
-/// Renders the front and side views as PNG bytes.
-pub fn tree_png(tree: &Tree) -> Result<Vec<u8>> {
-    render(tree).encode_png()
+/// Renders the front and side views as PNG bytes, with the motion when
+/// there is one.
+pub fn tree_png(tree: &Tree, motion: Option<&TreeMotion>) -> Result<Vec<u8>> {
+    render(tree, motion).encode_png()
+}
+
+/// The two keys whose poses lie furthest apart along the main direction of
+/// the captured tips' sway (the first principal axis of their
+/// displacements), that direction, and the largest tip displacement (m).
+pub fn extremes(tree: &Tree, motion: &TreeMotion) -> Option<([usize; 2], DVec3, f64)> {
+    let nodes: Vec<usize> = motion.captured.iter().map(|c| c.node).collect();
+    if motion.keys() == 0 || nodes.is_empty() || motion.nodes != tree.nodes.len() {
+        return None;
+    }
+    let disp =
+        |k: usize, n: usize| DVec3::from(motion.pose(k)[n].map(f64::from)) - tree.nodes[n].position;
+    let mut cov = glam::DMat3::ZERO;
+    let mut largest: f64 = 0.0;
+    for k in 0..motion.keys() {
+        for &n in &nodes {
+            let d = disp(k, n);
+            cov += glam::DMat3::from_cols(d * d.x, d * d.y, d * d.z);
+            largest = largest.max(d.length());
+        }
+    }
+    // Power iteration from the axis with the largest variance.
+    let diag = [cov.x_axis.x, cov.y_axis.y, cov.z_axis.z];
+    let mut dir =
+        [DVec3::X, DVec3::Y, DVec3::Z][(0..3).max_by(|&a, &b| diag[a].total_cmp(&diag[b]))?];
+    for _ in 0..50 {
+        dir = (cov * dir).try_normalize()?;
+    }
+    let score = |k: usize| nodes.iter().map(|&n| disp(k, n).dot(dir)).sum::<f64>();
+    let (mut lo, mut hi) = (0, 0);
+    for k in 0..motion.keys() {
+        if score(k) < score(lo) {
+            lo = k;
+        }
+        if score(k) > score(hi) {
+            hi = k;
+        }
+    }
+    Some(([lo, hi], dir, largest))
 }
 
 /// Several trees of one capture in one picture, each named above its
 /// crown, each tree's captured tips in its own colour (docs/forest.md).
 pub fn forest_png(trees: &[(&str, &Tree)]) -> Result<Vec<u8>> {
-    render_trees(trees, true).encode_png()
+    render_trees(trees, true, None).encode_png()
 }
 
 /// Renders the front and side views.
-pub fn render(tree: &Tree) -> Canvas {
-    render_trees(&[("", tree)], false)
+pub fn render(tree: &Tree, motion: Option<&TreeMotion>) -> Canvas {
+    render_trees(&[("", tree)], false, motion)
 }
 
 /// Fill and edge colour of each tree's captured tips: the first tree's red
@@ -54,18 +100,29 @@ const TIP_COLOURS: [(Rgb, Rgb); 6] = [
 ];
 
 /// The views of `trees` (name, tree) at one scale; `labelled` writes each
-/// name above its tree and a forest's counts at the bottom.
-fn render_trees(trees: &[(&str, &Tree)], labelled: bool) -> Canvas {
+/// name above its tree and a forest's counts at the bottom; `motion` is the
+/// first tree's (a tree alone; several trees are drawn still).
+fn render_trees(trees: &[(&str, &Tree)], labelled: bool, motion: Option<&TreeMotion>) -> Canvas {
     let mut canvas = Canvas::new(WIDTH, HEIGHT);
     let mut nodes = trees.iter().flat_map(|(_, t)| t.nodes.iter());
     let Some(first) = nodes.next() else {
         return canvas;
     };
+    let extreme = motion.and_then(|m| Some((m, extremes(trees.first()?.1, m)?)));
     let mut lo = first.position;
     let mut hi = first.position;
     for n in trees.iter().flat_map(|(_, t)| t.nodes.iter()) {
         lo = lo.min(n.position - DVec3::splat(n.radius));
         hi = hi.max(n.position + DVec3::splat(n.radius));
+    }
+    if let Some((m, (keys, _, _))) = extreme {
+        for k in keys {
+            for p in m.pose(k) {
+                let p = DVec3::from(p.map(f64::from));
+                lo = lo.min(p);
+                hi = hi.max(p);
+            }
+        }
     }
     // The ground: under the lowest trunk base.
     let ground = trees
@@ -115,6 +172,32 @@ fn render_trees(trees: &[(&str, &Tree)], labelled: bool) -> Canvas {
             1.0,
             GROUND,
         );
+        if let Some((m, (keys, _, _))) = extreme {
+            let tree = trees[0].1;
+            for (g, k) in keys.into_iter().enumerate() {
+                let pose = m.pose(k);
+                let at = |n: usize| DVec3::from(pose[n].map(f64::from));
+                for &(_, i) in segments.iter().filter(|s| s.0 == 0) {
+                    let Some(p) = tree.nodes[i].parent else {
+                        continue;
+                    };
+                    let (x0, y0) = to_px(at(i));
+                    let (x1, y1) = to_px(at(p));
+                    let width = (2.0 * tree.nodes[i].radius * scale).max(1.0);
+                    canvas.line(x0, y0, x1, y1, width, GHOST[g]);
+                }
+            }
+            for c in &m.captured {
+                let mut last: Option<(f64, f64)> = None;
+                for k in 0..m.keys() {
+                    let here = to_px(DVec3::from(m.pose(k)[c.node].map(f64::from)));
+                    if let Some((x, y)) = last {
+                        canvas.line(x, y, here.0, here.1, 1.0, PATH);
+                    }
+                    last = Some(here);
+                }
+            }
+        }
         for &(k, i) in &segments {
             let tree = trees[k].1;
             let node = &tree.nodes[i];
@@ -145,6 +228,17 @@ fn render_trees(trees: &[(&str, &Tree)], labelled: bool) -> Canvas {
         }
     }
     footer(&mut canvas, trees, scale, labelled);
+    if let Some((m, (_, dir, largest))) = extreme {
+        let text = format!(
+            "motion {:.1} s: extreme poses along ({:.2}, {:.2}, {:.2}) behind the tree, tip paths light red; largest tip displacement {:.0} mm",
+            m.times.last().copied().unwrap_or(0.0),
+            dir.x,
+            dir.y,
+            dir.z,
+            largest * 1000.0
+        );
+        canvas.text_scaled(MARGIN, 48.0, &text, 1, INK);
+    }
     canvas
 }
 

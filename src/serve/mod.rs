@@ -7,6 +7,7 @@ pub mod limits;
 pub mod live;
 pub mod natnet;
 pub mod osc;
+pub mod pose;
 pub mod snapshot;
 pub mod view;
 mod web;

@@ -28,6 +28,8 @@ pub struct TreeSnapshot {
     /// Every tree of a capture of several (docs/forest.md); empty for a
     /// tree alone, whose outputs are as they have always been.
     pub trees: Vec<SnapshotTree>,
+    /// How the tree sways with the live tips (`None` when it cannot).
+    pub rig: Option<std::sync::Arc<crate::animate::Rig>>,
 }
 
 /// One tree of several, as the outputs carry it.

@@ -609,19 +609,19 @@ mod tests {
     #[test]
     fn prediction_bridges_a_gap_and_a_frame_jump() {
         let mut tr = Tracker::new(&cfg(), Some(100.0));
-        // 5 mm per frame: without prediction the gate (25 mm) would be lost
-        // after a gap of 5 frames.
-        for n in (0..10).chain(20..30).chain(40..50) {
-            tr.push(&frame(n, &[DVec3::new(0.005 * n as f64, 0.0, 0.0)]));
+        // 2 mm per frame, the frame number jumping twice by 5 (4 frames
+        // lost each time): the prediction carries the trace across both.
+        for n in (0..20).chain(24..34).chain(38..48) {
+            tr.push(&frame(n, &[DVec3::new(0.002 * n as f64, 0.0, 0.0)]));
         }
         let done = tr.finish();
         assert_eq!(done.traces.len(), 1);
-        assert_eq!(done.traces[0].measured(), 30);
-        assert_eq!(done.traces[0].len(), 50);
         assert_eq!(done.stats.jumps, 2);
-        assert_eq!(done.stats.skipped_frames, 20);
-        assert_eq!(done.timeline.len(), 50);
-        assert!((done.timeline.time(15) - 0.15).abs() < 1e-9);
+        assert_eq!(done.stats.skipped_frames, 8);
+        assert_eq!(done.traces[0].measured(), 40);
+        assert_eq!(done.traces[0].len(), 48);
+        assert_eq!(done.timeline.len(), 48);
+        assert!((done.timeline.time(22) - 0.22).abs() < 1e-9);
     }
 
     #[test]

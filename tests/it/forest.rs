@@ -16,7 +16,7 @@ use treemocap::reconstruct::forest::{
 };
 use treemocap::reconstruct::ReconstructSettings;
 use treemocap::render::forest::forest_outputs;
-use treemocap::render::outputs::build_outputs;
+use treemocap::render::outputs::{build_outputs, Motion};
 use treemocap::sim::{generate, CrownShape, Layout, SynthOptions, Truth};
 
 /// A forest session without the capture's imperfections (the marker stage
@@ -228,14 +228,17 @@ fn one_tree_gives_the_same_bytes_as_before() {
     .truth;
     let tips = captured(&t);
     let cfg = ReconstructSettings::default();
-    let alone = build_outputs(&tips, DVec3::new(0.3, 0.0, 0.9), &cfg).unwrap();
     let plan = forest::plan(&tips, &[], &[], &ForestSettings::default(), &cfg).unwrap();
     assert!(plan.is_single());
-    let via_forest = forest_outputs(&plan, DVec3::new(0.3, 0.0, 0.9), &cfg).unwrap();
-    assert_eq!(alone.glb, via_forest.glb);
-    assert_eq!(alone.tree_json, via_forest.tree_json);
-    assert_eq!(alone.png, via_forest.png);
-    assert!(via_forest.report.forest.is_none());
+    // Still (replay --still, reconstruct) and rigged (the daemon's glb).
+    for motion in [|| Motion::Still, || Motion::Rigged] {
+        let alone = build_outputs(&tips, DVec3::new(0.3, 0.0, 0.9), &cfg, motion()).unwrap();
+        let via_forest = forest_outputs(&plan, DVec3::new(0.3, 0.0, 0.9), &cfg, motion()).unwrap();
+        assert_eq!(alone.glb, via_forest.glb);
+        assert_eq!(alone.tree_json, via_forest.tree_json);
+        assert_eq!(alone.png, via_forest.png);
+        assert!(via_forest.report.forest.is_none());
+    }
 }
 
 /// Is `p` inside tree `j`'s volume: its crown boxes (the flow's bounds)

@@ -5,6 +5,7 @@
 
 mod common;
 
+mod animate;
 mod c3d;
 mod cli;
 mod daemon;

@@ -33,6 +33,7 @@ fn snapshot(version: u64, nodes: usize) -> TreeSnapshot {
             })
             .collect(),
         trees: Vec::new(),
+        rig: None,
     }
 }
 

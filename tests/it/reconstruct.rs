@@ -2,10 +2,11 @@
 //! paper's parameter effects, the Khronos glTF validator on our .glb files,
 //! determinism, and the `treemocap reconstruct` command.
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::process::Command;
 
 use crate::common::crowns::{crown_tips, replay_truth, sim_tips, tips_json, Shape};
+use crate::common::gltf::{glb_json, validate};
 use glam::DVec3;
 use treemocap::app::reconstruct::run_and_write;
 use treemocap::config::Config;
@@ -13,6 +14,7 @@ use treemocap::model::tips::CapturedTip;
 use treemocap::model::tree::{Kind, Tree};
 use treemocap::reconstruct::reconstruct;
 use treemocap::reconstruct::{ReconstructSettings, VolumeKind};
+use treemocap::render::outputs::Motion;
 use treemocap::rng::Rng;
 use treemocap::sim::CrownShape;
 
@@ -446,46 +448,6 @@ fn moving_the_attractor_changes_the_converging_direction() {
 
 // ------------------------------------------------------ files and validator
 
-/// Runs the Khronos glTF validator on a file; returns (errors, warnings,
-/// the messages).
-fn validate(path: &Path) -> (u64, u64, String) {
-    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/peers/validate_gltf.js");
-    let out = Command::new("node")
-        .arg(&script)
-        .arg(path)
-        .output()
-        .unwrap_or_else(|e| {
-            panic!(
-                "cannot run node ({e}): install Node.js, then `npm install --prefix tests/peers`"
-            )
-        });
-    if out.status.code() == Some(3) {
-        panic!("the glTF validator is missing: run `npm install --prefix tests/peers`");
-    }
-    assert!(
-        out.status.success(),
-        "validator failed: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let report: serde_json::Value = serde_json::from_slice(&out.stdout).expect("validator JSON");
-    (
-        report["numErrors"].as_u64().unwrap(),
-        report["numWarnings"].as_u64().unwrap(),
-        report["messages"].to_string(),
-    )
-}
-
-/// The JSON chunk of a .glb, parsed here from the container bytes.
-fn glb_json(bytes: &[u8]) -> serde_json::Value {
-    let u32_at = |o: usize| u32::from_le_bytes(bytes[o..o + 4].try_into().unwrap()) as usize;
-    assert_eq!(&bytes[0..4], b"glTF");
-    assert_eq!(u32_at(4), 2);
-    assert_eq!(u32_at(8), bytes.len());
-    let len = u32_at(12);
-    assert_eq!(&bytes[16..20], b"JSON");
-    serde_json::from_slice(&bytes[20..20 + len]).unwrap()
-}
-
 fn out_dir(name: &str) -> (tempfile::TempDir, PathBuf) {
     let dir = tempfile::tempdir().unwrap();
     let p = dir.path().join(name);
@@ -513,8 +475,15 @@ fn gltf_validator_reports_no_errors_or_warnings() {
                 )
                 .unwrap();
                 let (_keep, dir) = out_dir("out");
-                let report =
-                    run_and_write(&tips, &[], DVec3::new(2.0, 0.0, 0.0), &config, &dir).unwrap();
+                let report = run_and_write(
+                    &tips,
+                    &[],
+                    DVec3::new(2.0, 0.0, 0.0),
+                    &config,
+                    Motion::Still,
+                    &dir,
+                )
+                .unwrap();
                 let glb = dir.join("tree.glb");
                 let (errors, warnings, messages) = validate(&glb);
                 let what = format!("{shape} {volume} leaves={leaves}");
@@ -561,7 +530,7 @@ fn tree_json_matches_the_tree() {
     let tips = crown_tips(Shape::Pine, 30, 31);
     let config = Config::load(None, &["reconstruct.seed=77".into()]).unwrap();
     let (_keep, dir) = out_dir("o");
-    run_and_write(&tips, &[], DVec3::ZERO, &config, &dir).unwrap();
+    run_and_write(&tips, &[], DVec3::ZERO, &config, Motion::Still, &dir).unwrap();
     let tree = reconstruct(&tips, DVec3::ZERO, &config.reconstruct, 77).unwrap();
     let v: serde_json::Value =
         serde_json::from_slice(&std::fs::read(dir.join("tree.json")).unwrap()).unwrap();
@@ -611,8 +580,8 @@ fn same_seed_gives_identical_files() {
         let config = Config::load(None, &sets).unwrap();
         let (_a, dir_a) = out_dir("a");
         let (_b, dir_b) = out_dir("b");
-        run_and_write(&tips, &[], wind, &config, &dir_a).unwrap();
-        run_and_write(&tips, &[], wind, &config, &dir_b).unwrap();
+        run_and_write(&tips, &[], wind, &config, Motion::Still, &dir_a).unwrap();
+        run_and_write(&tips, &[], wind, &config, Motion::Still, &dir_b).unwrap();
         for f in ["tree.glb", "tree.json", "tree.png"] {
             let a = std::fs::read(dir_a.join(f)).unwrap();
             let b = std::fs::read(dir_b.join(f)).unwrap();
@@ -625,7 +594,7 @@ fn same_seed_gives_identical_files() {
         let mut other = config.clone();
         other.reconstruct.seed += 1;
         let (_c, dir_c) = out_dir("c");
-        run_and_write(&tips, &[], wind, &other, &dir_c).unwrap();
+        run_and_write(&tips, &[], wind, &other, Motion::Still, &dir_c).unwrap();
         assert_ne!(
             std::fs::read(dir_a.join("tree.glb")).unwrap(),
             std::fs::read(dir_c.join("tree.glb")).unwrap()

@@ -1,3 +1,4 @@
 pub mod crowns;
+pub mod gltf;
 pub mod natnet;
 pub mod running;

@@ -1,0 +1,350 @@
+//! The skin and the animation of the animated tree.glb (docs/animation.md):
+//!
+//! - one joint node per tree node, nested as the skeleton is (the trunk
+//!   base is the root joint), each with its rest offset from its parent as
+//!   `translation`; captured tips are named `tip_07` (marker 7, also in
+//!   `extras`), the others `node_123` (the node's index in tree.json);
+//! - inverse bind matrices that are translations by −rest position (joints
+//!   carry no rotation or scale);
+//! - `JOINTS_0`/`WEIGHTS_0` on every vertex: one or two weights (a ring
+//!   vertex follows its node, a leaf the point of its segment);
+//! - one animation, `capture`: a LINEAR translation sampler per joint that
+//!   moves, all sharing one input (the key times), all outputs in one
+//!   buffer view.
+//!
+//! Translations only: a joint's local translation is its node's offset from
+//! its parent's node, so positions and lengths read directly off the
+//! armature in Blender, and the still tree is the bind pose.
+
+use gltf_json as json;
+use json::accessor::{ComponentType, GenericComponentType, Type};
+use json::validation::{Checked::Valid, USize64};
+use serde_json::value::RawValue;
+
+use super::error::RenderError;
+use super::gltf::Builder;
+use crate::error::Result;
+use crate::model::motion::{TipSource, TreeMotion};
+use crate::model::tree::{Kind, Tree};
+use crate::reconstruct::mesh::Bind;
+
+/// The joints of one tree in a document being built.
+pub(super) struct Skin {
+    index: json::Index<json::Skin>,
+    /// The joint (glTF node) of each tree node.
+    joints: Vec<json::Index<json::Node>>,
+    /// Each joint's rest translation (offset from its parent's node).
+    rest_local: Vec<[f32; 3]>,
+}
+
+impl Skin {
+    /// Adds a joint per node of `tree` and the skin over them. With
+    /// `motion`, captured tips' extras also list the keys in which their
+    /// displacement was not measured.
+    pub(super) fn new(b: &mut Builder, tree: &Tree, motion: Option<&TreeMotion>) -> Result<Skin> {
+        let n = tree.nodes.len();
+        let first = b.root.nodes.len();
+        let joint = |i: usize| json::Index::<json::Node>::new((first + i) as u32);
+        if u32::try_from(first + n).is_err() {
+            return Err(RenderError::TooLarge("the tree has too many nodes for glTF").into());
+        }
+        let children = tree.children();
+        let rest_local: Vec<[f32; 3]> = tree
+            .nodes
+            .iter()
+            .map(|node| {
+                let parent = node
+                    .parent
+                    .map_or(glam::DVec3::ZERO, |p| tree.nodes[p].position);
+                (node.position - parent).as_vec3().to_array()
+            })
+            .collect();
+        for (i, node) in tree.nodes.iter().enumerate() {
+            let (name, extras) = match node.kind {
+                Kind::Captured { marker } => (
+                    format!("tip_{marker:02}"),
+                    Some(tip_extras(marker, i, motion)?),
+                ),
+                _ => (format!("node_{i}"), None),
+            };
+            let kids: Vec<_> = children[i].iter().map(|&c| joint(c)).collect();
+            b.root.push(json::Node {
+                name: Some(name),
+                translation: Some(rest_local[i]),
+                children: (!kids.is_empty()).then_some(kids),
+                extras,
+                ..Default::default()
+            });
+        }
+        let mut ibm = Vec::with_capacity(n * 64);
+        for node in &tree.nodes {
+            let t = (-node.position).as_vec3();
+            let m = glam::Mat4::from_translation(t).to_cols_array();
+            ibm.extend(m.iter().flat_map(|v| v.to_le_bytes()));
+        }
+        let view = b.view(ibm, None);
+        let ibm = accessor(b, view, 0, n, ComponentType::F32, Type::Mat4, None);
+        let joints: Vec<_> = (0..n).map(joint).collect();
+        let index = b.root.push(json::Skin {
+            extensions: None,
+            extras: Default::default(),
+            inverse_bind_matrices: Some(ibm),
+            joints: joints.clone(),
+            name: Some("tree".into()),
+            skeleton: joints.first().copied(),
+        });
+        Ok(Skin {
+            index,
+            joints,
+            rest_local,
+        })
+    }
+
+    /// The skin's index, for the skinned mesh nodes.
+    pub(super) fn index(&self) -> json::Index<json::Skin> {
+        self.index
+    }
+
+    /// The root joint (the trunk base), a scene root.
+    pub(super) fn root(&self) -> json::Index<json::Node> {
+        self.joints[0]
+    }
+
+    /// Adds `JOINTS_0` and `WEIGHTS_0` for vertices that follow `binds`.
+    pub(super) fn bind(
+        &self,
+        b: &mut Builder,
+        binds: &[Bind],
+        attributes: &mut std::collections::BTreeMap<
+            json::validation::Checked<json::mesh::Semantic>,
+            json::Index<json::Accessor>,
+        >,
+    ) -> Result<()> {
+        let n = self.joints.len();
+        let mut joints = Vec::with_capacity(binds.len() * 8);
+        let mut weights = Vec::with_capacity(binds.len() * 16);
+        for bind in binds {
+            let [a, c] = bind.nodes.map(|j| j as usize);
+            if a >= n || c >= n || a > usize::from(u16::MAX) || c > usize::from(u16::MAX) {
+                return Err(RenderError::Inconsistent(format!(
+                    "a vertex follows node {} of a {n}-node tree (glTF skins take at most 65 536 joints)",
+                    a.max(c)
+                ))
+                .into());
+            }
+            // Unused slots: joint 0 with weight 0 (the validator wants
+            // zero-weight slots to name joint 0).
+            let (j, w) = if a == c || bind.weight >= 1.0 {
+                ([a, 0], [1.0f32, 0.0])
+            } else if bind.weight <= 0.0 {
+                ([c, 0], [1.0, 0.0])
+            } else {
+                ([a, c], [bind.weight, 1.0 - bind.weight])
+            };
+            for v in [j[0] as u16, j[1] as u16, 0, 0] {
+                joints.extend(v.to_le_bytes());
+            }
+            for v in [w[0], w[1], 0.0, 0.0] {
+                weights.extend(v.to_le_bytes());
+            }
+        }
+        let view = b.view(joints, Some(json::buffer::Target::ArrayBuffer));
+        let j = accessor(
+            b,
+            view,
+            0,
+            binds.len(),
+            ComponentType::U16,
+            Type::Vec4,
+            None,
+        );
+        let view = b.view(weights, Some(json::buffer::Target::ArrayBuffer));
+        let w = accessor(
+            b,
+            view,
+            0,
+            binds.len(),
+            ComponentType::F32,
+            Type::Vec4,
+            None,
+        );
+        attributes.insert(Valid(json::mesh::Semantic::Joints(0)), j);
+        attributes.insert(Valid(json::mesh::Semantic::Weights(0)), w);
+        Ok(())
+    }
+
+    /// Adds the animation `capture`: every joint whose translation changes
+    /// gets a LINEAR sampler over the shared key times.
+    pub(super) fn animate(&self, b: &mut Builder, tree: &Tree, motion: &TreeMotion) -> Result<()> {
+        let n = self.joints.len();
+        let keys = motion.keys();
+        if motion.nodes != n || motion.positions.len() != keys * n || keys == 0 {
+            return Err(RenderError::Inconsistent(
+                "the motion does not belong to this tree".into(),
+            )
+            .into());
+        }
+        let times: Vec<f32> = motion.times.iter().map(|&t| t as f32).collect();
+        let bytes: Vec<u8> = times.iter().flat_map(|t| t.to_le_bytes()).collect();
+        let view = b.view(bytes, None);
+        let (lo, hi) = (times[0], times[keys - 1]);
+        let input = accessor(
+            b,
+            view,
+            0,
+            keys,
+            ComponentType::F32,
+            Type::Scalar,
+            Some((vec![lo], vec![hi])),
+        );
+        // The moving joints' local translations, joint after joint.
+        let mut moving = Vec::new();
+        let mut out: Vec<u8> = Vec::new();
+        let mut local = Vec::with_capacity(keys);
+        for (i, node) in tree.nodes.iter().enumerate() {
+            local.clear();
+            for k in 0..keys {
+                let pose = motion.pose(k);
+                let p = pose[i];
+                let q = node.parent.map_or([0.0; 3], |par| pose[par]);
+                local.push([p[0] - q[0], p[1] - q[1], p[2] - q[2]]);
+            }
+            if local.iter().all(|l| *l == self.rest_local[i]) {
+                continue;
+            }
+            moving.push((i, out.len()));
+            out.extend(local.iter().flatten().flat_map(|v| v.to_le_bytes()));
+        }
+        let view = b.view(out, None);
+        let mut samplers = Vec::with_capacity(moving.len());
+        let mut channels = Vec::with_capacity(moving.len());
+        for (s, &(i, offset)) in moving.iter().enumerate() {
+            let output = accessor(b, view, offset, keys, ComponentType::F32, Type::Vec3, None);
+            samplers.push(json::animation::Sampler {
+                extensions: None,
+                extras: Default::default(),
+                input,
+                interpolation: Valid(json::animation::Interpolation::Linear),
+                output,
+            });
+            channels.push(json::animation::Channel {
+                sampler: json::Index::new(s as u32),
+                target: json::animation::Target {
+                    extensions: None,
+                    extras: Default::default(),
+                    node: self.joints[i],
+                    path: Valid(json::animation::Property::Translation),
+                },
+                extensions: None,
+                extras: Default::default(),
+            });
+        }
+        if channels.is_empty() {
+            // Nothing moved: a glTF animation needs at least one channel.
+            return Ok(());
+        }
+        let extras = raw(&serde_json::json!({
+            "start_s": motion.start_s,
+            "rate_hz": motion.rate_hz,
+            "keys": keys,
+            "bend_power": motion.bend_power,
+            "stretch_max_pct": motion.stretch.max_pct,
+            "stretch_mean_pct": motion.stretch.mean_pct,
+            "cut_to_max_duration": motion.cut,
+        }))?;
+        b.root.push(json::Animation {
+            extensions: None,
+            extras: Some(extras),
+            channels,
+            name: Some("capture".into()),
+            samplers,
+        });
+        Ok(())
+    }
+}
+
+/// `extras` of a captured tip's joint: its marker and, with a motion, the
+/// runs of keys `[first, last]` in which its displacement was filled,
+/// borrowed from its neighbours or held at rest.
+fn tip_extras(marker: usize, node: usize, motion: Option<&TreeMotion>) -> Result<Box<RawValue>> {
+    let mut v = serde_json::json!({ "marker": marker });
+    if let Some(c) = motion.and_then(|m| m.captured.iter().find(|c| c.node == node)) {
+        for (name, kind) in [
+            ("filled", TipSource::Filled),
+            ("borrowed", TipSource::Borrowed),
+            ("rest", TipSource::Rest),
+        ] {
+            let runs = runs(&c.sources, kind);
+            if !runs.is_empty() {
+                v[name] = serde_json::json!(runs);
+            }
+        }
+    }
+    raw(&v)
+}
+
+/// Runs `[first, last]` of consecutive entries equal to `kind`.
+fn runs(sources: &[TipSource], kind: TipSource) -> Vec<[usize; 2]> {
+    let mut out: Vec<[usize; 2]> = Vec::new();
+    for (k, s) in sources.iter().enumerate() {
+        if *s != kind {
+            continue;
+        }
+        match out.last_mut() {
+            Some(run) if run[1] + 1 == k => run[1] = k,
+            _ => out.push([k, k]),
+        }
+    }
+    out
+}
+
+fn raw(v: &serde_json::Value) -> Result<Box<RawValue>> {
+    Ok(serde_json::value::to_raw_value(v).map_err(RenderError::Json)?)
+}
+
+/// An accessor of `count` elements at `offset` in `view`; `bounds` adds
+/// min/max (required for animation inputs).
+fn accessor(
+    b: &mut Builder,
+    view: json::Index<json::buffer::View>,
+    offset: usize,
+    count: usize,
+    component: ComponentType,
+    type_: Type,
+    bounds: Option<(Vec<f32>, Vec<f32>)>,
+) -> json::Index<json::Accessor> {
+    let (min, max) = match bounds {
+        Some((lo, hi)) => (Some(json::Value::from(lo)), Some(json::Value::from(hi))),
+        None => (None, None),
+    };
+    b.root.push(json::Accessor {
+        buffer_view: Some(view),
+        byte_offset: (offset > 0).then(|| USize64::from(offset)),
+        count: USize64::from(count),
+        component_type: Valid(GenericComponentType(component)),
+        extensions: None,
+        extras: Default::default(),
+        type_: Valid(type_),
+        min,
+        max,
+        name: None,
+        normalized: false,
+        sparse: None,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn runs_of_keys() {
+        use TipSource::*;
+        let s = [
+            Measured, Filled, Filled, Measured, Filled, Borrowed, Borrowed,
+        ];
+        assert_eq!(runs(&s, Filled), vec![[1, 2], [4, 4]]);
+        assert_eq!(runs(&s, Borrowed), vec![[5, 6]]);
+        assert!(runs(&s, Rest).is_empty());
+    }
+}
