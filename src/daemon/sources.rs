@@ -8,6 +8,7 @@ use std::time::Duration;
 
 use super::shared::{lock, Shared};
 use super::spawn;
+use super::status::SourceState;
 use crate::app::live::{natnet_source, osc_source};
 use crate::app::open::{locate, open_with, ReplayOptions};
 use crate::config::DaemonSource;
@@ -46,6 +47,15 @@ pub(crate) fn start_source(
         .status
         .bad_input
         .register(name, Arc::new(move || counted.losses()));
+    let probe = source.clone();
+    let _ = shared
+        .status
+        .source_state
+        .set(SourceState(Arc::new(move || probe.status())));
+    rt.spawn(log_state_changes(
+        source.clone(),
+        shared.shutdown.receiver(),
+    ));
     let s = shared.clone();
     let stop = shared.shutdown.receiver();
     rt.spawn(async move {
@@ -55,6 +65,32 @@ pub(crate) fn start_source(
         }
     });
     Ok(None)
+}
+
+/// Logs each change of the source's state ("connected to …", "frames fail
+/// to decode; renegotiating"), as `record` prints them: the operator reads
+/// in the log what `/status` shows as `source_state`.
+async fn log_state_changes(
+    source: Arc<dyn LiveSource>,
+    mut stop: tokio::sync::watch::Receiver<bool>,
+) {
+    let mut last: Option<String> = None;
+    let mut tick = tokio::time::interval(Duration::from_millis(250));
+    loop {
+        tokio::select! {
+            _ = tick.tick() => {}
+            _ = stop.changed() => return,
+        }
+        let now = source.status();
+        if now != last {
+            match &now {
+                Some(s) if s.contains("fail") => tracing::warn!("source: {s}"),
+                Some(s) => tracing::info!("source: {s}"),
+                None => {}
+            }
+            last = now;
+        }
+    }
 }
 
 /// `daemon.replay_file` played at `daemon.replay_speed`: a stand-in for the

@@ -10,6 +10,17 @@ use serde_json::json;
 use super::progress::Progress;
 use crate::model::wind::WindEstimate;
 
+/// How the daemon asks the live source for its state (see
+/// [`Status::source_state`]).
+#[derive(Clone)]
+pub struct SourceState(pub std::sync::Arc<dyn Fn() -> Option<String> + Send + Sync>);
+
+impl std::fmt::Debug for SourceState {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_tuple("SourceState").field(&(self.0)()).finish()
+    }
+}
+
 /// Shared counters of a running daemon.
 #[derive(Debug, Default)]
 pub struct Status {
@@ -49,6 +60,11 @@ pub struct Status {
     pub output_error: Mutex<Option<String>>,
     /// Why the source stopped or cannot start (nothing listening, a bad file).
     pub source_error: Mutex<Option<String>>,
+    /// The live source's own state in words, asked on each `/status`
+    /// ("connected to Motive (NatNet 4.1) at …; frames fail to decode;
+    /// renegotiating"): a server whose frames stopped decoding shows here
+    /// while frames stop arriving. Unset for a replay.
+    pub source_state: std::sync::OnceLock<SourceState>,
     /// The last failed config reload (SIGHUP), cleared by a good one.
     pub config_error: Mutex<Option<String>>,
     /// Per-frame latency in microseconds, from the frame's arrival (stamped
@@ -155,6 +171,7 @@ impl Status {
         let mut doc = json!({
             "source": self.source.lock().map(|s| s.clone()).unwrap_or_default(),
             "source_error": self.source_error.lock().ok().and_then(|e| e.clone()),
+            "source_state": self.source_state.get().and_then(|s| (s.0)()),
             "config_error": self.config_error.lock().ok().and_then(|e| e.clone()),
             "frames": get(&self.frames),
             "samples": get(&self.samples),

@@ -310,3 +310,65 @@ fn untimed_frames_held_at_shutdown_are_delivered_with_arrival_times() {
         );
     });
 }
+
+/// The same server under the daemon: while its frames fail to decode,
+/// `/status` names the state under `source_state` and the log says it, and
+/// once the client has renegotiated, frames arrive again.
+#[test]
+fn the_daemon_shows_frames_that_fail_to_decode_on_status() {
+    let rt = runtime();
+    let v41 = Version::new(4, 1);
+    let (mut fake, settings) = rt.block_on(fake(vec![Version::new(3, 1), v41], true));
+    let dir = tempfile::tempdir().unwrap();
+    let d = crate::common::running::Daemon::start(
+        &dir.path().join("out"),
+        &[
+            "daemon.source=natnet".into(),
+            format!("daemon.natnet_server=127.0.0.1:{}", settings.command_port),
+            "daemon.natnet_transport=unicast".into(),
+        ],
+    );
+    let to = rt.block_on(async {
+        tokio::time::timeout(Duration::from_secs(20), connected(&mut fake))
+            .await
+            .expect("the daemon connected")
+    });
+    // Frames in the bitstream the first SERVERINFO did not announce, sent
+    // from the runtime while the test polls /status.
+    let data = fake.data;
+    let sender = rt.spawn(async move {
+        for k in 1.. {
+            if data.send_to(&frame(k, v41), to).await.is_err() {
+                return;
+            }
+            tokio::time::sleep(Duration::from_millis(20)).await;
+        }
+    });
+    let failing = d.wait_status(20, "source_state naming the decode failures", |s| {
+        s["source_state"]
+            .as_str()
+            .is_some_and(|t| t.contains("fail to decode"))
+    });
+    assert!(
+        failing["source_state"]
+            .as_str()
+            .unwrap()
+            .contains("NatNet 3.1"),
+        "{failing:#}"
+    );
+    let streaming = d.wait_status(20, "frames after the renegotiation", |s| {
+        s["frames"].as_u64().unwrap_or(0) > 10
+            && s["source_state"]
+                .as_str()
+                .is_some_and(|t| t.contains("NatNet 4.1") && !t.contains("fail"))
+    });
+    assert_eq!(streaming["source_error"], serde_json::Value::Null);
+    sender.abort();
+    let (status, log) = d.stop();
+    assert!(status.success(), "{status}");
+    assert!(
+        log.lines()
+            .any(|l| l.contains("WARN") && l.contains("fail to decode")),
+        "{log}"
+    );
+}

@@ -134,9 +134,11 @@ fn tips_json_of_a_sway_wind_stores_speed_null_and_reconstructs() {
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
-    assert_eq!(
-        std::fs::read(dir.path().join("tree.glb")).unwrap(),
-        std::fs::read(again.join("tree.glb")).unwrap(),
+    // tree.json: replay's tree.glb also carries the captured motion,
+    // which tips.json does not hold.
+    assert!(
+        std::fs::read(dir.path().join("tree.json")).unwrap()
+            == std::fs::read(again.join("tree.json")).unwrap(),
         "the same tips and wind give the same tree"
     );
 }
