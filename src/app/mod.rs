@@ -6,6 +6,7 @@ pub mod files;
 pub mod inspect;
 pub mod live;
 pub mod open;
+mod progress;
 pub mod reconstruct;
 pub mod record;
 pub mod recording;

@@ -15,9 +15,18 @@ use crate::format::pcap::{PcapOptions, PcapRecording};
 use crate::model::recording::{Format, Recording};
 
 /// Opens a recording with the settings of `config` that change how files
-/// are read (`replay.time_tolerance_s`, `c3d.up_axis`).
+/// are read (`replay.time_tolerance_s`, `c3d.up_axis`). On a terminal, a
+/// long file shows a progress bar while it is read (`replay`, `tips`,
+/// `export`, `view`).
 pub fn open_recording(path: &Path, config: &Config) -> Result<Box<dyn Recording>> {
-    open_with(path, &ReplayOptions::from_config(config))
+    let format = detect(path)?;
+    let file = open_file(path)?;
+    let watch = super::progress::Watch::new(&file, path);
+    let recording = from_file(format, file, path, &ReplayOptions::from_config(config))?;
+    Ok(match watch {
+        Some(w) => w.wrap(recording),
+        None => recording,
+    })
 }
 
 /// Looks at the first bytes of a file and says which format it is.
@@ -143,12 +152,30 @@ pub fn locate(path: &Path, setting: &str) -> Result<PathBuf> {
 
 /// Opens a recording of any supported format, detected by content.
 pub fn open_with(path: &Path, options: &ReplayOptions) -> Result<Box<dyn Recording>> {
-    match detect(path)? {
-        Format::MotiveCsv => Ok(Box::new(motive_csv_with(path, options.time_tolerance_s)?)),
-        Format::Log => Ok(Box::new(log(path)?)),
-        Format::C3d => Ok(Box::new(c3d(path, &options.c3d)?)),
-        Format::Pcap => Ok(Box::new(pcap(path, options.pcap)?)),
-    }
+    from_file(detect(path)?, open_file(path)?, path, options)
+}
+
+/// The reader of `format` on an opened file (`path` names it in errors).
+fn from_file(
+    format: Format,
+    file: File,
+    path: &Path,
+    options: &ReplayOptions,
+) -> Result<Box<dyn Recording>> {
+    Ok(match format {
+        Format::MotiveCsv => Box::new(MotiveCsvReader::from_file(
+            file,
+            path,
+            options.time_tolerance_s,
+        )?),
+        Format::Log => Box::new(LogReader::from_file(file, path)?),
+        Format::C3d => Box::new(C3dReader::from_file(file, path, &options.c3d)?),
+        Format::Pcap => Box::new(PcapRecording::new(
+            Box::new(file),
+            path.to_path_buf(),
+            options.pcap,
+        )?),
+    })
 }
 
 fn open_file(path: &Path) -> Result<File> {

@@ -290,3 +290,38 @@ fn shipped_configs_listen_on_loopback_or_name_their_clients() {
     let bind = bind.split("\n      --").next().unwrap_or("");
     assert!(bind.contains("[default: 127.0.0.1]"), "{help}");
 }
+
+/// A long replay shows a progress bar on a terminal (here a pseudo-terminal
+/// made by util-linux's `script`), and never in a pipe or a log.
+#[test]
+fn a_progress_bar_on_a_terminal_only() {
+    let exe = env!("CARGO_BIN_EXE_treemocap");
+    let on_tty = Command::new("script")
+        .args(["-qec"])
+        .arg(format!("{exe} tips replays/maple-24.csv > /dev/null"))
+        .arg("/dev/null")
+        .env("TREEMOCAP_PROGRESS", "1")
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .output()
+        .expect("util-linux script (bsdutils) for a pseudo-terminal");
+    assert!(on_tty.status.success(), "{}", text(&on_tty.stdout));
+    let seen = text(&on_tty.stdout);
+    assert!(seen.contains("reading maple-24.csv ["), "{seen:?}");
+    assert!(seen.contains("5.58 MiB"), "the file's length: {seen:?}");
+    // The bar is cleared at the end: nothing is drawn after the last erase.
+    let after = seen.rsplit("\u{1b}[2K").next().unwrap_or_default();
+    assert!(!after.contains("reading"), "{seen:?}");
+
+    let piped = Command::new(exe)
+        .args(["tips", "replays/maple-24.csv"])
+        .env("TREEMOCAP_PROGRESS", "1")
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .output()
+        .unwrap();
+    assert!(piped.status.success());
+    assert!(
+        !text(&piped.stderr).contains("reading"),
+        "{}",
+        text(&piped.stderr)
+    );
+}
