@@ -85,7 +85,7 @@ impl Iterator for Watched {
         self.frames += 1;
         if item.is_none() {
             self.watch.bar.finish_and_clear();
-        } else if self.frames % EVERY_FRAMES == 0 {
+        } else if self.frames.is_multiple_of(EVERY_FRAMES) {
             if let Ok(at) = (&self.watch.file).stream_position() {
                 self.watch.bar.set_position(at);
             }
