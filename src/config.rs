@@ -10,6 +10,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::animate::AnimateSettings;
 use crate::error::{check_range, excerpt, Error, Result};
+use crate::reconstruct::forest::{ConfiguredTree, ForestSettings};
 use crate::reconstruct::ReconstructSettings;
 use crate::source::natnet::settings::NatNetSettings;
 use crate::source::osc::OscSettings;
@@ -23,6 +24,8 @@ pub const DEFAULT_TOML: &str = include_str!("../config/default.toml");
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Config {
+    /// `[[trees]]`: trunk bases the operator pinned (docs/forest.md).
+    pub trees: Vec<ConfiguredTree>,
     /// `[replay]`: reading recorded sessions.
     pub replay: ReplayConfig,
     /// `[record]`: writing our log format.
@@ -43,6 +46,8 @@ pub struct Config {
     pub c3d: C3dConfig,
     /// `[reconstruct]`: the particle flow (docs/particle-flow.md).
     pub reconstruct: ReconstructSettings,
+    /// `[forest]`: several trees in one capture (docs/forest.md).
+    pub forest: ForestSettings,
     /// `[animate]`: the captured motion on the tree (docs/animation.md).
     pub animate: AnimateSettings,
 }
@@ -207,6 +212,12 @@ impl Default for ReconstructSettings {
     }
 }
 
+impl Default for ForestSettings {
+    fn default() -> Self {
+        Config::default().forest
+    }
+}
+
 impl Default for Config {
     fn default() -> Self {
         Config::from_table(default_table()).expect("config/default.toml is valid")
@@ -279,6 +290,8 @@ impl Config {
         }
         self.tracking.validate()?;
         self.reconstruct.validate()?;
+        self.forest.validate()?;
+        crate::reconstruct::forest::settings::validate_trees(&self.trees)?;
         self.animate.validate()?;
         Ok(())
     }

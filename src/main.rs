@@ -350,6 +350,23 @@ struct SynthArgs {
     /// Take Name written in the CSV [default: the output file's stem].
     #[arg(long, value_name = "NAME")]
     take_name: Option<String>,
+    /// Trees in the capture, 1-5, each with --tips markers (docs/forest.md).
+    #[arg(long, default_value_t = 1)]
+    trees: usize,
+    /// How far neighbouring crowns overlap, as a fraction of the narrower
+    /// crown's width; negative leaves a gap [default: 0].
+    #[arg(long, value_name = "F", allow_hyphen_values = true)]
+    overlap: Option<f64>,
+    /// How the trees stand: row or cluster [default: row].
+    #[arg(long)]
+    layout: Option<treemocap::sim::Layout>,
+    /// The first crown leans towards its neighbour by this many metres per
+    /// metre of height [default: 0].
+    #[arg(long, value_name = "M_PER_M", allow_hyphen_values = true)]
+    lean: Option<f64>,
+    /// Each tree maple or pine at random instead of --shape.
+    #[arg(long)]
+    mixed: bool,
 }
 
 impl SynthArgs {
@@ -370,6 +387,11 @@ impl SynthArgs {
             spurious_per_s: self.spurious.unwrap_or(d.spurious_per_s),
             min_spacing_mm: self.min_spacing_mm.unwrap_or(d.min_spacing_mm),
             take_name: self.take_name.clone().unwrap_or(d.take_name),
+            trees: self.trees,
+            overlap: self.overlap.unwrap_or(d.overlap),
+            layout: self.layout.unwrap_or(d.layout),
+            lean: self.lean.unwrap_or(d.lean),
+            mixed: self.mixed,
             ..d
         }
     }

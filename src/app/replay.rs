@@ -14,6 +14,7 @@ use crate::config::Config;
 use crate::error::Result;
 use crate::model::tips::Tips;
 use crate::model::wind::{WindEstimate, WindSource};
+use crate::reconstruct::forest::sway;
 use crate::render::outputs::{Motion, Report};
 use crate::track::{self, Summary};
 use crate::wind::{fan::configured_fan_wind, pca::SwayPca, WindSelector};
@@ -52,12 +53,24 @@ pub fn run_with(file: &Path, config: &Config, still: bool, out_dir: &Path) -> Re
     std::fs::create_dir_all(out_dir).map_err(|e| crate::Error::io(out_dir, e))?;
     let tips_path = out_dir.join("tips.json");
     write_atomic(&tips_path, tips.to_json().as_bytes())?;
+    let links = if config.forest.sway_weight_m > 0.0 {
+        sway::links(&tips, config.forest.sway_correlation)
+    } else {
+        Vec::new()
+    };
     let motion = if still {
         Motion::Still
     } else {
         Motion::Traces(&tips, &config.animate)
     };
-    let tree = run_and_write(&tips.captured(), wind_vector, config, motion, out_dir)?;
+    let tree = run_and_write(
+        &tips.captured(),
+        &links,
+        wind_vector,
+        config,
+        motion,
+        out_dir,
+    )?;
     let mut files = vec![tips_path];
     files.extend(tree.files.iter().cloned());
     Ok(ReplayReport {
@@ -111,6 +124,9 @@ impl fmt::Display for ReplayReport {
                     .unwrap_or_default()
             )?,
             None => writeln!(f, "wind: none (the tree did not sway; no fan configured)")?,
+        }
+        if let Some(forest) = &self.tree.forest {
+            write!(f, "{forest}")?;
         }
         writeln!(f, "{}", self.tree.counts())?;
         for file in &self.files {

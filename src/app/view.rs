@@ -118,6 +118,7 @@ fn read_tree(dir: &Path) -> Result<Option<Arc<TreeSnapshot>>> {
         tree_json: read("tree.json")?,
         tips_json: read("tips.json")?,
         nodes: Vec::new(),
+        trees: Vec::new(),
         rig: None,
     })))
 }

@@ -16,6 +16,7 @@ use super::shared::{lock, Shared, TreeRequest};
 use super::triggers::{TriggerConfig, Triggers};
 use crate::model::tips::Tips;
 use crate::model::trace::{Timeline, Trace};
+use crate::reconstruct::forest::SwayLink;
 use crate::track::RestSource;
 use crate::wind::fan;
 
@@ -30,6 +31,10 @@ pub(crate) struct Analysis {
     /// The configured fan's wind is set once the first still phase gives the
     /// crown's centre.
     fan_set: bool,
+    /// Tips that swayed together in the last window with wind (for telling
+    /// several trees apart, docs/forest.md). Taken from the window's traces
+    /// before `best` drops them; still windows (no sway) keep the last.
+    links: Vec<SwayLink>,
 }
 
 impl Analysis {
@@ -49,6 +54,7 @@ impl Analysis {
             triggers,
             best,
             fan_set: false,
+            links: Vec::new(),
         }
     }
 
@@ -61,6 +67,10 @@ impl Analysis {
             drop(job);
             handoff.done();
             self.shared.status.analyses.fetch_add(1, Ordering::Relaxed);
+            let links = sway_links(&self.shared, &tips);
+            if !links.is_empty() {
+                self.links = links;
+            }
             // Rest positions come only from a still phase. In a window of
             // continuous wind the tracker falls back to the mean of the
             // sway, which is bent downwind: that is not a tip moving, so the
@@ -117,6 +127,7 @@ impl Analysis {
         built.wind = wind;
         self.triggers
             .built(now, &rest.positions, wind.map(|w| w.direction));
+        let links = self.links.clone();
         tracing::info!("new tree: {reason}");
         shared.requests.put(TreeRequest {
             fired: Instant::now(),
@@ -125,6 +136,18 @@ impl Analysis {
             tips: built.captured(),
             tips_json: built.to_json(),
             wind: wind.map_or(DVec3::ZERO, |w| w.flow_vector()),
+            links,
         });
+    }
+}
+
+/// The tips of `tips` that sway together in the window (docs/forest.md),
+/// for telling several trees apart; none when the sway is turned off.
+fn sway_links(shared: &Shared, tips: &Tips) -> Vec<SwayLink> {
+    let f = &lock(&shared.recon_config).forest;
+    if f.sway_weight_m > 0.0 {
+        crate::reconstruct::forest::sway::links(tips, f.sway_correlation)
+    } else {
+        Vec::new()
     }
 }

@@ -12,10 +12,13 @@ use glam::DVec3;
 use super::shared::{lock, Shared, TreeRequest};
 use crate::animate::Rig;
 use crate::app::files::write_atomic;
-use crate::render::outputs::{build_model, Motion, Outputs};
+use crate::error::Result;
+use crate::reconstruct::forest::{self, ForestCache};
+use crate::render::forest::{forest_model, forest_picture};
+use crate::render::outputs::{Motion, Outputs};
 use crate::serve::http;
 use crate::serve::osc::{tree_datagrams, OscSender};
-use crate::serve::snapshot::{SnapshotNode, TreeSnapshot};
+use crate::serve::snapshot::{SnapshotNode, SnapshotTree, TreeSnapshot};
 
 /// Builds trees until the analysis closes the requests.
 pub(crate) fn run(shared: &Arc<Shared>, tips_tx: Sender<Vec<(usize, DVec3)>>) {
@@ -28,13 +31,12 @@ pub(crate) fn run(shared: &Arc<Shared>, tips_tx: Sender<Vec<(usize, DVec3)>>) {
             None
         }
     };
+    // The last forest: only the trees whose inputs changed are grown again.
+    let mut cache = ForestCache::default();
     while let Some(request) = shared.requests.take() {
         let started = Instant::now();
-        let (settings, animate) = {
-            let c = lock(&shared.recon_config);
-            (c.reconstruct.clone(), c.animate.clone())
-        };
-        let outputs = match build_model(&request.tips, request.wind, &settings, Motion::Rigged) {
+        let animate = lock(&shared.recon_config).animate.clone();
+        let outputs = match build_forest(shared, &request, &mut cache) {
             Ok(o) => o,
             Err(e) => {
                 tracing::error!("reconstruction: {e}");
@@ -42,8 +44,13 @@ pub(crate) fn run(shared: &Arc<Shared>, tips_tx: Sender<Vec<(usize, DVec3)>>) {
                 continue;
             }
         };
-        // How the tree sways with the live tips (daemon::pose).
-        let rig = Rig::new(&outputs.tree, &animate).ok().map(Arc::new);
+        // How the tree sways with the live tips (daemon::pose); a tree
+        // alone only: several trees are published still (docs/forest.md).
+        let rig = if outputs.report.forest.is_none() {
+            Rig::new(&outputs.tree, &animate).ok().map(Arc::new)
+        } else {
+            None
+        };
         version += 1;
         publish(
             shared,
@@ -57,6 +64,54 @@ pub(crate) fn run(shared: &Arc<Shared>, tips_tx: Sender<Vec<(usize, DVec3)>>) {
     }
 }
 
+/// The trees of a request (one, or several: docs/forest.md), grown where
+/// their inputs changed since the last request.
+fn build_forest(
+    shared: &Shared,
+    request: &TreeRequest,
+    cache: &mut ForestCache,
+) -> Result<Outputs> {
+    let config = lock(&shared.recon_config).clone();
+    let plan = forest::plan(
+        &request.tips,
+        &request.links,
+        &config.trees,
+        &config.forest,
+        &config.reconstruct,
+    )?;
+    forest_model(
+        &plan,
+        request.wind,
+        &config.reconstruct,
+        Motion::Rigged,
+        Some(cache),
+    )
+}
+
+/// Every tree of several as the snapshot carries it (none for a tree
+/// alone): skeleton and its own version-1 tree.json.
+fn snapshot_trees(shared: &Shared, outputs: &Outputs) -> Vec<SnapshotTree> {
+    let Some(report) = &outputs.report.forest else {
+        return Vec::new();
+    };
+    let settings = lock(&shared.recon_config).reconstruct.clone();
+    outputs
+        .trees
+        .iter()
+        .zip(&report.trees)
+        .map(|(m, line)| SnapshotTree {
+            id: m.id,
+            name: m.name.clone(),
+            base: m.base.to_array(),
+            tips: line.tips,
+            rebuilt: m.rebuilt,
+            nodes: SnapshotNode::of_tree(&m.tree),
+            tree_json: crate::render::json::to_json_seeded(&m.tree, &settings, m.seed)
+                .unwrap_or_default(),
+        })
+        .collect()
+}
+
 fn publish(
     shared: &Shared,
     request: TreeRequest,
@@ -66,6 +121,7 @@ fn publish(
     tips_tx: &Sender<Vec<(usize, DVec3)>>,
     osc: Option<&mut OscSender>,
 ) {
+    let trees = snapshot_trees(shared, &outputs);
     let snapshot = Arc::new(TreeSnapshot {
         version,
         time_s: request.time_s,
@@ -74,6 +130,7 @@ fn publish(
         glb: outputs.glb,
         tree_json: outputs.tree_json,
         tips_json: request.tips_json,
+        trees,
         rig,
     });
     let _ = shared.tree_tx.send(Some(snapshot.clone()));
@@ -90,9 +147,14 @@ fn publish(
     }
     // A picture that cannot be drawn is reported, and no empty tree.png is
     // written in its place.
-    let png = crate::render::picture::tree_png(&outputs.tree, None)
-        .map_err(|e| tracing::error!("tree.png: {e}"))
-        .ok();
+    let png = forest_picture(
+        &outputs.tree,
+        &outputs.trees,
+        outputs.report.forest.is_some(),
+        None,
+    )
+    .map_err(|e| tracing::error!("tree.png: {e}"))
+    .ok();
     write_files(shared, &snapshot, png.as_deref(), version);
     let st = &shared.status;
     st.trees.fetch_add(1, Ordering::Relaxed);
@@ -104,6 +166,8 @@ fn publish(
         "time_s": request.time_s,
         "nodes": snapshot.nodes.len(),
         "tips": request.tips.len(),
+        "trees": outputs.trees.len().max(1),
+        "trees_rebuilt": outputs.trees.iter().filter(|m| m.rebuilt).count().max(1),
         "forced_joins": outputs.report.forced_joins,
         "trigger_to_outputs_ms": published_ms,
         "build_ms": started.elapsed().as_secs_f64() * 1000.0,

@@ -43,6 +43,9 @@ pub(crate) struct TreeRequest {
     pub(crate) tips_json: String,
     /// The wind vector of the flow.
     pub(crate) wind: DVec3,
+    /// Tips that sway together, which help split several trees
+    /// (docs/forest.md); empty without a wind phase.
+    pub(crate) links: Vec<crate::reconstruct::forest::SwayLink>,
 }
 
 /// The latest-wins hand-off from the analysis to the tree builder: a new

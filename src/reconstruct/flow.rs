@@ -27,6 +27,7 @@ use kiddo::{ImmutableKdTree, SquaredEuclidean};
 use crate::error::Result;
 use crate::model::tree::{Kind, Node, Tree};
 use crate::reconstruct::error::ReconstructError;
+use crate::reconstruct::forest::cell::Cell;
 use crate::reconstruct::trunk::{Bounds, Trunk};
 use crate::reconstruct::ReconstructSettings;
 
@@ -45,8 +46,23 @@ pub fn run(
     wind: DVec3,
     cfg: &ReconstructSettings,
 ) -> Result<Tree> {
+    run_in(tips, trunk, wind, cfg, &Cell::default())
+}
+
+/// Like [`run`], every step kept inside `cell` (a tree's side of the planes
+/// between it and its neighbours; docs/forest.md). The cell and the bounds
+/// are convex, so a junction — the mean of particles inside — is inside
+/// too. An empty cell changes nothing.
+pub fn run_in(
+    tips: &[(DVec3, Kind)],
+    trunk: &Trunk,
+    wind: DVec3,
+    cfg: &ReconstructSettings,
+    cell: &Cell,
+) -> Result<Tree> {
     let (mut nodes, trunk_ids, mut particles) = start(tips, trunk);
     let forces = Forces {
+        cell,
         bounds: Bounds::of(tips.iter().map(|t| t.0).chain(trunk.nodes.iter().copied())).unwrap_or(
             Bounds {
                 min: DVec3::ZERO,
@@ -170,6 +186,8 @@ fn step(
 
 /// The three forces of Table 1 and the step of equations 1–3.
 struct Forces<'a> {
+    /// The tree's own side of its neighbours (empty for a tree alone).
+    cell: &'a Cell,
     bounds: Bounds,
     attractor: DVec3,
     shape_magnitude: f64,
@@ -190,7 +208,8 @@ impl Forces<'_> {
         let unit = dir
             .try_normalize()
             .unwrap_or_else(|| (trunk.nodes[t] - p).normalize_or_zero());
-        (p + c.beta * d * unit).clamp(self.bounds.min, self.bounds.max)
+        let next = (p + c.beta * d * unit).clamp(self.bounds.min, self.bounds.max);
+        self.cell.project(next, &self.bounds)
     }
 }
 

@@ -135,6 +135,20 @@ impl Hull {
     /// tetrahedron (with the centre) is chosen in proportion to its volume,
     /// then a point uniformly inside it.
     pub fn sample(&self, count: usize, rng: &mut Rng) -> Vec<DVec3> {
+        self.sample_where(count, rng, |_| true, count)
+    }
+
+    /// Like [`Hull::sample`], keeping only the points `keep` accepts, with
+    /// at most `tries` draws in all (so a `keep` that accepts little cannot
+    /// loop for ever). With a `keep` that accepts everything the draws are
+    /// exactly those of `sample`.
+    pub fn sample_where(
+        &self,
+        count: usize,
+        rng: &mut Rng,
+        keep: impl Fn(DVec3) -> bool,
+        tries: usize,
+    ) -> Vec<DVec3> {
         let c = self.centre();
         let vols = self.tetrahedra(c);
         let mut cumulative = Vec::with_capacity(vols.len());
@@ -147,13 +161,19 @@ impl Hull {
         if total <= 0.0 {
             return out;
         }
-        for _ in 0..count {
+        for _ in 0..tries {
+            if out.len() == count {
+                break;
+            }
             let pick = rng.f64() * total;
             let k = cumulative
                 .partition_point(|&s| s <= pick)
                 .min(self.faces.len() - 1);
             let [a, b, d] = self.faces[k].map(|i| self.points[i]);
-            out.push(in_tetrahedron(c, a, b, d, rng));
+            let p = in_tetrahedron(c, a, b, d, rng);
+            if keep(p) {
+                out.push(p);
+            }
         }
         out
     }

@@ -6,6 +6,7 @@
 
 pub mod error;
 pub mod flow;
+pub mod forest;
 pub mod hull;
 pub mod leaves;
 pub mod mesh;
@@ -50,12 +51,81 @@ pub fn reconstruct_with_volume(
     cfg: &ReconstructSettings,
     seed: u64,
 ) -> Result<(Tree, volume::Volume)> {
+    reconstruct_placed(tips, wind, cfg, seed, &Placement::default())
+}
+
+/// Where one tree of several stands and how far it may grow
+/// (docs/forest.md). The default is a tree alone: the trunk under the
+/// crown's centre, nothing but the crown's own bounds around it.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Placement {
+    /// The trunk's base, when a configured `[[trees]]` entry pins it;
+    /// `None` puts it at the ground under the crown's centre.
+    pub base: Option<DVec3>,
+    /// The tree's side of the planes between it and its neighbours: random
+    /// tips are drawn inside, and the flow stays inside.
+    pub cell: forest::cell::Cell,
+}
+
+/// `reconstruct_with_volume` for a tree placed among others.
+pub fn reconstruct_placed(
+    tips: &[CapturedTip],
+    wind: DVec3,
+    cfg: &ReconstructSettings,
+    seed: u64,
+    place: &Placement,
+) -> Result<(Tree, volume::Volume)> {
     cfg.validate()?;
+    check_inputs(tips, wind)?;
+    let positions: Vec<DVec3> = tips.iter().map(|t| t.position).collect();
+    let crown = trunk::Bounds::of(positions.iter().copied()).ok_or(ReconstructError::NoTips)?;
+    let mut trunk_rng = Rng::new(seed).fork(TRUNK_STREAM);
+    let trunk = match place.base {
+        None => trunk::Trunk::build(crown, cfg, &mut trunk_rng)?,
+        Some(b) => {
+            let at = ReconstructSettings {
+                ground_height: b.y,
+                ..cfg.clone()
+            };
+            trunk::Trunk::build_at(b.x, b.z, crown, &at, &mut trunk_rng)?
+        }
+    };
+    let cell = &place.cell;
+    let (volume, random) = volume::random_tips_where(
+        &positions,
+        cfg,
+        &mut Rng::new(seed).fork(VOLUME_STREAM),
+        &|p| cell.contains(p),
+    )?;
+
+    let mut starts: Vec<(DVec3, Kind)> = tips
+        .iter()
+        .map(|t| (t.position, Kind::Captured { marker: t.marker }))
+        .collect();
+    starts.extend(random.into_iter().map(|p| (p, Kind::Tip)));
+    let flow_cfg = match place.base {
+        // The shape-format force's scale is the height above this tree's
+        // own ground.
+        Some(b) => ReconstructSettings {
+            ground_height: b.y,
+            ..cfg.clone()
+        },
+        None => cfg.clone(),
+    };
+    let mut tree = flow::run_in(&starts, &trunk, wind, &flow_cfg, cell)?;
+    // Cheap (linear) and every output relies on it: fail loudly rather than
+    // write a broken tree.
+    tree.check().map_err(ReconstructError::BrokenTree)?;
+    radii::assign(&mut tree, cfg.tip_radius, cfg.gamma);
+    Ok((tree, volume))
+}
+
+/// Tips and wind a capture volume can hold: none beyond 10 km (a unit or
+/// file error, which would only overflow the geometry further down).
+fn check_inputs(tips: &[CapturedTip], wind: DVec3) -> Result<()> {
     if tips.is_empty() {
         return Err(ReconstructError::NoTips.into());
     }
-    // A capture volume is metres across; anything beyond 10 km is a unit or
-    // file error, and would only overflow the geometry further down.
     const FAR: f64 = 1e4;
     if let Some(t) = tips
         .iter()
@@ -71,21 +141,5 @@ pub fn reconstruct_with_volume(
     if !wind.is_finite() || wind.length() > FAR {
         return Err(ReconstructError::WindOutOfRange(wind).into());
     }
-    let positions: Vec<DVec3> = tips.iter().map(|t| t.position).collect();
-    let crown = trunk::Bounds::of(positions.iter().copied()).ok_or(ReconstructError::NoTips)?;
-    let trunk = trunk::Trunk::build(crown, cfg, &mut Rng::new(seed).fork(TRUNK_STREAM))?;
-    let (volume, random) =
-        volume::random_tips(&positions, cfg, &mut Rng::new(seed).fork(VOLUME_STREAM))?;
-
-    let mut starts: Vec<(DVec3, Kind)> = tips
-        .iter()
-        .map(|t| (t.position, Kind::Captured { marker: t.marker }))
-        .collect();
-    starts.extend(random.into_iter().map(|p| (p, Kind::Tip)));
-    let mut tree = flow::run(&starts, &trunk, wind, cfg)?;
-    // Cheap (linear) and every output relies on it: fail loudly rather than
-    // write a broken tree.
-    tree.check().map_err(ReconstructError::BrokenTree)?;
-    radii::assign(&mut tree, cfg.tip_radius, cfg.gamma);
-    Ok((tree, volume))
+    Ok(())
 }

@@ -47,11 +47,24 @@ impl Bounds {
 }
 
 impl Trunk {
-    /// Builds the trunk for captured tips with the given bounds.
+    /// Builds the trunk for captured tips with the given bounds, under the
+    /// crown's centre.
     pub fn build(crown: Bounds, cfg: &ReconstructSettings, rng: &mut Rng) -> Result<Trunk> {
-        let n = cfg.trunk_nodes.max(2);
         let centre_x = 0.5 * (crown.min.x + crown.max.x);
         let centre_z = 0.5 * (crown.min.z + crown.max.z);
+        Trunk::build_at(centre_x, centre_z, crown, cfg, rng)
+    }
+
+    /// Builds the trunk standing at (`centre_x`, `ground_height`,
+    /// `centre_z`): a configured trunk base of several trees.
+    pub fn build_at(
+        centre_x: f64,
+        centre_z: f64,
+        crown: Bounds,
+        cfg: &ReconstructSettings,
+        rng: &mut Rng,
+    ) -> Result<Trunk> {
+        let n = cfg.trunk_nodes.max(2);
         let height = cfg.height_factor * (crown.max.y - crown.min.y);
         let mut nodes = Vec::with_capacity(n);
         for i in 0..n {

@@ -82,22 +82,49 @@ pub fn random_tips(
     cfg: &ReconstructSettings,
     rng: &mut Rng,
 ) -> Result<(Volume, Vec<DVec3>)> {
+    random_tips_where(captured, cfg, rng, &|_| true)
+}
+
+/// Draws per random tip when some are refused by `keep` (a neighbouring
+/// tree's side): enough for a cell holding a fiftieth of the volume.
+const TRIES_PER_TIP: usize = 50;
+
+/// Like [`random_tips`], keeping only the points `keep` accepts (the
+/// tree's own cell when several trees stand in one capture). A point
+/// refused is drawn again, up to [`TRIES_PER_TIP`] times per tip; a box's
+/// `random` is the number actually placed. With a `keep` that accepts
+/// everything the draws are exactly those of `random_tips`.
+pub fn random_tips_where(
+    captured: &[DVec3],
+    cfg: &ReconstructSettings,
+    rng: &mut Rng,
+    keep: &dyn Fn(DVec3) -> bool,
+) -> Result<(Volume, Vec<DVec3>)> {
     let count = cfg.total_tips.saturating_sub(captured.len());
     let Some(bounds) = Bounds::of(captured.iter().copied()) else {
         return Err(ReconstructError::NoTips.into());
     };
     match cfg.volume {
         VolumeKind::Boxes => {
-            let boxes = box_stack(captured, bounds, cfg.boxes.max(1), count);
+            let mut boxes = box_stack(captured, bounds, cfg.boxes.max(1), count);
             let mut tips = Vec::with_capacity(count);
-            for b in &boxes {
-                for _ in 0..b.random {
-                    tips.push(DVec3::new(
+            for b in &mut boxes {
+                let mut placed = 0;
+                for _ in 0..b.random * TRIES_PER_TIP {
+                    if placed == b.random {
+                        break;
+                    }
+                    let p = DVec3::new(
                         rng.range(b.min.x, b.max.x),
                         rng.range(b.min.y, b.max.y),
                         rng.range(b.min.z, b.max.z),
-                    ));
+                    );
+                    if keep(p) {
+                        tips.push(p);
+                        placed += 1;
+                    }
                 }
+                b.random = placed;
             }
             Ok((Volume::Boxes(boxes), tips))
         }
@@ -108,7 +135,7 @@ pub fn random_tips(
                 // Nothing to place: a flat set of tips is no obstacle.
                 Err(_) => return Ok((Volume::Boxes(Vec::new()), Vec::new())),
             };
-            let tips = hull.sample(count, rng);
+            let tips = hull.sample_where(count, rng, keep, count * TRIES_PER_TIP);
             Ok((Volume::Hull(hull), tips))
         }
     }

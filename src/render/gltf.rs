@@ -77,10 +77,45 @@ pub fn to_glb(
     b.finish()
 }
 
+/// One tree of a forest: its name, skeleton and meshes.
+pub struct ForestTree<'a> {
+    /// The node's name: the tree's name.
+    pub name: &'a str,
+    /// The skeleton.
+    pub tree: &'a Tree,
+    /// The branch surface.
+    pub branches: &'a Mesh,
+    /// The leaves, when there are any.
+    pub leaves: Option<&'a Mesh>,
+}
+
+/// Several trees in one .glb (docs/forest.md): one scene node per tree,
+/// named as the tree, holding its branches, leaves and skeleton; the
+/// materials are shared.
+pub fn forest_glb(trees: &[ForestTree<'_>]) -> Result<Vec<u8>> {
+    let mut b = Builder::default();
+    let mut scene_nodes = Vec::with_capacity(trees.len());
+    for t in trees {
+        let children = b.tree_nodes(t.tree, t.branches, t.leaves)?;
+        scene_nodes.push(b.root.push(json::Node {
+            children: (!children.is_empty()).then_some(children),
+            name: Some(t.name.into()),
+            ..Default::default()
+        }));
+    }
+    b.finish_scene("forest", scene_nodes)
+}
+
 /// The glTF document being built and its binary chunk.
 pub(super) struct Builder {
     pub(super) root: json::Root,
     pub(super) bin: Vec<u8>,
+    /// Shared by every tree's branches, made before the first mesh.
+    bark: Option<json::Index<json::Material>>,
+    /// Shared by every tree's leaves, made with the first leaves.
+    leaf: Option<json::Index<json::Material>>,
+    /// Shared by every tree's skeleton, made with the first skeleton.
+    skeleton: Option<json::Index<json::Material>>,
 }
 
 impl Default for Builder {
@@ -99,11 +134,64 @@ impl Default for Builder {
         Builder {
             root,
             bin: Vec::new(),
+            bark: None,
+            leaf: None,
+            skeleton: None,
         }
     }
 }
 
 impl Builder {
+    /// The nodes of one tree: branches, leaves (when any), skeleton.
+    fn tree_nodes(
+        &mut self,
+        tree: &Tree,
+        branches: &Mesh,
+        leaves: Option<&Mesh>,
+    ) -> Result<Vec<json::Index<json::Node>>> {
+        let bark = match self.bark {
+            Some(m) => m,
+            None => {
+                let m = self.material("bark", [0.40, 0.29, 0.20, 1.0], false);
+                self.bark = Some(m);
+                m
+            }
+        };
+        let mut nodes = Vec::new();
+        if let Some(mesh) = self.triangle_mesh("branches", branches, bark, None)? {
+            nodes.push(self.node("branches", mesh, None));
+        }
+        if let Some(leaves) = leaves.filter(|m| !m.indices.is_empty()) {
+            let leaf = match self.leaf {
+                Some(m) => m,
+                None => {
+                    let m = self.material("leaf", [0.27, 0.52, 0.16, 1.0], true);
+                    self.leaf = Some(m);
+                    m
+                }
+            };
+            if let Some(mesh) = self.triangle_mesh("leaves", leaves, leaf, None)? {
+                nodes.push(self.node("leaves", mesh, None));
+            }
+        }
+        if let Some(mesh) = self.skeleton(tree, None)? {
+            nodes.push(self.node("skeleton", mesh, None));
+        }
+        Ok(nodes)
+    }
+
+    /// The scene of `nodes`, then the file.
+    fn finish_scene(mut self, name: &str, nodes: Vec<json::Index<json::Node>>) -> Result<Vec<u8>> {
+        let scene = self.root.push(json::Scene {
+            extensions: None,
+            extras: Default::default(),
+            name: Some(name.into()),
+            nodes,
+        });
+        self.root.scene = Some(scene);
+        self.finish()
+    }
+
     fn material(
         &mut self,
         name: &str,
@@ -267,7 +355,14 @@ impl Builder {
         if lines.is_empty() {
             return Ok(None);
         }
-        let material = self.material("skeleton", [0.85, 0.12, 0.10, 1.0], false);
+        let material = match self.skeleton {
+            Some(m) => m,
+            None => {
+                let m = self.material("skeleton", [0.85, 0.12, 0.10, 1.0], false);
+                self.skeleton = Some(m);
+                m
+            }
+        };
         let pos = self.vec3(&positions, true);
         let idx = self.indices(&lines);
         let mut attributes = std::collections::BTreeMap::new();

@@ -31,12 +31,87 @@ pub const VERSION: u32 = 1;
 /// Encodes `tree` (reconstructed with `cfg`) as tree.json text: one key per
 /// line, each array on a single line so the file stays small and diffable.
 pub fn to_json(tree: &Tree, cfg: &ReconstructSettings) -> Result<String> {
+    to_json_seeded(tree, cfg, cfg.seed)
+}
+
+/// [`to_json`] for a tree grown from `seed` (one tree of a forest, served
+/// on its own as version 1).
+pub fn to_json_seeded(tree: &Tree, cfg: &ReconstructSettings, seed: u64) -> Result<String> {
     let parameters = serde_json::to_value(cfg).map_err(RenderError::from)?;
-    let fields: Vec<(&str, Value)> = vec![
+    let mut fields: Vec<(&str, Value)> = vec![
         ("version", json!(VERSION)),
-        ("seed", json!(cfg.seed)),
+        ("seed", json!(seed)),
         ("parameters", parameters),
         ("wind", json!(tree.wind.to_array())),
+    ];
+    fields.extend(skeleton(tree));
+    object(&fields, "")
+}
+
+/// Version of the tree.json layout with several trees.
+pub const FOREST_VERSION: u32 = 2;
+
+/// What tree.json says of one tree of a forest besides its skeleton.
+pub struct ForestEntry<'a> {
+    /// The tree's id.
+    pub id: usize,
+    /// Its name.
+    pub name: &'a str,
+    /// Its trunk base (m).
+    pub base: [f64; 3],
+    /// `configured` or `detected`.
+    pub base_source: &'a str,
+    /// The seed it was grown from.
+    pub seed: u64,
+    /// The tree.
+    pub tree: &'a Tree,
+}
+
+/// Several trees as tree.json version 2 (docs/forest.md): the seed,
+/// parameters and wind, then `trees` (each with its id, name, base and seed
+/// and the version-1 skeleton keys), then `ambiguous` (the tips that were
+/// close calls, as given).
+pub fn forest_json(
+    trees: &[ForestEntry<'_>],
+    ambiguous: Value,
+    wind: [f64; 3],
+    cfg: &ReconstructSettings,
+) -> Result<String> {
+    let parameters = serde_json::to_value(cfg).map_err(RenderError::from)?;
+    let mut text = String::from("{\n");
+    for (key, value) in [
+        ("version", json!(FOREST_VERSION)),
+        ("seed", json!(cfg.seed)),
+        ("parameters", parameters),
+        ("wind", json!(wind)),
+    ] {
+        let v = serde_json::to_string(&value).map_err(RenderError::from)?;
+        text.push_str(&format!("  \"{key}\": {v},\n"));
+    }
+    text.push_str("  \"trees\": [\n");
+    for (i, t) in trees.iter().enumerate() {
+        let mut fields: Vec<(&str, Value)> = vec![
+            ("id", json!(t.id)),
+            ("name", json!(t.name)),
+            ("base", json!(t.base)),
+            ("base_source", json!(t.base_source)),
+            ("seed", json!(t.seed)),
+        ];
+        fields.extend(skeleton(t.tree));
+        let body = object(&fields, "    ")?;
+        text.push_str("    ");
+        text.push_str(body.trim_end());
+        text.push_str(if i + 1 < trees.len() { ",\n" } else { "\n" });
+    }
+    text.push_str("  ],\n");
+    let v = serde_json::to_string(&ambiguous).map_err(RenderError::from)?;
+    text.push_str(&format!("  \"ambiguous\": {v}\n}}\n"));
+    Ok(text)
+}
+
+/// The skeleton's keys, shared by both versions.
+fn skeleton(tree: &Tree) -> Vec<(&'static str, Value)> {
+    vec![
         ("steps", json!(tree.steps)),
         ("forced_joins", json!(tree.forced_joins)),
         ("root", json!(0)),
@@ -73,13 +148,19 @@ pub fn to_json(tree: &Tree, cfg: &ReconstructSettings) -> Result<String> {
                 })
                 .collect::<Vec<_>>()),
         ),
-    ];
+    ]
+}
+
+/// An object with one key per line, each line indented by `indent` more
+/// than the braces.
+fn object(fields: &[(&str, Value)], indent: &str) -> Result<String> {
     let mut out = String::from("{\n");
     for (i, (key, value)) in fields.iter().enumerate() {
         let v = serde_json::to_string(value).map_err(RenderError::from)?;
-        out.push_str(&format!("  \"{key}\": {v}"));
+        out.push_str(&format!("{indent}  \"{key}\": {v}"));
         out.push_str(if i + 1 < fields.len() { ",\n" } else { "\n" });
     }
+    out.push_str(indent);
     out.push_str("}\n");
     Ok(out)
 }

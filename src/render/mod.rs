@@ -4,6 +4,7 @@
 
 mod animation;
 pub mod error;
+pub mod forest;
 pub mod frames;
 pub mod gltf;
 pub mod json;

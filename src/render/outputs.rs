@@ -90,6 +90,10 @@ pub struct Report {
     pub animation: Option<AnimationReport>,
     /// Files written, in order.
     pub files: Vec<PathBuf>,
+    /// With several trees: the trees, how they were found, the close calls
+    /// (docs/forest.md). `None` for a tree alone.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub forest: Option<super::forest::ForestReport>,
 }
 
 /// Everything one reconstruction produces, in memory: the daemon shares
@@ -97,8 +101,11 @@ pub struct Report {
 /// `run_and_write` writes them to disk.
 #[derive(Debug, Clone)]
 pub struct Outputs {
-    /// The tree itself.
+    /// The tree itself (the first tree of several).
     pub tree: Tree,
+    /// Every tree with its id, name and base; one entry for a tree alone
+    /// (empty from [`build_model`] until [`super::forest`] fills it).
+    pub trees: Vec<super::forest::Member>,
     /// tree.glb bytes.
     pub glb: Vec<u8>,
     /// tree.json text.
@@ -170,9 +177,11 @@ pub fn build_model(
         leaves: leaf_mesh.map_or(0, |m| m.triangles() / 2),
         animation,
         files: Vec::new(),
+        forest: None,
     };
     Ok(Outputs {
         tree,
+        trees: Vec::new(),
         glb,
         tree_json,
         png,
@@ -204,6 +213,9 @@ impl Report {
 impl std::fmt::Display for Report {
     /// The counts, then a line per file written.
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        if let Some(forest) = &self.forest {
+            write!(f, "{forest}")?;
+        }
         writeln!(f, "{}", self.counts())?;
         for file in &self.files {
             writeln!(f, "wrote {}", file.display())?;

@@ -77,16 +77,41 @@ pub fn extremes(tree: &Tree, motion: &TreeMotion) -> Option<([usize; 2], DVec3, 
     Some(([lo, hi], dir, largest))
 }
 
+/// Several trees of one capture in one picture, each named above its
+/// crown, each tree's captured tips in its own colour (docs/forest.md).
+pub fn forest_png(trees: &[(&str, &Tree)]) -> Result<Vec<u8>> {
+    render_trees(trees, true, None).encode_png()
+}
+
 /// Renders the front and side views.
 pub fn render(tree: &Tree, motion: Option<&TreeMotion>) -> Canvas {
+    render_trees(&[("", tree)], false, motion)
+}
+
+/// Fill and edge colour of each tree's captured tips: the first tree's red
+/// as a tree alone has always had, then colours that stay apart.
+const TIP_COLOURS: [(Rgb, Rgb); 6] = [
+    (TIP_FILL, TIP_EDGE),
+    ([30, 110, 230], [0, 30, 100]),
+    ([245, 160, 20], [110, 60, 0]),
+    ([40, 170, 70], [0, 70, 20]),
+    ([160, 70, 210], [60, 0, 90]),
+    ([20, 180, 190], [0, 70, 80]),
+];
+
+/// The views of `trees` (name, tree) at one scale; `labelled` writes each
+/// name above its tree and a forest's counts at the bottom; `motion` is the
+/// first tree's (a tree alone; several trees are drawn still).
+fn render_trees(trees: &[(&str, &Tree)], labelled: bool, motion: Option<&TreeMotion>) -> Canvas {
     let mut canvas = Canvas::new(WIDTH, HEIGHT);
-    let Some(first) = tree.nodes.first() else {
+    let mut nodes = trees.iter().flat_map(|(_, t)| t.nodes.iter());
+    let Some(first) = nodes.next() else {
         return canvas;
     };
-    let extreme = motion.and_then(|m| Some((m, extremes(tree, m)?)));
+    let extreme = motion.and_then(|m| Some((m, extremes(trees.first()?.1, m)?)));
     let mut lo = first.position;
     let mut hi = first.position;
-    for n in &tree.nodes {
+    for n in trees.iter().flat_map(|(_, t)| t.nodes.iter()) {
         lo = lo.min(n.position - DVec3::splat(n.radius));
         hi = hi.max(n.position + DVec3::splat(n.radius));
     }
@@ -99,6 +124,12 @@ pub fn render(tree: &Tree, motion: Option<&TreeMotion>) -> Canvas {
             }
         }
     }
+    // The ground: under the lowest trunk base.
+    let ground = trees
+        .iter()
+        .filter_map(|(_, t)| t.nodes.first())
+        .map(|n| n.position)
+        .fold(first.position, |a, b| if b.y < a.y { b } else { a });
     let span = (hi - lo).max(DVec3::splat(1e-6));
     let panel_w = (WIDTH as f64 - 3.0 * MARGIN) / 2.0;
     let panel_h = HEIGHT as f64 - TOP - BOTTOM;
@@ -110,15 +141,17 @@ pub fn render(tree: &Tree, motion: Option<&TreeMotion>) -> Canvas {
         ("side (z right, y up)", |p| p.z, lo.z, span.z),
     ];
     // Segments thickest first, so thin branches stay visible on top.
-    let mut segments: Vec<usize> = (0..tree.nodes.len())
-        .filter(|&i| tree.nodes[i].parent.is_some())
+    let mut segments: Vec<(usize, usize)> = trees
+        .iter()
+        .enumerate()
+        .flat_map(|(k, (_, t))| {
+            (0..t.nodes.len())
+                .filter(|&i| t.nodes[i].parent.is_some())
+                .map(move |i| (k, i))
+        })
         .collect();
-    segments.sort_by(|&a, &b| {
-        tree.nodes[b]
-            .radius
-            .total_cmp(&tree.nodes[a].radius)
-            .then(a.cmp(&b))
-    });
+    let radius = |(k, i): (usize, usize)| trees[k].1.nodes[i].radius;
+    segments.sort_by(|&a, &b| radius(b).total_cmp(&radius(a)).then(a.cmp(&b)));
 
     for (v, (title, horizontal, h_lo, h_span)) in views.iter().enumerate() {
         let left = MARGIN + v as f64 * (panel_w + MARGIN) + 0.5 * (panel_w - h_span * scale);
@@ -130,8 +163,7 @@ pub fn render(tree: &Tree, motion: Option<&TreeMotion>) -> Canvas {
             )
         };
         canvas.text_scaled(MARGIN + v as f64 * (panel_w + MARGIN), 20.0, title, 2, INK);
-        // Ground under the trunk base.
-        let (_, gy) = to_px(first.position);
+        let (_, gy) = to_px(ground);
         canvas.line(
             MARGIN + v as f64 * (panel_w + MARGIN),
             gy,
@@ -141,10 +173,11 @@ pub fn render(tree: &Tree, motion: Option<&TreeMotion>) -> Canvas {
             GROUND,
         );
         if let Some((m, (keys, _, _))) = extreme {
+            let tree = trees[0].1;
             for (g, k) in keys.into_iter().enumerate() {
                 let pose = m.pose(k);
                 let at = |n: usize| DVec3::from(pose[n].map(f64::from));
-                for &i in &segments {
+                for &(_, i) in segments.iter().filter(|s| s.0 == 0) {
                     let Some(p) = tree.nodes[i].parent else {
                         continue;
                     };
@@ -165,7 +198,8 @@ pub fn render(tree: &Tree, motion: Option<&TreeMotion>) -> Canvas {
                 }
             }
         }
-        for &i in &segments {
+        for &(k, i) in &segments {
+            let tree = trees[k].1;
             let node = &tree.nodes[i];
             let Some(parent) = node.parent.and_then(|p| tree.nodes.get(p)) else {
                 continue;
@@ -179,15 +213,58 @@ pub fn render(tree: &Tree, motion: Option<&TreeMotion>) -> Canvas {
             };
             canvas.line(x0, y0, x1, y1, (2.0 * node.radius * scale).max(1.0), colour);
         }
-        for node in &tree.nodes {
-            if let Kind::Captured { .. } = node.kind {
-                let (x, y) = to_px(node.position);
-                canvas.circle(x, y, 5.0, TIP_EDGE);
-                canvas.circle(x, y, 3.5, TIP_FILL);
+        for (k, (name, tree)) in trees.iter().enumerate() {
+            let (fill, edge) = TIP_COLOURS[k % TIP_COLOURS.len()];
+            for node in &tree.nodes {
+                if let Kind::Captured { .. } = node.kind {
+                    let (x, y) = to_px(node.position);
+                    canvas.circle(x, y, 5.0, edge);
+                    canvas.circle(x, y, 3.5, fill);
+                }
+            }
+            if labelled {
+                label(&mut canvas, tree, name, &to_px, edge);
             }
         }
     }
+    footer(&mut canvas, trees, scale, labelled);
+    if let Some((m, (_, dir, largest))) = extreme {
+        let text = format!(
+            "motion {:.1} s: extreme poses along ({:.2}, {:.2}, {:.2}) behind the tree, tip paths light red; largest tip displacement {:.0} mm",
+            m.times.last().copied().unwrap_or(0.0),
+            dir.x,
+            dir.y,
+            dir.z,
+            largest * 1000.0
+        );
+        canvas.text_scaled(MARGIN, 48.0, &text, 1, INK);
+    }
+    canvas
+}
 
+/// `name` centred above the highest node of `tree`.
+fn label(
+    canvas: &mut Canvas,
+    tree: &Tree,
+    name: &str,
+    to_px: &dyn Fn(DVec3) -> (f64, f64),
+    colour: Rgb,
+) {
+    let Some(top) = tree
+        .nodes
+        .iter()
+        .map(|n| n.position)
+        .reduce(|a, b| if b.y > a.y { b } else { a })
+    else {
+        return;
+    };
+    let (x, y) = to_px(top);
+    let w = Canvas::text_width(name, 2);
+    canvas.text_scaled(x - 0.5 * w, (y - 26.0).max(TOP - 30.0), name, 2, colour);
+}
+
+/// The scale bar and the counts.
+fn footer(canvas: &mut Canvas, trees: &[(&str, &Tree)], scale: f64, forest: bool) {
     // Scale bar: the largest of 1, 0.5, 0.2, 0.1 m that fits in 200 px.
     let bar = [1.0, 0.5, 0.2, 0.1, 0.05]
         .into_iter()
@@ -202,29 +279,23 @@ pub fn render(tree: &Tree, motion: Option<&TreeMotion>) -> Canvas {
         2,
         INK,
     );
-    let captured = tree
-        .nodes
-        .iter()
+    let all = || trees.iter().flat_map(|(_, t)| t.nodes.iter());
+    let captured = all()
         .filter(|n| matches!(n.kind, Kind::Captured { .. }))
         .count();
-    let tips = tree.nodes.iter().filter(|n| n.kind.is_tip()).count();
-    let info = format!(
-        "captured tips {captured} (red)   all tips {tips}   nodes {}   steps {}   forced joins {}",
-        tree.nodes.len(),
-        tree.steps,
-        tree.forced_joins
-    );
+    let tips = all().filter(|n| n.kind.is_tip()).count();
+    let nodes = all().count();
+    let forced: usize = trees.iter().map(|(_, t)| t.forced_joins).sum();
+    let info = if forest {
+        format!(
+            "trees {}   captured tips {captured}   all tips {tips}   nodes {nodes}   forced joins {forced}",
+            trees.len()
+        )
+    } else {
+        let steps = trees.first().map_or(0, |(_, t)| t.steps);
+        format!(
+            "captured tips {captured} (red)   all tips {tips}   nodes {nodes}   steps {steps}   forced joins {forced}"
+        )
+    };
     canvas.text_scaled(MARGIN + 330.0, y - 7.0, &info, 2, INK);
-    if let Some((m, (_, dir, largest))) = extreme {
-        let text = format!(
-            "motion {:.1} s: extreme poses along ({:.2}, {:.2}, {:.2}) behind the tree, tip paths light red; largest tip displacement {:.0} mm",
-            m.times.last().copied().unwrap_or(0.0),
-            dir.x,
-            dir.y,
-            dir.z,
-            largest * 1000.0
-        );
-        canvas.text_scaled(MARGIN, 48.0, &text, 1, INK);
-    }
-    canvas
 }

@@ -5,6 +5,8 @@
 //! |---|---|
 //! | `GET /` | the live view: a page showing markers, tips, noise, tree, wind, status |
 //! | `GET /tree.glb` | the latest tree, binary glTF (404 until the first tree); `X-Tree-Version` names it |
+//! | `GET /trees` | the trees of the latest snapshot: id, name, base, tips, nodes, rebuilt (docs/forest.md) |
+//! | `GET /trees/{id}.json` | one tree as a version-1 tree.json |
 //! | `GET /tree.json`, `GET /tips.json` | the latest skeleton and tips |
 //! | `GET /status` | JSON: sources, rates, markers, tips, drops, last tree, wind |
 //! | `GET /metrics` | the same counters in Prometheus text format |
@@ -45,6 +47,8 @@ pub fn router(state: HttpState) -> Router {
         .route("/tree.glb", get(tree_glb))
         .route("/tree.json", get(tree_json))
         .route("/tips.json", get(tips_json))
+        .route("/trees", get(trees))
+        .route("/trees/{file}", get(one_tree))
         .route("/status", get(status))
         .route("/metrics", get(metrics))
         .route("/rebuild", rebuild_route)
@@ -142,6 +146,63 @@ async fn tree_json(State(s): State<HttpState>) -> Response {
 
 async fn tips_json(State(s): State<HttpState>) -> Response {
     tree_file(&s, "application/json", |t| t.tips_json.clone().into_bytes())
+}
+
+/// `GET /trees`: the trees of the latest snapshot (one entry for a tree
+/// alone: id 0, its tips and nodes).
+async fn trees(State(s): State<HttpState>) -> Response {
+    let Some(t) = latest(&s) else {
+        return no_tree();
+    };
+    let list = if t.trees.is_empty() {
+        serde_json::json!([{"id": 0, "name": crate::reconstruct::forest::settings::default_name(0),
+            "nodes": t.nodes.len(), "rebuilt": true}])
+    } else {
+        serde_json::Value::Array(
+            t.trees
+                .iter()
+                .map(|x| {
+                    serde_json::json!({"id": x.id, "name": x.name, "base": x.base,
+                        "tips": x.tips, "nodes": x.nodes.len(), "rebuilt": x.rebuilt})
+                })
+                .collect(),
+        )
+    };
+    let body = serde_json::to_string_pretty(&list).unwrap_or_default();
+    ([(header::CONTENT_TYPE, "application/json")], body).into_response()
+}
+
+/// `GET /trees/{id}.json`: one tree as a version-1 tree.json (the whole
+/// tree.json for a tree alone).
+async fn one_tree(
+    State(s): State<HttpState>,
+    axum::extract::Path(file): axum::extract::Path<String>,
+) -> Response {
+    let Some(t) = latest(&s) else {
+        return no_tree();
+    };
+    let id = file
+        .strip_suffix(".json")
+        .unwrap_or(&file)
+        .parse::<usize>()
+        .ok();
+    let body = match id {
+        Some(0) if t.trees.is_empty() => Some(t.tree_json.clone()),
+        Some(id) => t
+            .trees
+            .iter()
+            .find(|x| x.id == id)
+            .map(|x| x.tree_json.clone()),
+        None => None,
+    };
+    match body {
+        Some(b) => ([(header::CONTENT_TYPE, "application/json")], b).into_response(),
+        None => (
+            StatusCode::NOT_FOUND,
+            format!("no tree '{file}'; GET /trees lists them\n"),
+        )
+            .into_response(),
+    }
 }
 
 async fn status(State(s): State<HttpState>) -> Response {

@@ -255,13 +255,20 @@ pub struct HttpState {
 
 /// The `/live` message announcing a new tree.
 pub fn tree_notice(t: &TreeSnapshot) -> Arc<str> {
-    serde_json::json!({
+    let mut notice = serde_json::json!({
         "type": "tree",
         "version": t.version,
         "time_s": t.time_s,
         "reason": t.reason,
         "nodes": t.nodes.len(),
-    })
-    .to_string()
-    .into()
+    });
+    // With several trees the notice also lists them (docs/forest.md).
+    if !t.trees.is_empty() {
+        notice["trees"] = t
+            .trees
+            .iter()
+            .map(|x| serde_json::json!({"id": x.id, "name": x.name, "nodes": x.nodes.len(), "rebuilt": x.rebuilt}))
+            .collect();
+    }
+    notice.to_string().into()
 }

@@ -12,6 +12,10 @@
 //! | `/treemocap/tips` | `i` frame, `f` time (s), then per tip seen in the frame `i` marker, `f` x, `f` y, `f` z |
 //! | `/treemocap/wind` | `s` source, `f` azimuth (deg, downwind, 0 = +Z, 90 = +X), `f` x, `f` y, `f` z, `f` speed (m/s, −1 unknown) |
 //!
+//! With several trees (docs/forest.md) every tree rebuilt goes out as its
+//! own run, and its `begin`, `node` and `end` messages end with one more
+//! argument, `i` tree id; node ids count from 0 in every tree.
+//!
 //! A tree goes out as a run of bundles of at most `NODES_PER_BUNDLE` nodes
 //! each (about 3.5 kB, safe for any UDP path), `begin` in the first and `end`
 //! in the last, so a receiver knows when it has the whole tree; the node
@@ -23,7 +27,7 @@ use std::time::Duration;
 use glam::DVec3;
 use rosc::{encoder, OscBundle, OscMessage, OscPacket, OscTime, OscType};
 
-use super::snapshot::TreeSnapshot;
+use super::snapshot::{SnapshotNode, TreeSnapshot};
 use crate::error::{Error, Result};
 use crate::model::wind::WindEstimate;
 
@@ -55,17 +59,38 @@ fn encode(p: &OscPacket) -> Vec<u8> {
 
 /// The datagrams that carry one tree.
 pub fn tree_datagrams(tree: &TreeSnapshot) -> Vec<Vec<u8>> {
-    let count = tree.nodes.len() as i32;
-    let version = tree.version as i32;
+    if tree.trees.is_empty() {
+        return run(tree.version, &tree.nodes, None);
+    }
+    // Several trees: a run per tree rebuilt, each message ending with the
+    // tree's id; a receiver keeps the trees not sent.
+    tree.trees
+        .iter()
+        .filter(|t| t.rebuilt)
+        .flat_map(|t| run(tree.version, &t.nodes, Some(t.id)))
+        .collect()
+}
+
+/// The bundles of one skeleton: `begin` in the first, `end` in the last,
+/// every message with a trailing `i tree` when `tree` is given.
+fn run(version: u64, nodes: &[SnapshotNode], tree: Option<usize>) -> Vec<Vec<u8>> {
+    let count = nodes.len() as i32;
+    let version = version as i32;
+    let with_tree = |mut args: Vec<OscType>| {
+        if let Some(t) = tree {
+            args.push(OscType::Int(t as i32));
+        }
+        args
+    };
     let mut out = Vec::new();
-    let chunks: Vec<_> = tree.nodes.chunks(NODES_PER_BUNDLE).collect();
+    let chunks: Vec<_> = nodes.chunks(NODES_PER_BUNDLE).collect();
     let n_chunks = chunks.len().max(1);
     for k in 0..n_chunks {
         let mut content = Vec::new();
         if k == 0 {
             content.push(msg(
                 "/treemocap/tree/begin",
-                vec![OscType::Int(version), OscType::Int(count)],
+                with_tree(vec![OscType::Int(version), OscType::Int(count)]),
             ));
         }
         if let Some(chunk) = chunks.get(k) {
@@ -73,21 +98,21 @@ pub fn tree_datagrams(tree: &TreeSnapshot) -> Vec<Vec<u8>> {
             for (j, n) in chunk.iter().enumerate() {
                 content.push(msg(
                     "/treemocap/tree/node",
-                    vec![
+                    with_tree(vec![
                         OscType::Int(first + j as i32),
                         OscType::Int(n.parent.map_or(-1, |p| p as i32)),
                         OscType::Float(n.position.x as f32),
                         OscType::Float(n.position.y as f32),
                         OscType::Float(n.position.z as f32),
                         OscType::Float(n.radius as f32),
-                    ],
+                    ]),
                 ));
             }
         }
         if k == n_chunks - 1 {
             content.push(msg(
                 "/treemocap/tree/end",
-                vec![OscType::Int(version), OscType::Int(count)],
+                with_tree(vec![OscType::Int(version), OscType::Int(count)]),
             ));
         }
         out.push(encode(&bundle(content)));
@@ -177,7 +202,6 @@ impl OscSender {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::serve::snapshot::SnapshotNode;
 
     fn decode(d: &[u8]) -> OscPacket {
         rosc::decoder::decode_udp(d).unwrap().1

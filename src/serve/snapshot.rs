@@ -22,10 +22,35 @@ pub struct TreeSnapshot {
     pub tree_json: String,
     /// `tips.json`, exactly as written.
     pub tips_json: String,
-    /// The skeleton for OSC: node id is the index.
+    /// The skeleton for OSC: node id is the index (the first tree's, when
+    /// there are several).
     pub nodes: Vec<SnapshotNode>,
+    /// Every tree of a capture of several (docs/forest.md); empty for a
+    /// tree alone, whose outputs are as they have always been.
+    pub trees: Vec<SnapshotTree>,
     /// How the tree sways with the live tips (`None` when it cannot).
     pub rig: Option<std::sync::Arc<crate::animate::Rig>>,
+}
+
+/// One tree of several, as the outputs carry it.
+#[derive(Debug, Clone, Default, PartialEq, Serialize)]
+pub struct SnapshotTree {
+    /// The tree's id (tree.json `id`, the OSC `tree` argument).
+    pub id: usize,
+    /// Its name.
+    pub name: String,
+    /// Its trunk base (m).
+    pub base: [f64; 3],
+    /// Captured tips given to it.
+    pub tips: usize,
+    /// Built for this snapshot (false: the same as in the last one).
+    pub rebuilt: bool,
+    /// Its skeleton; node id is the index.
+    #[serde(skip)]
+    pub nodes: Vec<SnapshotNode>,
+    /// The tree alone as a version-1 tree.json (`GET /trees/{id}.json`).
+    #[serde(skip)]
+    pub tree_json: String,
 }
 
 /// One node of the skeleton.

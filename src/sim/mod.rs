@@ -14,6 +14,7 @@
 //! tree, the motion and the noise of the remaining samples as they were.
 
 pub mod capture;
+pub mod forest;
 pub mod motion;
 pub mod motive_writer;
 pub mod score;
@@ -34,6 +35,7 @@ use crate::error::{Error, Result};
 use crate::model::frame::MarkerFrame;
 use crate::rng::Rng;
 
+pub use forest::{ForestTruth, Layout, PlacedTree};
 pub use motive_writer::write_motive_csv;
 pub use tree::{CrownShape, TreeNode, TreeTruth};
 pub use truth::{ColumnTruth, GapTruth, GustTruth, Sinusoid, SpuriousTruth, TipTruth, Truth};
@@ -44,6 +46,8 @@ const MOTION: u64 = 2;
 const WIND: u64 = 3;
 const CAPTURE: u64 = 4;
 const GUSTS: u64 = 5;
+/// Where the trees of a forest stand.
+const FOREST: u64 = 6;
 
 /// Longest session `generate` makes (frames).
 pub const MAX_FRAMES: usize = 360_000;
@@ -116,6 +120,25 @@ pub struct SynthOptions {
     /// modes move them too, so the truth's actual spacing is what counts.
     #[serde(skip_serializing_if = "is_default_close")]
     pub close_mm: f64,
+    /// Trees in the session, 1–5 (docs/forest.md); `tips` markers each.
+    /// The forest fields are left out of the truth file when at their
+    /// defaults, so one-tree truth files read as before.
+    #[serde(skip_serializing_if = "is_one")]
+    pub trees: usize,
+    /// How far neighbouring crowns overlap, as a fraction of the narrower
+    /// crown's width (negative leaves a gap).
+    #[serde(skip_serializing_if = "is_zero")]
+    pub overlap: f64,
+    /// Row or cluster.
+    #[serde(skip_serializing_if = "Layout::is_row")]
+    pub layout: Layout,
+    /// The first crown leans towards its neighbour by this much per metre
+    /// above its base (m/m).
+    #[serde(skip_serializing_if = "is_zero")]
+    pub lean: f64,
+    /// Each tree's habit drawn at random (maple or pine) instead of `shape`.
+    #[serde(skip_serializing_if = "std::ops::Not::not")]
+    pub mixed: bool,
 }
 
 /// Default of `SynthOptions::close_mm`.
@@ -131,6 +154,9 @@ fn is_zero_usize(v: &usize) -> bool {
 }
 fn is_default_close(v: &f64) -> bool {
     *v == CLOSE_MM
+}
+fn is_one(v: &usize) -> bool {
+    *v == 1
 }
 
 impl Default for SynthOptions {
@@ -159,6 +185,11 @@ impl Default for SynthOptions {
             gusts_per_min: 0.0,
             close_pairs: 0,
             close_mm: CLOSE_MM,
+            trees: 1,
+            overlap: 0.0,
+            layout: Layout::Row,
+            lean: 0.0,
+            mixed: false,
         }
     }
 }
@@ -210,6 +241,15 @@ impl SynthOptions {
         check("gusts_per_min", self.gusts_per_min, 0.0, 60.0)?;
         check("close_pairs", self.close_pairs as f64, 0.0, 35.0)?;
         check("close_mm", self.close_mm, 1.0, 500.0)?;
+        check("trees", self.trees as f64, 1.0, 5.0)?;
+        if self.trees > 1 && self.close_pairs > 0 {
+            return Err(Error::config(
+                "close_pairs",
+                "pairs of close tips are made on one tree only (trees = 1)",
+            ));
+        }
+        check("overlap", self.overlap, -1.0, 0.5)?;
+        check("lean", self.lean, -1.0, 1.0)?;
         // The whole session is held in memory (about 1 kB per frame at 35
         // tips), so the length is capped at an hour at 100 Hz.
         let frames = ((self.still_s + self.wind_s) * self.frame_rate).round();
@@ -242,48 +282,34 @@ pub struct Synthetic {
 pub fn generate(opts: &SynthOptions) -> Result<Synthetic> {
     opts.validate()?;
     let root = Rng::new(opts.seed);
-    let tree = tree::grow(opts.shape, &mut motion::stream(&root, TREE));
-    let nodes = tree.choose_tips(opts.tips, opts.min_spacing_mm / 1000.0)?;
-
     let mut wind_rng = motion::stream(&root, WIND);
     let angle = wind_rng.range(0.0, TAU);
     let wind_direction = DVec3::new(tree::q9(angle.cos()), 0.0, tree::q9(angle.sin()));
-    let crown_centre = DVec3::new(0.0, 0.5 * (tree.crown_base + tree.height), 0.0);
+    let (tree, tips, forest, crown_centre) = if opts.trees > 1 {
+        forest_tips(opts, &root, wind_direction)?
+    } else {
+        let tree = tree::grow(opts.shape, &mut motion::stream(&root, TREE));
+        let nodes = tree.choose_tips(opts.tips, opts.min_spacing_mm / 1000.0)?;
+        let crown_centre = DVec3::new(0.0, 0.5 * (tree.crown_base + tree.height), 0.0);
+        let motion_rng = motion::stream(&root, MOTION);
+        let mut tips = sway(opts, &tree, &nodes, wind_direction, &motion_rng);
+        motion::close_pairs(
+            &mut tips,
+            opts.close_pairs,
+            opts.close_mm / 1000.0,
+            &tree,
+            &motion::stream(&motion_rng, 3),
+        );
+        (tree, tips, None, crown_centre)
+    };
     let fan = crown_centre - wind_direction * 2.0;
     let fan_position = DVec3::new(tree::q9(fan.x), tree::q9(fan.y), tree::q9(fan.z));
-
-    let motion_rng = motion::stream(&root, MOTION);
-    let mut tips = match opts.sway_hz[..] {
-        [lo, hi] => motion::tree_tips(
-            &tree,
-            &nodes,
-            wind_direction,
-            opts.still_motion_mm / 1000.0,
-            opts.sway_scale,
-            (lo, hi),
-            &motion_rng,
-        ),
-        _ => motion::tips(
-            &tree,
-            &nodes,
-            wind_direction,
-            opts.still_motion_mm / 1000.0,
-            opts.sway_scale,
-            &motion_rng,
-        ),
-    };
-    motion::close_pairs(
-        &mut tips,
-        opts.close_pairs,
-        opts.close_mm / 1000.0,
-        &tree,
-        &motion::stream(&motion_rng, 3),
-    );
     let gusts = motion::gusts(
         opts.gusts_per_min,
         (opts.still_s + opts.wind_ramp_s, opts.still_s + opts.wind_s),
         &motion::stream(&root, GUSTS),
     );
+
     let frames = ((opts.still_s + opts.wind_s) * opts.frame_rate).round() as usize;
     let capture_rng = motion::stream(&root, CAPTURE);
     let gaps = capture::gaps(opts, frames as i64, tips.len(), &capture_rng);
@@ -305,6 +331,7 @@ pub fn generate(opts: &SynthOptions) -> Result<Synthetic> {
         gaps,
         columns: Vec::new(),
         spurious,
+        forest,
     };
     capture::columns(&mut truth, FIRST_UNLABELED);
     let frames = capture::frames(&truth, opts.noise_mm / 1000.0, &capture_rng);
@@ -313,6 +340,76 @@ pub fn generate(opts: &SynthOptions) -> Result<Synthetic> {
         columns: truth.columns.clone(),
         truth,
     })
+}
+
+/// The motion of the marked `nodes` of `tree`: the tree-like sway model
+/// when `sway_hz` is set, else the original three-mode sway.
+fn sway(
+    opts: &SynthOptions,
+    tree: &TreeTruth,
+    nodes: &[usize],
+    wind: DVec3,
+    rng: &Rng,
+) -> Vec<TipTruth> {
+    match opts.sway_hz[..] {
+        [lo, hi] => motion::tree_tips(
+            tree,
+            nodes,
+            wind,
+            opts.still_motion_mm / 1000.0,
+            opts.sway_scale,
+            (lo, hi),
+            rng,
+        ),
+        _ => motion::tips(
+            tree,
+            nodes,
+            wind,
+            opts.still_motion_mm / 1000.0,
+            opts.sway_scale,
+            rng,
+        ),
+    }
+}
+
+/// The trees of a forest session, their tips' motion (each tree swaying on
+/// its own limbs in the common wind) and the centre of the whole canopy.
+fn forest_tips(
+    opts: &SynthOptions,
+    root: &Rng,
+    wind: DVec3,
+) -> Result<(TreeTruth, Vec<TipTruth>, Option<ForestTruth>, DVec3)> {
+    let (placed, chosen) = forest::place(opts, root, TREE, FOREST)?;
+    let motion_base = motion::stream(root, MOTION);
+    let mut tips = Vec::with_capacity(chosen.len());
+    for (k, p) in placed.iter().enumerate() {
+        let nodes: Vec<usize> = chosen.iter().filter(|c| c.0 == k).map(|c| c.1).collect();
+        tips.extend(sway(
+            opts,
+            &p.tree,
+            &nodes,
+            wind,
+            &motion::stream(&motion_base, k as u64 + 1),
+        ));
+    }
+    let n = placed.len() as f64;
+    let centre = placed.iter().map(|p| p.base).sum::<DVec3>() / n;
+    let mid_height = placed
+        .iter()
+        .map(|p| 0.5 * (p.tree.crown_base + p.tree.height))
+        .sum::<f64>()
+        / n;
+    let forest = ForestTruth {
+        tip_tree: chosen.iter().map(|c| c.0).collect(),
+        trees: placed,
+    };
+    let first = forest.trees[0].tree.clone();
+    Ok((
+        first,
+        tips,
+        Some(forest),
+        DVec3::new(centre.x, mid_height, centre.z),
+    ))
 }
 
 /// The truth file that belongs beside `csv`: `replays/x.csv` →

@@ -391,6 +391,12 @@ impl TreeTruth {
             .collect()
     }
 
+    /// Where `p` (in the tree's own coordinates) lies in the crown
+    /// envelope: below 1 inside, 1 on its surface, above 1 outside.
+    pub fn envelope_ratio(&self, p: DVec3) -> f64 {
+        self.envelope().ratio(p)
+    }
+
     fn envelope(&self) -> Envelope {
         match self.shape {
             CrownShape::Maple => {
@@ -484,7 +490,19 @@ impl TreeTruth {
     /// them as far apart as the tree allows. Fails when the chosen tips would
     /// be closer than `min_spacing` (m).
     pub fn choose_tips(&self, n: usize, min_spacing: f64) -> Result<Vec<usize>> {
-        let leaves = self.leaves();
+        self.choose_tips_among(n, min_spacing, |_| true)
+    }
+
+    /// [`TreeTruth::choose_tips`] among the branch tips `allowed` accepts
+    /// (in a forest: the tips the cameras can see, away from the markers
+    /// already on other trees).
+    pub fn choose_tips_among(
+        &self,
+        n: usize,
+        min_spacing: f64,
+        allowed: impl Fn(usize) -> bool,
+    ) -> Result<Vec<usize>> {
+        let leaves: Vec<usize> = self.leaves().into_iter().filter(|&i| allowed(i)).collect();
         if n == 0 || n > leaves.len() {
             return Err(Error::config(
                 "tips",

@@ -165,6 +165,10 @@ pub struct Truth {
     pub columns: Vec<ColumnTruth>,
     /// Every stray reflection, which tracking must drop as noise.
     pub spurious: Vec<SpuriousTruth>,
+    /// With several trees (docs/forest.md): every tree and the tree of every
+    /// tip. Absent for one tree, so such truth files read as before.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub forest: Option<super::forest::ForestTruth>,
 }
 
 impl Truth {

@@ -12,6 +12,7 @@ mod daemon;
 mod daemon_first_minutes;
 mod disk_full;
 mod export;
+mod forest;
 mod hostile_input;
 mod http_limits;
 mod live_view;

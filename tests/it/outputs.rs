@@ -32,6 +32,7 @@ fn snapshot(version: u64, nodes: usize) -> TreeSnapshot {
                 radius: 0.01,
             })
             .collect(),
+        trees: Vec::new(),
         rig: None,
     }
 }

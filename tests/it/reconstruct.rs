@@ -477,6 +477,7 @@ fn gltf_validator_reports_no_errors_or_warnings() {
                 let (_keep, dir) = out_dir("out");
                 let report = run_and_write(
                     &tips,
+                    &[],
                     DVec3::new(2.0, 0.0, 0.0),
                     &config,
                     Motion::Still,
@@ -529,7 +530,7 @@ fn tree_json_matches_the_tree() {
     let tips = crown_tips(Shape::Pine, 30, 31);
     let config = Config::load(None, &["reconstruct.seed=77".into()]).unwrap();
     let (_keep, dir) = out_dir("o");
-    run_and_write(&tips, DVec3::ZERO, &config, Motion::Still, &dir).unwrap();
+    run_and_write(&tips, &[], DVec3::ZERO, &config, Motion::Still, &dir).unwrap();
     let tree = reconstruct(&tips, DVec3::ZERO, &config.reconstruct, 77).unwrap();
     let v: serde_json::Value =
         serde_json::from_slice(&std::fs::read(dir.join("tree.json")).unwrap()).unwrap();
@@ -579,8 +580,8 @@ fn same_seed_gives_identical_files() {
         let config = Config::load(None, &sets).unwrap();
         let (_a, dir_a) = out_dir("a");
         let (_b, dir_b) = out_dir("b");
-        run_and_write(&tips, wind, &config, Motion::Still, &dir_a).unwrap();
-        run_and_write(&tips, wind, &config, Motion::Still, &dir_b).unwrap();
+        run_and_write(&tips, &[], wind, &config, Motion::Still, &dir_a).unwrap();
+        run_and_write(&tips, &[], wind, &config, Motion::Still, &dir_b).unwrap();
         for f in ["tree.glb", "tree.json", "tree.png"] {
             let a = std::fs::read(dir_a.join(f)).unwrap();
             let b = std::fs::read(dir_b.join(f)).unwrap();
@@ -593,7 +594,7 @@ fn same_seed_gives_identical_files() {
         let mut other = config.clone();
         other.reconstruct.seed += 1;
         let (_c, dir_c) = out_dir("c");
-        run_and_write(&tips, wind, &other, Motion::Still, &dir_c).unwrap();
+        run_and_write(&tips, &[], wind, &other, Motion::Still, &dir_c).unwrap();
         assert_ne!(
             std::fs::read(dir_a.join("tree.glb")).unwrap(),
             std::fs::read(dir_c.join("tree.glb")).unwrap()

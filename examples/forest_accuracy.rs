@@ -1,0 +1,184 @@
+//! Tip-to-tree accuracy and the tree count found, on simulated sessions of
+//! 2–5 trees from crowns apart to crowns overlapping by a third of their
+//! width (docs/forest.md): the sweep behind the README's figures.
+//!
+//! `cargo run --release --example forest_accuracy [SESSIONS_PER_OVERLAP]`
+//!
+//! Tips are the simulator's rest positions and their sway sampled from the
+//! truth's motion (the marker stage is measured elsewhere); the trunk bases
+//! are the true ones for the accuracy, and found for the count.
+
+use glam::DVec3;
+use treemocap::model::tips::CapturedTip;
+use treemocap::reconstruct::forest::{self, sway, AssignRule, ConfiguredTree, ForestSettings};
+use treemocap::reconstruct::ReconstructSettings;
+use treemocap::sim::{generate, Layout, SynthOptions, Truth};
+
+fn session(seed: u64, trees: usize, overlap: f64) -> Truth {
+    let opts = SynthOptions {
+        seed,
+        trees,
+        overlap,
+        tips: 14 + (seed as usize * 7) % 17,
+        mixed: true,
+        layout: if seed.is_multiple_of(2) {
+            Layout::Row
+        } else {
+            Layout::Cluster
+        },
+        still_s: 5.0,
+        wind_s: 15.0,
+        gap_fraction: 0.0,
+        spurious_per_s: 0.0,
+        ..SynthOptions::default()
+    };
+    generate(&opts).expect("session").truth
+}
+
+/// Sway links from the truth's motion over the wind phase at 50 Hz.
+fn links(t: &Truth, threshold: f64) -> Vec<sway::SwayLink> {
+    let frames = ((t.wind.1 - t.wind.0) * 50.0) as usize;
+    let series: Vec<Vec<Option<DVec3>>> = (0..t.tips.len())
+        .map(|i| {
+            (0..frames)
+                .map(|f| Some(t.position(i, t.wind.0 + f as f64 / 50.0) - t.tips[i].rest))
+                .collect()
+        })
+        .collect();
+    let rests: Vec<DVec3> = t.tips.iter().map(|x| x.rest).collect();
+    let markers: Vec<usize> = (0..t.tips.len()).collect();
+    sway::links_of_series(&series, &rests, &markers, 100, threshold)
+}
+
+fn main() {
+    let n: u64 = std::env::args()
+        .nth(1)
+        .and_then(|a| a.parse().ok())
+        .unwrap_or(40);
+    let recon = ReconstructSettings::default();
+    // Settings to try, from the environment: SWAY_WEIGHT, SWAY_CORRELATION,
+    // FIT_TOLERANCE; OVERLAPS (comma separated) limits the sweep.
+    let env = |k: &str| std::env::var(k).ok().and_then(|v| v.parse::<f64>().ok());
+    let d = ForestSettings::default();
+    let crown = ForestSettings {
+        sway_weight_m: env("SWAY_WEIGHT").unwrap_or(d.sway_weight_m),
+        sway_correlation: env("SWAY_CORRELATION").unwrap_or(d.sway_correlation),
+        fit_tolerance_m: env("FIT_TOLERANCE").unwrap_or(d.fit_tolerance_m),
+        min_spacing_m: env("MIN_SPACING").unwrap_or(d.min_spacing_m),
+        ..d
+    };
+    let overlaps: Vec<f64> = std::env::var("OVERLAPS")
+        .ok()
+        .map(|v| v.split(',').filter_map(|x| x.parse().ok()).collect())
+        .unwrap_or_else(|| vec![-0.1, 0.0, 1.0 / 6.0, 0.25, 1.0 / 3.0]);
+    let livny = ForestSettings {
+        rule: AssignRule::Livny,
+        ..ForestSettings::default()
+    };
+    let shape_only = ForestSettings {
+        sway_weight_m: 0.0,
+        ..crown.clone()
+    };
+    println!("overlap  sessions  tips   livny            crown, no sway   crown + sway     count right (trunks >= 1 m)");
+    for overlap in overlaps {
+        let mut acc = [(0usize, 0usize, 1.0f64); 3];
+        let (mut counted, mut right) = (0, 0);
+        let mut tips_total = 0;
+        for seed in 0..n {
+            let trees = 2 + (seed % 4) as usize;
+            let t = session(1000 + seed, trees, overlap);
+            let f = t.forest.as_ref().expect("forest");
+            let tips: Vec<CapturedTip> = t
+                .tips
+                .iter()
+                .enumerate()
+                .map(|(i, x)| CapturedTip {
+                    marker: i,
+                    position: x.rest,
+                })
+                .collect();
+            tips_total += tips.len();
+            let bases: Vec<ConfiguredTree> = f
+                .trees
+                .iter()
+                .map(|p| ConfiguredTree {
+                    name: String::new(),
+                    base: p.base.to_array(),
+                })
+                .collect();
+            let l = links(&t, crown.sway_correlation);
+            for (k, (s, links)) in [(&livny, &[][..]), (&shape_only, &[][..]), (&crown, &l[..])]
+                .into_iter()
+                .enumerate()
+            {
+                let plan = forest::plan(&tips, links, &bases, s, &recon).expect("plan");
+                let mut good = 0;
+                for tree in &plan.trees {
+                    good += tree
+                        .tips
+                        .iter()
+                        .filter(|c| f.tip_tree[c.marker] == tree.id)
+                        .count();
+                }
+                if k == 2 && std::env::var("DEBUG").is_ok() {
+                    for tree in &plan.trees {
+                        for c in &tree.tips {
+                            let truth_tree = f.tip_tree[c.marker];
+                            if truth_tree != tree.id {
+                                let nl = links
+                                    .iter()
+                                    .filter(|l| l.a == c.marker || l.b == c.marker)
+                                    .count();
+                                let amb = plan
+                                    .ambiguous
+                                    .iter()
+                                    .find(|a| a.marker == c.marker)
+                                    .map(|a| a.costs);
+                                eprintln!(
+                                    "seed {} tip {} ({:?} tree {truth_tree}) -> tree {} ({:?}); links {nl}; ambiguous {amb:?}; h from true base {:.2}, from given {:.2}",
+                                    1000 + seed, c.marker, f.trees[truth_tree].tree.shape, tree.id, f.trees[tree.id].tree.shape,
+                                    ((c.position - f.trees[truth_tree].base) * glam::DVec3::new(1.0, 0.0, 1.0)).length(),
+                                    ((c.position - f.trees[tree.id].base) * glam::DVec3::new(1.0, 0.0, 1.0)).length(),
+                                );
+                            }
+                        }
+                    }
+                }
+                acc[k].0 += good;
+                acc[k].1 += tips.len();
+                acc[k].2 = acc[k].2.min(good as f64 / tips.len() as f64);
+            }
+            let min_spacing = (0..trees)
+                .flat_map(|i| (0..i).map(move |j| (i, j)))
+                .map(|(i, j)| (f.trees[i].base - f.trees[j].base).length())
+                .fold(f64::INFINITY, f64::min);
+            if min_spacing >= 1.0 {
+                counted += 1;
+                let plan = forest::plan(&tips, &l, &[], &crown, &recon).expect("plan");
+                if plan.trees.len() == trees {
+                    right += 1;
+                } else {
+                    eprintln!(
+                        "seed {}: {} trees found of {trees} (fits {:?})",
+                        1000 + seed,
+                        plan.trees.len(),
+                        plan.fits
+                    );
+                }
+            }
+        }
+        let pct = |a: (usize, usize, f64)| {
+            format!(
+                "{:5.1} % (min {:5.1})",
+                100.0 * a.0 as f64 / a.1 as f64,
+                100.0 * a.2
+            )
+        };
+        println!(
+            "{overlap:+.3}  {n:8}  {tips_total:5}  {}  {}  {}  {right}/{counted}",
+            pct(acc[0]),
+            pct(acc[1]),
+            pct(acc[2])
+        );
+    }
+}

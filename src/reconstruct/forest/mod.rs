@@ -1,0 +1,239 @@
+//! Several trees in one capture volume (docs/forest.md): where the trees
+//! stand ([`detect`] or the configured `[[trees]]`), which captured tip
+//! belongs to which tree ([`assign`], with [`graph`] — Livny et al. 2010's
+//! shortest paths — and [`crown`] surfaces and [`sway`]), and the planes
+//! that keep every tree to its own side ([`cell`]). [`grow`] then
+//! reconstructs each tree as a tree alone is reconstructed; with one tree
+//! the result is exactly what [`super::reconstruct`] gives.
+//!
+//! Pure: tips and settings in, a plan and trees out.
+
+pub mod assign;
+pub mod cell;
+pub mod crown;
+pub mod detect;
+pub mod graph;
+pub mod grow;
+pub mod settings;
+pub mod sway;
+
+use glam::DVec3;
+use serde::Serialize;
+
+use crate::error::Result;
+use crate::model::tips::CapturedTip;
+use crate::reconstruct::trunk::Bounds;
+use crate::reconstruct::{ReconstructError, ReconstructSettings};
+use crate::rng::Rng;
+
+pub use grow::{grow, ForestCache, GrownTree};
+pub use settings::{AssignRule, ConfiguredTree, ForestSettings};
+pub use sway::SwayLink;
+
+/// Where a tree's base came from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum BaseSource {
+    /// A `[[trees]]` entry of the config.
+    Configured,
+    /// Found from the tips' rest positions.
+    Detected,
+}
+
+/// One tree of the plan: everything its reconstruction depends on.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TreePlan {
+    /// The tree's id: its place among the configured trees, or among the
+    /// found ones ordered by x then z.
+    pub id: usize,
+    /// What the outputs call it.
+    pub name: String,
+    /// Where the trunk stands (m).
+    pub base: DVec3,
+    /// Where `base` came from.
+    pub source: BaseSource,
+    /// Its captured tips.
+    pub tips: Vec<CapturedTip>,
+    /// Its side of the planes towards its neighbours.
+    pub cell: cell::Cell,
+    /// The seed of its random draws: `reconstruct.seed` for a tree alone,
+    /// else derived from it and the id, so a tree does not change when
+    /// another one does.
+    pub seed: u64,
+}
+
+/// A tip that could nearly as well belong to another tree.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct AmbiguousTip {
+    /// Its marker.
+    pub marker: usize,
+    /// The tree it was given to.
+    pub tree: usize,
+    /// The runner-up.
+    pub other: usize,
+    /// Its cost for `tree` and for `other` (m for the crown rule, m² for
+    /// Livny's).
+    pub costs: [f64; 2],
+}
+
+/// The trees, their tips and how sure the split is.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ForestPlan {
+    /// The trees that got tips, by id.
+    pub trees: Vec<TreePlan>,
+    /// Configured trees that got no tip (named in the report, not grown).
+    pub empty: Vec<String>,
+    /// Tips that were close calls.
+    pub ambiguous: Vec<AmbiguousTip>,
+    /// The rule that gave tips to trees.
+    pub rule: AssignRule,
+    /// The automatic search's RMS fit for each number of trees tried
+    /// (empty when the trees are configured).
+    pub fits: Vec<(usize, f64)>,
+    /// False when the search found no number of trees that fits the tips
+    /// within `forest.fit_tolerance_m`, and took the number with the least
+    /// penalised RMS (`forest.count_penalty_m`).
+    pub fits_well: bool,
+    /// Captured tips lying beyond one of their tree's planes (measured data
+    /// is never moved; their first branch segment crosses the plane).
+    pub beyond_planes: usize,
+}
+
+impl ForestPlan {
+    /// True for a single tree placed as a tree alone has always been (no
+    /// configured base): its reconstruction is exactly the one-tree one.
+    pub fn is_single(&self) -> bool {
+        self.trees.len() == 1 && self.trees[0].source == BaseSource::Detected
+    }
+}
+
+/// Splits `tips` into trees: the configured ones, or those found. `links`
+/// are pairs of tips (by marker) that sway together; empty when the
+/// session had no wind phase.
+pub fn plan(
+    tips: &[CapturedTip],
+    links: &[SwayLink],
+    configured: &[ConfiguredTree],
+    s: &ForestSettings,
+    recon: &ReconstructSettings,
+) -> Result<ForestPlan> {
+    if tips.is_empty() {
+        return Err(ReconstructError::NoTips.into());
+    }
+    if let Some(t) = tips.iter().find(|t| !t.position.is_finite()) {
+        return Err(ReconstructError::TipOutOfRange {
+            marker: t.marker,
+            position: t.position,
+            limit_m: 1e4,
+        }
+        .into());
+    }
+    let positions: Vec<DVec3> = tips.iter().map(|t| t.position).collect();
+    let (bases, names, source, fits, fits_well) = if configured.is_empty() {
+        let found = detect::find(&positions, s);
+        let names: Vec<String> = (0..found.centres.len())
+            .map(settings::default_name)
+            .collect();
+        (
+            found.centres,
+            names,
+            BaseSource::Detected,
+            found.rms,
+            found.fits,
+        )
+    } else {
+        let bases = configured.iter().map(ConfiguredTree::base).collect();
+        let names = (0..configured.len())
+            .map(|i| settings::tree_name(configured, i))
+            .collect();
+        (bases, names, BaseSource::Configured, Vec::new(), true)
+    };
+    let index_of = |marker: usize| tips.iter().position(|t| t.marker == marker);
+    let links: Vec<assign::Link> = links
+        .iter()
+        .filter_map(|l| Some((index_of(l.a)?, index_of(l.b)?, l.correlation)))
+        .collect();
+    let split = assign::assign(&positions, &bases, &links, s);
+    let mut trees = Vec::new();
+    let mut empty = Vec::new();
+    for (id, name) in names.into_iter().enumerate() {
+        let own: Vec<CapturedTip> = (0..tips.len())
+            .filter(|&i| split.tree[i] == id)
+            .map(|i| tips[i])
+            .collect();
+        if own.is_empty() {
+            empty.push(name);
+            continue;
+        }
+        let base = match source {
+            BaseSource::Configured => bases[id],
+            // The ground under the centre of the tree's tips: where a tree
+            // alone has always stood.
+            BaseSource::Detected => {
+                let b = Bounds::of(own.iter().map(|t| t.position)).unwrap_or(Bounds {
+                    min: bases[id],
+                    max: bases[id],
+                });
+                let c = 0.5 * (b.min + b.max);
+                DVec3::new(c.x, recon.ground_height, c.z)
+            }
+        };
+        trees.push(TreePlan {
+            id,
+            name,
+            base,
+            source,
+            tips: own,
+            cell: cell::Cell::default(),
+            seed: recon.seed,
+        });
+    }
+    let single = trees.len() == 1;
+    let own_tips: Vec<Vec<DVec3>> = trees
+        .iter()
+        .map(|t| t.tips.iter().map(|c| c.position).collect())
+        .collect();
+    let cells = if single {
+        vec![cell::Cell::default()]
+    } else {
+        cell::cells(&own_tips, recon.merge_distance)
+    };
+    let mut beyond_planes = 0;
+    for ((t, c), own) in trees.iter_mut().zip(cells).zip(&own_tips) {
+        beyond_planes += own.iter().filter(|p| !c.contains(**p)).count();
+        t.cell = c;
+        if !single {
+            t.seed = tree_seed(recon.seed, t.id);
+        }
+    }
+    let ambiguous = split
+        .ambiguous(s.ambiguous_ratio)
+        .into_iter()
+        .map(|(i, tree, other, a, b)| AmbiguousTip {
+            marker: tips[i].marker,
+            tree,
+            other,
+            costs: [a, b],
+        })
+        .collect();
+    Ok(ForestPlan {
+        trees,
+        empty,
+        ambiguous,
+        rule: split.rule,
+        fits,
+        fits_well,
+        beyond_planes,
+    })
+}
+
+/// Label of the stream the per-tree seeds are drawn from.
+const TREE_SEED_STREAM: u64 = 0x7EE5;
+
+/// The seed of tree `id` among several: a fixed function of the configured
+/// seed and the id alone.
+pub fn tree_seed(seed: u64, id: usize) -> u64 {
+    Rng::new(seed)
+        .fork(TREE_SEED_STREAM.wrapping_add(id as u64))
+        .next_u64()
+}

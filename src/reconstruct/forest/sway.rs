@@ -1,0 +1,209 @@
+//! Tips that sway together: in wind, the tips of one limb move as one
+//! (Long & Jones §8 warn that tips sharing a parent must not move
+//! independently). Where two crowns meet, a tip that shape alone cannot
+//! place is pulled towards the tree of the tips it sways with.
+//!
+//! A tip's sway is its displacement from rest with a 2 s moving average
+//! taken off: that removes the steady bend of a wind phase (which every
+//! tip of every tree shares, and would correlate them all) and keeps the
+//! limb and twig modes (0.5–3 Hz). Two tips are linked by the correlation
+//! of their sway over the frames both were measured in.
+
+use glam::DVec3;
+
+use crate::model::tips::Tips;
+
+/// Two tips that sway together.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SwayLink {
+    /// Marker of one tip.
+    pub a: usize,
+    /// Marker of the other.
+    pub b: usize,
+    /// Correlation of their sway, 0–1.
+    pub correlation: f64,
+}
+
+/// Tips farther apart than this are never linked (m): one limb is not
+/// wider, and it keeps chance likenesses between trees out.
+pub const MAX_LINK_M: f64 = 1.0;
+/// A tip swaying less than this (RMS, m) is still: its correlations are
+/// noise.
+const MIN_SWAY_M: f64 = 0.002;
+/// Length of the moving average taken off (s).
+const HIGH_PASS_S: f64 = 2.0;
+/// Frames used at most per tip (longer sessions are strided).
+const MAX_FRAMES: usize = 4000;
+/// Fewest common frames for a correlation.
+const MIN_COMMON: usize = 100;
+
+/// Links between the tips of `tips` whose sway correlates at least
+/// `threshold` (from the measured samples of their traces).
+pub fn links(tips: &Tips, threshold: f64) -> Vec<SwayLink> {
+    let frames = tips.timeline.len();
+    let Some(dt) = tips.timeline.frame_interval() else {
+        return Vec::new();
+    };
+    let stride = frames.div_ceil(MAX_FRAMES).max(1);
+    let window = ((HIGH_PASS_S / (dt * stride as f64)).round() as usize).max(3);
+    let series: Vec<Vec<Option<DVec3>>> = tips
+        .tips
+        .iter()
+        .map(|t| {
+            let mut s = vec![None; frames.div_ceil(stride)];
+            for (f, p) in t.trace.measurements() {
+                let f = f.max(0) as usize;
+                if f.is_multiple_of(stride) {
+                    if let Some(slot) = s.get_mut(f / stride) {
+                        *slot = Some(p - t.rest);
+                    }
+                }
+            }
+            s
+        })
+        .collect();
+    let rests: Vec<DVec3> = tips.tips.iter().map(|t| t.rest).collect();
+    let markers: Vec<usize> = tips.tips.iter().map(|t| t.marker).collect();
+    links_of_series(&series, &rests, &markers, window, threshold)
+}
+
+/// The core of [`links`] on plain series (one displacement per frame, `None`
+/// where unmeasured), so it can be tested without a recording.
+pub fn links_of_series(
+    series: &[Vec<Option<DVec3>>],
+    rests: &[DVec3],
+    markers: &[usize],
+    window: usize,
+    threshold: f64,
+) -> Vec<SwayLink> {
+    let sway: Vec<Vec<Option<DVec3>>> = series.iter().map(|s| high_pass(s, window)).collect();
+    let swaying: Vec<bool> = sway.iter().map(|s| rms(s) >= MIN_SWAY_M).collect();
+    let mut out = Vec::new();
+    for i in 0..sway.len() {
+        for j in i + 1..sway.len() {
+            if !(swaying[i] && swaying[j]) || rests[i].distance(rests[j]) > MAX_LINK_M {
+                continue;
+            }
+            if let Some(c) = correlation(&sway[i], &sway[j]) {
+                if c >= threshold {
+                    out.push(SwayLink {
+                        a: markers[i],
+                        b: markers[j],
+                        correlation: c,
+                    });
+                }
+            }
+        }
+    }
+    out
+}
+
+/// The series minus its centred moving average over `window` samples (the
+/// average of the measured samples in the window).
+fn high_pass(s: &[Option<DVec3>], window: usize) -> Vec<Option<DVec3>> {
+    let mut sum = vec![DVec3::ZERO; s.len() + 1];
+    let mut count = vec![0usize; s.len() + 1];
+    for (i, v) in s.iter().enumerate() {
+        sum[i + 1] = sum[i] + v.unwrap_or(DVec3::ZERO);
+        count[i + 1] = count[i] + usize::from(v.is_some());
+    }
+    let half = window / 2;
+    s.iter()
+        .enumerate()
+        .map(|(i, v)| {
+            let v = (*v)?;
+            let (lo, hi) = (i.saturating_sub(half), (i + half + 1).min(s.len()));
+            let n = count[hi] - count[lo];
+            Some(v - (sum[hi] - sum[lo]) / n as f64)
+        })
+        .collect()
+}
+
+/// Root mean square length of the measured samples (0 with none).
+fn rms(s: &[Option<DVec3>]) -> f64 {
+    let (sum, n) = s
+        .iter()
+        .flatten()
+        .fold((0.0, 0usize), |(a, n), v| (a + v.length_squared(), n + 1));
+    if n == 0 {
+        0.0
+    } else {
+        (sum / n as f64).sqrt()
+    }
+}
+
+/// Correlation of two 3D series over their common samples: the mean-free
+/// inner product over the product of the norms. `None` with too few.
+fn correlation(a: &[Option<DVec3>], b: &[Option<DVec3>]) -> Option<f64> {
+    let pairs: Vec<(DVec3, DVec3)> = a
+        .iter()
+        .zip(b)
+        .filter_map(|(x, y)| Some(((*x)?, (*y)?)))
+        .collect();
+    if pairs.len() < MIN_COMMON {
+        return None;
+    }
+    let n = pairs.len() as f64;
+    let ma = pairs.iter().map(|p| p.0).sum::<DVec3>() / n;
+    let mb = pairs.iter().map(|p| p.1).sum::<DVec3>() / n;
+    let (mut ab, mut aa, mut bb) = (0.0, 0.0, 0.0);
+    for (x, y) in &pairs {
+        let (x, y) = (*x - ma, *y - mb);
+        ab += x.dot(y);
+        aa += x.length_squared();
+        bb += y.length_squared();
+    }
+    let d = (aa * bb).sqrt();
+    (d > 0.0).then(|| ab / d)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::f64::consts::TAU;
+
+    /// 20 s at 100 Hz: a still half, then a sway `amp·sin(2π f t + φ)`
+    /// along x on top of a steady bend of 2 cm.
+    fn tip(f: f64, phase: f64, amp: f64, twig: f64) -> Vec<Option<DVec3>> {
+        (0..2000)
+            .map(|i| {
+                let t = i as f64 / 100.0;
+                if i < 1000 {
+                    return Some(DVec3::ZERO);
+                }
+                let s = amp * (TAU * f * t + phase).sin() + twig * (TAU * 2.3 * t).cos();
+                Some(DVec3::new(0.02 + s, 0.0, 0.0))
+            })
+            .collect()
+    }
+
+    #[test]
+    fn one_limb_links_and_the_shared_bend_does_not() {
+        let series = vec![
+            tip(0.8, 0.0, 0.015, 0.003),  // limb A
+            tip(0.8, 0.0, 0.010, -0.004), // limb A, another twig
+            tip(0.61, 1.0, 0.015, 0.003), // limb B: same bend, other sway
+            tip(0.8, 0.0, 0.0005, 0.0),   // still tip: never linked
+        ];
+        let rests = vec![DVec3::ZERO, DVec3::X * 0.3, DVec3::X * 0.5, DVec3::X * 0.2];
+        let links = links_of_series(&series, &rests, &[0, 1, 2, 3], 200, 0.7);
+        assert_eq!(links.len(), 1, "{links:?}");
+        assert_eq!((links[0].a, links[0].b), (0, 1));
+        assert!(links[0].correlation > 0.85, "{links:?}");
+        // Too far apart: not linked.
+        let far = vec![DVec3::ZERO, DVec3::X * 1.5, DVec3::X * 0.5, DVec3::X * 0.2];
+        assert!(links_of_series(&series, &far, &[0, 1, 2, 3], 200, 0.7).is_empty());
+    }
+
+    #[test]
+    fn gaps_are_skipped() {
+        let mut a = tip(0.8, 0.0, 0.015, 0.0);
+        for s in a.iter_mut().skip(1200).take(300) {
+            *s = None;
+        }
+        let b = tip(0.8, 0.0, 0.012, 0.0);
+        let links = links_of_series(&[a, b], &[DVec3::ZERO, DVec3::Y * 0.2], &[5, 9], 200, 0.7);
+        assert_eq!(links.len(), 1);
+        assert_eq!((links[0].a, links[0].b), (5, 9));
+    }
+}

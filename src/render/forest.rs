@@ -1,0 +1,354 @@
+//! Several trees' outputs (docs/forest.md): every tree grown (or taken from
+//! the last forest), then one tree.glb with a node per tree, tree.json
+//! version 2 with a list of trees, and one tree.png with all of them. A
+//! single tree standing where a tree alone stands gives exactly the
+//! one-tree outputs.
+
+use std::fmt;
+use std::sync::Arc;
+
+use glam::DVec3;
+use serde::Serialize;
+use serde_json::json;
+
+use crate::error::Result;
+use crate::model::motion::TreeMotion;
+use crate::model::tree::{Kind, Tree};
+use crate::reconstruct::forest::{self, AssignRule, BaseSource, ForestCache, ForestPlan};
+use crate::reconstruct::{leaves, mesh, ReconstructSettings};
+use crate::render::outputs::{build_model, Motion, Outputs, Report};
+
+/// One tree of the outputs.
+#[derive(Debug, Clone)]
+pub struct Member {
+    /// Its id (tree.json `id`, the OSC `tree` argument, `/trees/{id}.json`).
+    pub id: usize,
+    /// Its name.
+    pub name: String,
+    /// Its trunk base (m).
+    pub base: DVec3,
+    /// Where the base came from.
+    pub source: BaseSource,
+    /// The seed it was grown from.
+    pub seed: u64,
+    /// The tree.
+    pub tree: Arc<Tree>,
+    /// Grown for these outputs (false: taken unchanged from the last ones).
+    pub rebuilt: bool,
+}
+
+/// The forest's part of the report: the trees, how they were found, and
+/// the tips that were close calls.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ForestReport {
+    /// Per tree: id, name, base, where it came from, tips, nodes, forced
+    /// joins, rebuilt.
+    pub trees: Vec<TreeLine>,
+    /// Configured trees that got no tip.
+    pub empty: Vec<String>,
+    /// The rule that gave tips to trees.
+    pub rule: AssignRule,
+    /// The automatic search's RMS crown fit per number of trees (empty for
+    /// configured trees).
+    pub fits: Vec<(usize, f64)>,
+    /// False when no number of trees fitted within the tolerance.
+    pub fits_well: bool,
+    /// Tips that were close calls: marker, its tree, the runner-up, costs.
+    pub ambiguous: Vec<AmbiguousLine>,
+    /// Captured tips beyond one of their tree's planes.
+    pub beyond_planes: usize,
+}
+
+/// One tree in the report.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct TreeLine {
+    /// Tree id.
+    pub id: usize,
+    /// Tree name.
+    pub name: String,
+    /// Trunk base (m).
+    pub base: [f64; 3],
+    /// `configured` or `detected`.
+    pub source: BaseSource,
+    /// Captured tips given to it.
+    pub tips: usize,
+    /// Nodes of its skeleton.
+    pub nodes: usize,
+    /// Its particles joined to the trunk after `max_steps`.
+    pub forced_joins: usize,
+    /// Grown for these outputs.
+    pub rebuilt: bool,
+}
+
+/// An ambiguous tip in the report, trees by name.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct AmbiguousLine {
+    /// The marker.
+    pub marker: usize,
+    /// The tree it went to.
+    pub tree: String,
+    /// The runner-up.
+    pub other: String,
+    /// Its costs for both.
+    pub costs: [f64; 2],
+}
+
+/// Grows the trees of `plan` (through `cache` when given: only trees whose
+/// inputs changed are grown) and encodes the outputs, the picture left
+/// empty (see [`forest_picture`]).
+pub fn forest_model(
+    plan: &ForestPlan,
+    wind: DVec3,
+    cfg: &ReconstructSettings,
+    motion: Motion<'_>,
+    cache: Option<&mut ForestCache>,
+) -> Result<Outputs> {
+    if plan.is_single() {
+        let mut out = build_model(&plan.trees[0].tips, wind, cfg, motion)?;
+        out.trees = vec![member(plan, 0, Arc::new(out.tree.clone()), true)];
+        return Ok(out);
+    }
+    let grown: Vec<(Arc<Tree>, bool)> = match cache {
+        Some(c) => c
+            .grow(plan, wind, cfg)?
+            .into_iter()
+            .map(|g| (g.tree, g.rebuilt))
+            .collect(),
+        None => forest::grow(plan, wind, cfg)?
+            .into_iter()
+            .map(|t| (Arc::new(t), true))
+            .collect(),
+    };
+    let members: Vec<Member> = grown
+        .into_iter()
+        .enumerate()
+        .map(|(k, (tree, rebuilt))| member(plan, k, tree, rebuilt))
+        .collect();
+    let mut meshes = Vec::with_capacity(members.len());
+    for m in &members {
+        let branches = mesh::branches(&m.tree, cfg.sides)?;
+        let leaf = if cfg.leaves {
+            Some(leaves::leaves(&m.tree, cfg, m.seed)?)
+        } else {
+            None
+        };
+        meshes.push((branches, leaf));
+    }
+    let glb = super::gltf::forest_glb(
+        &members
+            .iter()
+            .zip(&meshes)
+            .map(|(m, (b, l))| super::gltf::ForestTree {
+                name: &m.name,
+                tree: &m.tree,
+                branches: b,
+                leaves: l.as_ref(),
+            })
+            .collect::<Vec<_>>(),
+    )?;
+    let report = forest_report(plan, &members, &meshes);
+    let tree_json = super::json::forest_json(
+        &members
+            .iter()
+            .map(|m| super::json::ForestEntry {
+                id: m.id,
+                name: &m.name,
+                base: m.base.to_array(),
+                base_source: source_name(m.source),
+                seed: m.seed,
+                tree: &m.tree,
+            })
+            .collect::<Vec<_>>(),
+        serde_json::to_value(report.forest.as_ref().map(|f| &f.ambiguous)).unwrap_or(json!([])),
+        wind.to_array(),
+        cfg,
+    )?;
+    Ok(Outputs {
+        tree: (*members[0].tree).clone(),
+        trees: members,
+        glb,
+        tree_json,
+        png: Vec::new(),
+        // Several trees are written still (docs/forest.md).
+        motion: None,
+        report,
+    })
+}
+
+/// [`forest_model`] and its picture.
+pub fn forest_outputs(
+    plan: &ForestPlan,
+    wind: DVec3,
+    cfg: &ReconstructSettings,
+    motion: Motion<'_>,
+) -> Result<Outputs> {
+    let mut out = forest_model(plan, wind, cfg, motion, None)?;
+    out.png = forest_picture(
+        &out.tree,
+        &out.trees,
+        out.report.forest.is_some(),
+        out.motion.as_ref(),
+    )?;
+    Ok(out)
+}
+
+/// tree.png of outputs (their `tree`, `trees`, whether they are a forest,
+/// and the tree's motion): the one-tree picture for a tree alone, every
+/// tree named (and still) otherwise.
+pub fn forest_picture(
+    tree: &Tree,
+    trees: &[Member],
+    forest: bool,
+    motion: Option<&TreeMotion>,
+) -> Result<Vec<u8>> {
+    if !forest {
+        return super::picture::tree_png(tree, motion);
+    }
+    let named: Vec<(&str, &Tree)> = trees.iter().map(|m| (m.name.as_str(), &*m.tree)).collect();
+    super::picture::forest_png(&named)
+}
+
+fn member(plan: &ForestPlan, k: usize, tree: Arc<Tree>, rebuilt: bool) -> Member {
+    let t = &plan.trees[k];
+    Member {
+        id: t.id,
+        name: t.name.clone(),
+        base: t.base,
+        source: t.source,
+        seed: t.seed,
+        tree,
+        rebuilt,
+    }
+}
+
+fn source_name(s: BaseSource) -> &'static str {
+    match s {
+        BaseSource::Configured => "configured",
+        BaseSource::Detected => "detected",
+    }
+}
+
+/// The summed counts and the forest's lines.
+fn forest_report(
+    plan: &ForestPlan,
+    members: &[Member],
+    meshes: &[(mesh::Mesh, Option<mesh::Mesh>)],
+) -> Report {
+    let name_of = |id: usize| {
+        plan.trees
+            .iter()
+            .find(|t| t.id == id)
+            .map_or_else(|| forest::settings::default_name(id), |t| t.name.clone())
+    };
+    let count = |f: &dyn Fn(&Tree) -> usize| members.iter().map(|m| f(&m.tree)).sum::<usize>();
+    Report {
+        captured_tips: plan.trees.iter().map(|t| t.tips.len()).sum(),
+        random_tips: count(&|t| t.nodes.iter().filter(|n| n.kind == Kind::Tip).count()),
+        nodes: count(&|t| t.nodes.len()),
+        steps: members.iter().map(|m| m.tree.steps).max().unwrap_or(0),
+        forced_joins: count(&|t| t.forced_joins),
+        branch_triangles: meshes.iter().map(|(b, _)| b.triangles()).sum(),
+        leaves: meshes
+            .iter()
+            .map(|(_, l)| l.as_ref().map_or(0, |m| m.triangles() / 2))
+            .sum(),
+        animation: None,
+        files: Vec::new(),
+        forest: Some(ForestReport {
+            trees: members
+                .iter()
+                .zip(&plan.trees)
+                .map(|(m, t)| TreeLine {
+                    id: m.id,
+                    name: m.name.clone(),
+                    base: m.base.to_array(),
+                    source: m.source,
+                    tips: t.tips.len(),
+                    nodes: m.tree.nodes.len(),
+                    forced_joins: m.tree.forced_joins,
+                    rebuilt: m.rebuilt,
+                })
+                .collect(),
+            empty: plan.empty.clone(),
+            rule: plan.rule,
+            fits: plan.fits.clone(),
+            fits_well: plan.fits_well,
+            ambiguous: plan
+                .ambiguous
+                .iter()
+                .map(|a| AmbiguousLine {
+                    marker: a.marker,
+                    tree: name_of(a.tree),
+                    other: name_of(a.other),
+                    costs: a.costs,
+                })
+                .collect(),
+            beyond_planes: plan.beyond_planes,
+        }),
+    }
+}
+
+impl fmt::Display for ForestReport {
+    /// The trees (as `[[trees]]` tables to pin when they were found), the
+    /// empty ones and the close calls.
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let found = self.trees.iter().all(|t| t.source == BaseSource::Detected);
+        if found {
+            let fits: Vec<String> = self
+                .fits
+                .iter()
+                .map(|(k, r)| format!("{k}: {:.3} m", r))
+                .collect();
+            writeln!(
+                f,
+                "trees: {} found from the tips (RMS crown fit by number of trees {}){}; to pin them, add to the config:",
+                self.trees.len(),
+                fits.join(", "),
+                if self.fits_well { "" } else { " — no number fitted well, check them" }
+            )?;
+            for t in &self.trees {
+                writeln!(
+                    f,
+                    "[[trees]]\nname = \"{}\"\nbase = [{:.3}, {:.3}, {:.3}]",
+                    t.name, t.base[0], t.base[1], t.base[2]
+                )?;
+            }
+        }
+        for t in &self.trees {
+            writeln!(
+                f,
+                "{} ({}): {} tips, {} nodes, {} forced joins{}",
+                t.name,
+                source_name(t.source),
+                t.tips,
+                t.nodes,
+                t.forced_joins,
+                if t.rebuilt { "" } else { ", unchanged" }
+            )?;
+        }
+        for e in &self.empty {
+            writeln!(f, "{e}: no tips (not grown)")?;
+        }
+        if !self.ambiguous.is_empty() {
+            let list: Vec<String> = self
+                .ambiguous
+                .iter()
+                .map(|a| {
+                    format!(
+                        "marker {} ({} {:.3}, {} {:.3})",
+                        a.marker, a.tree, a.costs[0], a.other, a.costs[1]
+                    )
+                })
+                .collect();
+            writeln!(f, "ambiguous tips: {}", list.join("; "))?;
+        }
+        if self.beyond_planes > 0 {
+            writeln!(
+                f,
+                "{} captured tips lie beyond their tree's planes",
+                self.beyond_planes
+            )?;
+        }
+        Ok(())
+    }
+}
