@@ -73,58 +73,17 @@ impl Rig {
         tree.check()
             .map_err(|e| Error::Runtime(format!("cannot animate a broken tree: {e}")))?;
         let order = tree.root_first_order();
-        let n = order.len();
-        let mut slot_of = vec![0usize; tree.nodes.len()];
-        for (slot, &node) in order.iter().enumerate() {
-            slot_of[node] = slot;
-        }
-        let mut parent = vec![0usize; n];
-        let mut rest = vec![DVec3::ZERO; n];
-        let mut length = vec![0.0; n];
-        let mut rest_dir = vec![DVec3::Y; n];
-        let mut path = vec![0.0; n];
-        for (slot, &node) in order.iter().enumerate() {
-            let here = tree.nodes[node].position;
-            rest[slot] = here;
-            if let Some(p) = tree.nodes[node].parent {
-                let ps = slot_of[p];
-                parent[slot] = ps;
-                let seg = here - rest[ps];
-                length[slot] = seg.length();
-                rest_dir[slot] = seg.try_normalize().unwrap_or(DVec3::Y);
-                path[slot] = path[ps] + length[slot];
-            }
-        }
-        let p = settings.bend_power;
-        let profile: Vec<f64> = path
-            .iter()
-            .map(|&s| if s < MIN_PATH { 0.0 } else { s.powf(p) })
-            .collect();
-        let is_tip = |slot: usize| tree.nodes[order[slot]].kind.is_tip();
-        let mut tips_below: Vec<f64> = (0..n).map(|s| f64::from(u8::from(is_tip(s)))).collect();
-        for slot in (1..n).rev() {
-            tips_below[parent[slot]] += tips_below[slot];
-        }
-
-        let mut captured: Vec<CapturedSlot> = Vec::new();
-        let mut random = Vec::new();
-        for (node, nd) in tree.nodes.iter().enumerate() {
-            let slot = slot_of[node];
-            match nd.kind {
-                Kind::Captured { marker } => captured.push(CapturedSlot {
-                    slot,
-                    node,
-                    marker,
-                    inv_profile: if profile[slot] > 0.0 {
-                        1.0 / profile[slot]
-                    } else {
-                        0.0
-                    },
-                }),
-                Kind::Tip => random.push(slot),
-                _ => {}
-            }
-        }
+        let slot_of = slots_of(tree, &order);
+        let Skeleton {
+            parent,
+            rest,
+            length,
+            rest_dir,
+            path,
+        } = skeleton(tree, &order, &slot_of);
+        let profile = bend_profile(&path, settings.bend_power);
+        let tips_below = tips_below(tree, &order, &parent);
+        let (captured, random) = tip_slots(tree, &slot_of, &profile);
         let k = settings.neighbours.max(1);
         let captured_pos: Vec<DVec3> = captured.iter().map(|c| rest[c.slot]).collect();
         let random_borrow = random
@@ -179,6 +138,105 @@ impl Rig {
     pub fn captured_nodes(&self) -> Vec<usize> {
         self.captured.iter().map(|c| c.node).collect()
     }
+}
+
+/// Each node's slot in root-first order (the order the rig walks in).
+fn slots_of(tree: &Tree, order: &[usize]) -> Vec<usize> {
+    let mut slot_of = vec![0usize; tree.nodes.len()];
+    for (slot, &node) in order.iter().enumerate() {
+        slot_of[node] = slot;
+    }
+    slot_of
+}
+
+/// The rest pose by slot: what [`skeleton`] derives from the tree once so
+/// that each frame only rotates and scales it.
+struct Skeleton {
+    /// Parent slot (the root's is 0).
+    parent: Vec<usize>,
+    /// Rest position.
+    rest: Vec<DVec3>,
+    /// Rest length of the segment from the parent.
+    length: Vec<f64>,
+    /// Rest direction of that segment (+Y for the root and zero segments).
+    rest_dir: Vec<DVec3>,
+    /// Path length from the root.
+    path: Vec<f64>,
+}
+
+/// Walks the tree root first and measures each segment at rest.
+fn skeleton(tree: &Tree, order: &[usize], slot_of: &[usize]) -> Skeleton {
+    let n = order.len();
+    let mut k = Skeleton {
+        parent: vec![0usize; n],
+        rest: vec![DVec3::ZERO; n],
+        length: vec![0.0; n],
+        rest_dir: vec![DVec3::Y; n],
+        path: vec![0.0; n],
+    };
+    for (slot, &node) in order.iter().enumerate() {
+        let here = tree.nodes[node].position;
+        k.rest[slot] = here;
+        if let Some(p) = tree.nodes[node].parent {
+            let ps = slot_of[p];
+            k.parent[slot] = ps;
+            let seg = here - k.rest[ps];
+            k.length[slot] = seg.length();
+            k.rest_dir[slot] = seg.try_normalize().unwrap_or(DVec3::Y);
+            k.path[slot] = k.path[ps] + k.length[slot];
+        }
+    }
+    k
+}
+
+/// How much each slot bends: its path length from the root to the power
+/// `bend_power`, 0 near the root (below [`MIN_PATH`]).
+fn bend_profile(path: &[f64], bend_power: f64) -> Vec<f64> {
+    path.iter()
+        .map(|&s| {
+            if s < MIN_PATH {
+                0.0
+            } else {
+                s.powf(bend_power)
+            }
+        })
+        .collect()
+}
+
+/// The number of tips at or below each slot.
+fn tips_below(tree: &Tree, order: &[usize], parent: &[usize]) -> Vec<f64> {
+    let n = order.len();
+    let is_tip = |slot: usize| tree.nodes[order[slot]].kind.is_tip();
+    let mut tips_below: Vec<f64> = (0..n).map(|s| f64::from(u8::from(is_tip(s)))).collect();
+    for slot in (1..n).rev() {
+        tips_below[parent[slot]] += tips_below[slot];
+    }
+    tips_below
+}
+
+/// The captured tips (driven by their markers) and the slots of the random
+/// tips (which borrow their neighbours' motion), in node order.
+fn tip_slots(tree: &Tree, slot_of: &[usize], profile: &[f64]) -> (Vec<CapturedSlot>, Vec<usize>) {
+    let mut captured: Vec<CapturedSlot> = Vec::new();
+    let mut random = Vec::new();
+    for (node, nd) in tree.nodes.iter().enumerate() {
+        let slot = slot_of[node];
+        match nd.kind {
+            Kind::Captured { marker } => captured.push(CapturedSlot {
+                slot,
+                node,
+                marker,
+                inv_profile: if profile[slot] > 0.0 {
+                    1.0 / profile[slot]
+                } else {
+                    0.0
+                },
+            }),
+            Kind::Tip => random.push(slot),
+            _ => {}
+        }
+    }
+    (captured, random)
 }
 
 /// Inverse-square-distance weights over the `k` captured tips nearest to

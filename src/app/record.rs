@@ -170,61 +170,31 @@ pub async fn record(
     let deadline = opts
         .seconds
         .map(|s| tokio::time::Instant::from_std(started) + Duration::from_secs_f64(s.max(0.0)));
-    let mut status = None;
-    let mut next_progress = started + opts.progress_interval;
-    let mut ticks = tokio::time::interval(TICK);
-    let mut source_done = None;
-    let mut writer_done = None;
-    loop {
-        if *shutdown.borrow() {
-            break;
-        }
-        tokio::select! {
-            changed = shutdown.changed() => {
-                if changed.is_err() {
-                    break;
-                }
-            }
-            _ = sleep_until(deadline) => break,
-            r = &mut src => {
-                source_done = Some(r);
-                break;
-            }
-            r = &mut writer => {
-                writer_done = Some(r);
-                break;
-            }
-            _ = ticks.tick() => {
-                let now = source.status();
-                if now.is_some() && now != status {
-                    status = now.clone();
-                    on_event(RecordEvent::Status(now.unwrap_or_default()));
-                }
-                if Instant::now() >= next_progress {
-                    next_progress += opts.progress_interval;
-                    on_event(RecordEvent::Progress(stats.progress(
-                        started.elapsed().as_secs_f64(),
-                        losses(source.as_ref(), probe.dropped()),
-                    )));
-                }
-            }
-        }
-    }
+    let mut reporter = Reporter {
+        source: source.as_ref(),
+        stats: &stats,
+        probe: &probe,
+        started,
+        next_progress: started + opts.progress_interval,
+        interval: opts.progress_interval,
+        status: None,
+    };
+    let (source_done, writer_done) = watch_recording(
+        &mut src,
+        &mut writer,
+        &mut shutdown,
+        deadline,
+        &mut reporter,
+        &mut on_event,
+    )
+    .await;
     // Stop the source; it delivers what it holds and drops the sink, which
     // ends the writer once the queue is drained.
     let _ = stop_tx.send(true);
-    let report = match source_done {
-        Some(r) => r,
-        None => src.await,
-    }
-    .map_err(|e| Error::Runtime(format!("the source task failed: {e}")));
+    let report = join(src, source_done, "the source task failed").await;
     let dropped = probe.dropped();
     drop(probe);
-    let written = match writer_done {
-        Some(r) => r,
-        None => writer.await,
-    }
-    .map_err(|e| Error::Runtime(format!("the writer thread failed: {e}")));
+    let written = join(writer, writer_done, "the writer thread failed").await;
     // A writer error (disk full) matters more than the source's.
     written??;
     let report = match report? {
@@ -247,6 +217,81 @@ pub async fn record(
         progress,
         source: report,
     })
+}
+
+/// The outcome of a task that [`watch_recording`] may already have joined.
+type Joined<T> = Option<std::result::Result<T, tokio::task::JoinError>>;
+
+/// Reports status and progress while the recording runs, until shutdown,
+/// the deadline, or the source or the writer ending by itself (whose
+/// outcome is returned, since a task can be joined only once).
+async fn watch_recording<S, W>(
+    src: &mut tokio::task::JoinHandle<S>,
+    writer: &mut tokio::task::JoinHandle<W>,
+    shutdown: &mut watch::Receiver<bool>,
+    deadline: Option<tokio::time::Instant>,
+    reporter: &mut Reporter<'_>,
+    on_event: &mut (impl FnMut(RecordEvent) + Send),
+) -> (Joined<S>, Joined<W>) {
+    let mut ticks = tokio::time::interval(TICK);
+    loop {
+        if *shutdown.borrow() {
+            return (None, None);
+        }
+        tokio::select! {
+            changed = shutdown.changed() => {
+                if changed.is_err() {
+                    return (None, None);
+                }
+            }
+            _ = sleep_until(deadline) => return (None, None),
+            r = &mut *src => return (Some(r), None),
+            r = &mut *writer => return (None, Some(r)),
+            _ = ticks.tick() => reporter.tick(on_event),
+        }
+    }
+}
+
+/// Waits for a task unless [`watch_recording`] already did; a task that
+/// panicked or was cancelled is a runtime error saying `what`.
+async fn join<T>(handle: tokio::task::JoinHandle<T>, done: Joined<T>, what: &str) -> Result<T> {
+    match done {
+        Some(r) => r,
+        None => handle.await,
+    }
+    .map_err(|e| Error::Runtime(format!("{what}: {e}")))
+}
+
+/// What the watch loop reports to the caller: the source's status when it
+/// changes and the counters every `interval`.
+struct Reporter<'a> {
+    source: &'a dyn LiveSource,
+    stats: &'a WriterStats,
+    /// The sink's drop counter.
+    probe: &'a crate::source::channel::FrameSink,
+    started: Instant,
+    next_progress: Instant,
+    interval: Duration,
+    /// The last status reported, so that only changes are.
+    status: Option<String>,
+}
+
+impl Reporter<'_> {
+    /// One look at the source and the counters (every [`TICK`]).
+    fn tick(&mut self, on_event: &mut impl FnMut(RecordEvent)) {
+        let now = self.source.status();
+        if now.is_some() && now != self.status {
+            self.status = now.clone();
+            on_event(RecordEvent::Status(now.unwrap_or_default()));
+        }
+        if Instant::now() >= self.next_progress {
+            self.next_progress += self.interval;
+            on_event(RecordEvent::Progress(self.stats.progress(
+                self.started.elapsed().as_secs_f64(),
+                losses(self.source, self.probe.dropped()),
+            )));
+        }
+    }
 }
 
 /// The source's losses plus the frames the channel dropped.

@@ -140,6 +140,94 @@ fn get(a: &AtomicU64) -> u64 {
     a.load(Ordering::Relaxed)
 }
 
+/// One metric of `/metrics`, read from the status when scraped.
+struct Metric {
+    /// Its name after `treemocap_`.
+    name: &'static str,
+    /// `counter` or `gauge`.
+    kind: &'static str,
+    /// The `# HELP` text.
+    help: &'static str,
+    /// Its current value.
+    value: fn(&Status) -> f64,
+}
+
+/// The daemon's own metrics, in the order `/metrics` lists them (the bad
+/// input and recording counters follow).
+const METRICS: [Metric; 11] = [
+    Metric {
+        name: "frames_total",
+        kind: "counter",
+        help: "Frames received from the source.",
+        value: |s| get(&s.frames) as f64,
+    },
+    Metric {
+        name: "marker_samples_total",
+        kind: "counter",
+        help: "Marker samples received.",
+        value: |s| get(&s.samples) as f64,
+    },
+    Metric {
+        name: "frames_dropped_total",
+        kind: "counter",
+        help: "Frames dropped because the pipeline fell behind.",
+        value: |s| get(&s.dropped) as f64,
+    },
+    Metric {
+        name: "markers",
+        kind: "gauge",
+        help: "Markers in the latest frame.",
+        value: |s| get(&s.markers) as f64,
+    },
+    Metric {
+        name: "tips",
+        kind: "gauge",
+        help: "Tips of the current tree.",
+        value: |s| get(&s.tips) as f64,
+    },
+    Metric {
+        name: "tips_live",
+        kind: "gauge",
+        help: "Tips seen in the latest frame.",
+        value: |s| get(&s.tips_live) as f64,
+    },
+    Metric {
+        name: "analyses_total",
+        kind: "counter",
+        help: "Analyses of the recent frames.",
+        value: |s| get(&s.analyses) as f64,
+    },
+    Metric {
+        name: "trees_total",
+        kind: "counter",
+        help: "Trees built.",
+        value: |s| get(&s.trees) as f64,
+    },
+    Metric {
+        name: "backlog_frames",
+        kind: "gauge",
+        help: "Frames waiting between the source and the pipeline.",
+        value: |s| get(&s.backlog_frames) as f64,
+    },
+    Metric {
+        name: "frame_latency_seconds_max",
+        kind: "gauge",
+        help: "Longest time from frame arrival to tips published.",
+        value: |s| get(&s.latency_us_max) as f64 * 1e-6,
+    },
+    Metric {
+        name: "output_errors",
+        kind: "gauge",
+        help: "1 while an output cannot be written.",
+        value: |s| {
+            s.output_error
+                .lock()
+                .map(|e| e.is_some() as u8 as f64)
+                .unwrap_or(0.0)
+        },
+    },
+];
+
 impl Status {
     /// Records the channel's state as the pipeline takes a frame: `waiting`
     /// frames behind it, after it waited `wait`.
@@ -214,80 +302,13 @@ impl Status {
     /// The `/metrics` text (Prometheus exposition format 0.0.4).
     pub fn to_prometheus(&self) -> String {
         let mut out = String::new();
-        let mut metric = |name: &str, kind: &str, help: &str, value: f64| {
+        for m in &METRICS {
+            let (name, kind, help) = (m.name, m.kind, m.help);
+            let value = (m.value)(self);
             out.push_str(&format!(
                 "# HELP treemocap_{name} {help}\n# TYPE treemocap_{name} {kind}\ntreemocap_{name} {value}\n"
             ));
-        };
-        metric(
-            "frames_total",
-            "counter",
-            "Frames received from the source.",
-            get(&self.frames) as f64,
-        );
-        metric(
-            "marker_samples_total",
-            "counter",
-            "Marker samples received.",
-            get(&self.samples) as f64,
-        );
-        metric(
-            "frames_dropped_total",
-            "counter",
-            "Frames dropped because the pipeline fell behind.",
-            get(&self.dropped) as f64,
-        );
-        metric(
-            "markers",
-            "gauge",
-            "Markers in the latest frame.",
-            get(&self.markers) as f64,
-        );
-        metric(
-            "tips",
-            "gauge",
-            "Tips of the current tree.",
-            get(&self.tips) as f64,
-        );
-        metric(
-            "tips_live",
-            "gauge",
-            "Tips seen in the latest frame.",
-            get(&self.tips_live) as f64,
-        );
-        metric(
-            "analyses_total",
-            "counter",
-            "Analyses of the recent frames.",
-            get(&self.analyses) as f64,
-        );
-        metric(
-            "trees_total",
-            "counter",
-            "Trees built.",
-            get(&self.trees) as f64,
-        );
-        metric(
-            "backlog_frames",
-            "gauge",
-            "Frames waiting between the source and the pipeline.",
-            get(&self.backlog_frames) as f64,
-        );
-        metric(
-            "frame_latency_seconds_max",
-            "gauge",
-            "Longest time from frame arrival to tips published.",
-            get(&self.latency_us_max) as f64 * 1e-6,
-        );
-        metric(
-            "output_errors",
-            "gauge",
-            "1 while an output cannot be written.",
-            self.output_error
-                .lock()
-                .map(|e| e.is_some() as u8 as f64)
-                .unwrap_or(0.0),
-        );
+        }
         self.bad_input.to_prometheus(&mut out);
         super::counters::recording_prometheus(self.recording.get(), &mut out);
         out

@@ -530,21 +530,8 @@ fn read_v1_header(
     let mut frame_rate = None;
     let mut bytes = Vec::new();
     loop {
-        bytes.clear();
-        let n = read_line_limited(&mut *reader, &mut bytes)
-            .map_err(|e| line_error(path, line_no + 1, e))?;
         line_no += 1;
-        let line = line_text(&bytes)
-            .map_err(|(col, msg)| Error::at_line(path, line_no, Some(col), msg))?;
-        if n == 0 || !line.ends_with('\n') {
-            return Err(Error::at_line(
-                path,
-                line_no,
-                None,
-                "log header is incomplete (missing the 'frame,time_s,id,x,y,z' row)",
-            ));
-        }
-        let l = line.trim_end_matches(['\r', '\n']);
+        let l = read_header_line(path, reader, &mut bytes, line_no)?;
         if l == COLUMNS {
             break;
         }
@@ -558,42 +545,21 @@ fn read_v1_header(
         };
         let (key, value) = kv.split_once(':').unwrap_or((kv, ""));
         let value = value.trim();
+        let bad = |msg: String| Error::at_line(path, line_no, None, msg);
         match key.trim() {
             "source" => source = value.to_string(),
-            "frame_rate" => {
-                let rate: f64 = value.parse().map_err(|_| {
-                    Error::at_line(
-                        path,
-                        line_no,
-                        None,
-                        format!("frame_rate \"{}\" is not a number", excerpt(value)),
-                    )
-                })?;
-                if !(rate.is_finite() && rate > 0.0) {
-                    return Err(Error::at_line(
-                        path,
-                        line_no,
-                        None,
-                        "frame_rate must be positive",
-                    ));
-                }
-                frame_rate = Some(rate);
-            }
+            "frame_rate" => frame_rate = Some(parse_frame_rate(value).map_err(bad)?),
             "units" if value != "m" => {
-                return Err(Error::at_line(
-                    path,
-                    line_no,
-                    None,
-                    format!("units \"{}\": logs are in metres (\"m\")", excerpt(value)),
-                ))
+                return Err(bad(format!(
+                    "units \"{}\": logs are in metres (\"m\")",
+                    excerpt(value)
+                )))
             }
             "up_axis" if value != "Y" => {
-                return Err(Error::at_line(
-                    path,
-                    line_no,
-                    None,
-                    format!("up_axis \"{}\": logs are Y up", excerpt(value)),
-                ))
+                return Err(bad(format!(
+                    "up_axis \"{}\": logs are Y up",
+                    excerpt(value)
+                )))
             }
             _ => {} // unknown header keys are kept for newer writers
         }
@@ -607,6 +573,41 @@ fn read_v1_header(
         ));
     };
     Ok((source, frame_rate, line_no))
+}
+
+/// Reads header line `line_no` into `bytes` and returns it without its line
+/// end; a header cut before the column row is an error at that line.
+fn read_header_line<'a>(
+    path: &Path,
+    reader: &mut BufReader<File>,
+    bytes: &'a mut Vec<u8>,
+    line_no: u64,
+) -> Result<&'a str> {
+    bytes.clear();
+    let n = read_line_limited(&mut *reader, bytes).map_err(|e| line_error(path, line_no, e))?;
+    let line =
+        line_text(bytes).map_err(|(col, msg)| Error::at_line(path, line_no, Some(col), msg))?;
+    if n == 0 || !line.ends_with('\n') {
+        return Err(Error::at_line(
+            path,
+            line_no,
+            None,
+            "log header is incomplete (missing the 'frame,time_s,id,x,y,z' row)",
+        ));
+    }
+    Ok(line.trim_end_matches(['\r', '\n']))
+}
+
+/// The `frame_rate` header value: a positive, finite number of frames per
+/// second (it turns frame numbers into times).
+fn parse_frame_rate(value: &str) -> std::result::Result<f64, String> {
+    let rate: f64 = value
+        .parse()
+        .map_err(|_| format!("frame_rate \"{}\" is not a number", excerpt(value)))?;
+    if !(rate.is_finite() && rate > 0.0) {
+        return Err("frame_rate must be positive".into());
+    }
+    Ok(rate)
 }
 
 /// Longest line of a log: a row is under 100 bytes and a header line a

@@ -192,12 +192,48 @@ impl MotiveCsvReader {
         }
     }
 
+    /// Reads the whole header: row 1's key/value map, then the descriptor
+    /// rows up to `Frame,Time…`, then groups the columns into channels.
     fn read_header(&mut self) -> Result<()> {
+        self.read_key_value_row()?;
+        self.apply_key_values()?;
+        // Only row 1 (Take Notes) may hold a quoted field over several
+        // lines; anywhere else an open quote is an error at its own line.
+        self.rows.multiline = false;
+        let rows = self.read_descriptor_rows()?;
+        let axis_line = self.rows.line();
+        if !rows.axis.text(1).starts_with("Time") {
+            return Err(self.err(axis_line, Some(2), "the header row must begin 'Frame,Time'"));
+        }
+        self.has_timecode = rows.axis.text(2) == "TimeCode";
+        self.width = rows.axis.len();
+        let (labeled, component) = assign_unlabeled_rows(rows.labeled, rows.unlabeled)
+            .ok_or_else(|| self.err(axis_line, None, "too many unlabeled header rows"))?;
+        let row_of = |label: &str| labeled.iter().find(|(k, _)| k == label).map(|(_, r)| r);
+        let Some(types) = row_of("Type") else {
+            return Err(self.err(axis_line, None, "header has no 'Type' row"));
+        };
+        let descriptors = Descriptors {
+            types,
+            names: row_of("Name"),
+            ids: row_of("ID"),
+            component: component.as_ref(),
+            axis: &rows.axis,
+        };
+        self.group_channels(&descriptors, axis_line)?;
+        self.map_columns();
+        Ok(())
+    }
+
+    /// Reads row 1 (key, value, key, value…) into `header`, refusing the old
+    /// row-typed format whose first cell is `comment`. Excel adds empty pairs
+    /// at the end. Read in place: a hostile first row of millions of fields
+    /// must not become millions of strings.
+    fn read_key_value_row(&mut self) -> Result<()> {
         if !self.read_row()? {
             return Err(self.err(1, None, "file is empty"));
         }
-        let first = self.rows.text(0).to_string();
-        if first == "comment" {
+        if self.rows.text(0) == "comment" {
             return Err(Error::Unsupported {
                 path: self.path.clone(),
                 msg: "unsupported format version: row-typed Motive/Arena CSV (format 1.0/1.1); \
@@ -205,9 +241,6 @@ impl MotiveCsvReader {
                     .into(),
             });
         }
-        // Row 1: key, value, key, value… Excel adds empty pairs at the end.
-        // Read in place: a hostile first row of millions of fields must not
-        // become millions of strings.
         for i in (0..self.rows.len()).step_by(2) {
             let key = self.rows.text(i).trim();
             if key.is_empty() {
@@ -225,21 +258,42 @@ impl MotiveCsvReader {
             let value = self.rows.text(i + 1).trim().to_string();
             self.header.push((key.to_string(), value));
         }
-        let header = self.header.clone();
-        let get = |k: &str| {
-            header
-                .iter()
-                .find(|(key, _)| key == k)
-                .map(|(_, v)| v.as_str())
-        };
-        let Some(version) = get("Format Version") else {
+        Ok(())
+    }
+
+    /// The value of a row 1 key, as an owned string so that the reader can
+    /// be changed (warnings, scale) while it is in use.
+    fn header_value(&self, key: &str) -> Option<String> {
+        self.header
+            .iter()
+            .find(|(k, _)| k == key)
+            .map(|(_, v)| v.clone())
+    }
+
+    /// Takes the recording's version, frame rate, units and take name from
+    /// row 1; every one but the take name is required.
+    fn apply_key_values(&mut self) -> Result<()> {
+        let version = self.check_format_version()?;
+        let rate = self.header_frame_rate()?;
+        let units = self.header_value("Length Units").unwrap_or_default();
+        self.scale = self.length_scale(&units)?;
+        self.info.version = version;
+        self.info.frame_rate = rate;
+        self.info.units = units;
+        self.info.source = self.header_value("Take Name").unwrap_or_default();
+        Ok(())
+    }
+
+    /// The `Format Version` of row 1: any 1.2x is read, versions past 1.25
+    /// with a warning (read like 1.25); others are unsupported.
+    fn check_format_version(&mut self) -> Result<String> {
+        let Some(version) = self.header_value("Format Version") else {
             return Err(self.err(
                 1,
                 None,
                 "row 1 has no 'Format Version' key: not a Motive CSV export",
             ));
         };
-        let version = version.to_string();
         let numeric: Option<(u32, u32)> = version
             .split_once('.')
             .and_then(|(a, b)| Some((a.parse().ok()?, b.get(..b.len().min(1))?.parse().ok()?)));
@@ -262,10 +316,16 @@ impl MotiveCsvReader {
                 "format version {version} is newer than 1.25; reading it like 1.25"
             ));
         }
-        let rate_text = get("Export Frame Rate")
+        Ok(version)
+    }
+
+    /// The frame rate of the data rows: the export rate, or the capture rate
+    /// when the export rate is missing or empty.
+    fn header_frame_rate(&self) -> Result<f64> {
+        let rate_text = self
+            .header_value("Export Frame Rate")
             .filter(|s| !s.is_empty())
-            .or_else(|| get("Capture Frame Rate"))
-            .map(str::to_string);
+            .or_else(|| self.header_value("Capture Frame Rate"));
         let Some(rate_text) = rate_text else {
             return Err(self.err(
                 1,
@@ -273,55 +333,46 @@ impl MotiveCsvReader {
                 "row 1 has neither 'Export Frame Rate' nor 'Capture Frame Rate'",
             ));
         };
-        let rate: f64 = match rate_text.parse() {
-            Ok(r) if f64::is_finite(r) && r > 0.0 => r,
-            _ => {
-                return Err(self.err(
-                    1,
-                    None,
-                    format!(
-                        "frame rate \"{}\" is not a positive number",
-                        excerpt(&rate_text)
-                    ),
-                ))
-            }
-        };
-        let units = get("Length Units").unwrap_or("").to_string();
-        self.scale = match units.as_str() {
-            "Meters" => 1.0,
-            "Centimeters" => 0.01,
-            "Millimeters" => 0.001,
-            "" => {
-                return Err(self.err(
-                    1,
-                    None,
-                    "row 1 has no 'Length Units' (Meters, Centimeters or Millimeters)",
-                ))
-            }
-            other => {
-                return Err(self.err(
-                    1,
-                    None,
-                    format!(
-                        "Length Units \"{}\" is not Meters, Centimeters or Millimeters",
-                        excerpt(other)
-                    ),
-                ))
-            }
-        };
-        self.info.version = version;
-        self.info.frame_rate = rate;
-        self.info.units = units;
-        self.info.source = get("Take Name").unwrap_or("").to_string();
+        match rate_text.parse() {
+            Ok(r) if f64::is_finite(r) && r > 0.0 => Ok(r),
+            _ => Err(self.err(
+                1,
+                None,
+                format!(
+                    "frame rate \"{}\" is not a positive number",
+                    excerpt(&rate_text)
+                ),
+            )),
+        }
+    }
 
-        // Only row 1 (Take Notes) may hold a quoted field over several
-        // lines; anywhere else an open quote is an error at its own line.
-        self.rows.multiline = false;
-        // Descriptor rows up to the axis row `Frame,Time…`, kept as compact
-        // copies (bytes plus field ends), never as a string per cell.
-        let mut labeled: Vec<(String, Row)> = Vec::new();
+    /// Metres per file unit for row 1's `Length Units`.
+    fn length_scale(&self, units: &str) -> Result<f64> {
+        match units {
+            "Meters" => Ok(1.0),
+            "Centimeters" => Ok(0.01),
+            "Millimeters" => Ok(0.001),
+            "" => Err(self.err(
+                1,
+                None,
+                "row 1 has no 'Length Units' (Meters, Centimeters or Millimeters)",
+            )),
+            other => Err(self.err(
+                1,
+                None,
+                format!(
+                    "Length Units \"{}\" is not Meters, Centimeters or Millimeters",
+                    excerpt(other)
+                ),
+            )),
+        }
+    }
+
+    /// Reads the descriptor rows up to the axis row `Frame,Time…`, kept as
+    /// compact copies (bytes plus field ends), never as a string per cell.
+    fn read_descriptor_rows(&mut self) -> Result<DescriptorRows> {
+        let mut labeled: LabeledRows = Vec::new();
         let mut unlabeled: Vec<Row> = Vec::new();
-        let axis_row: Row;
         loop {
             if !self.read_row()? {
                 return Err(self.err(
@@ -345,8 +396,11 @@ impl MotiveCsvReader {
             }
             let row = self.rows.to_row();
             if row.text(0) == "Frame" {
-                axis_row = row;
-                break;
+                return Ok(DescriptorRows {
+                    labeled,
+                    unlabeled,
+                    axis: row,
+                });
             }
             if !self.rows.get(0).is_empty() {
                 return Err(self.err(
@@ -371,72 +425,36 @@ impl MotiveCsvReader {
                 }
             }
         }
-        let axis_line = self.rows.line();
-        if !axis_row.text(1).starts_with("Time") {
-            return Err(self.err(axis_line, Some(2), "the header row must begin 'Frame,Time'"));
-        }
-        self.has_timecode = axis_row.text(2) == "TimeCode";
-        let data_start = if self.has_timecode { 3 } else { 2 };
-        self.width = axis_row.len();
+    }
 
-        // The component row is the last unlabeled row; earlier unlabeled rows
-        // (format 1.21) stand for Type, Name, ID in that order.
-        let component = unlabeled.pop();
-        let mut order = ["Type", "Name", "ID"].into_iter();
-        for row in unlabeled {
-            let Some(label) = order.find(|l| !labeled.iter().any(|(k, _)| k == l)) else {
-                return Err(self.err(axis_line, None, "too many unlabeled header rows"));
-            };
-            labeled.push((label.to_string(), row));
-        }
-        let row_of = |label: &str| labeled.iter().find(|(k, _)| k == label).map(|(_, r)| r);
-        let Some(types) = row_of("Type") else {
-            return Err(self.err(axis_line, None, "header has no 'Type' row"));
-        };
-        let names = row_of("Name");
-        let ids = row_of("ID");
-        fn cell(row: Option<&Row>, i: usize) -> &str {
-            row.map_or("", |r| r.text(i))
-        }
-
-        let mut i = data_start;
+    /// Groups the data columns into channels by consecutive runs of equal
+    /// (Type, Name, ID), and finds each marker's Position X, Y, Z columns.
+    fn group_channels(&mut self, d: &Descriptors<'_>, axis_line: u64) -> Result<()> {
+        let mut i = if self.has_timecode { 3 } else { 2 };
         while i < self.width {
-            let key = (cell(Some(types), i), cell(names, i), cell(ids, i));
-            if key.0.is_empty() && axis_row.text(i).is_empty() {
+            let key = d.key(i);
+            if key.0.is_empty() && d.axis.text(i).is_empty() {
                 i += 1; // Excel's trailing empty columns
                 continue;
             }
             let mut end = i + 1;
-            while end < self.width
-                && (cell(Some(types), end), cell(names, end), cell(ids, end)) == key
-            {
+            while end < self.width && d.key(end) == key {
                 end += 1;
             }
             let kind = channel_kind(key.0, key.1);
             let mut position = None;
             if kind.is_marker() {
-                let find = |axis: &str| {
-                    (i..end).find(|&c| {
-                        axis_row.text(c) == axis
-                            && component.as_ref().is_none_or(|r| {
-                                let s = r.text(c);
-                                s == "Position" || s.is_empty()
-                            })
-                    })
+                let Some(xyz) = d.position_columns(i..end) else {
+                    return Err(self.err(
+                        axis_line,
+                        Some(i as u64 + 1),
+                        format!(
+                            "marker \"{}\" has no Position X, Y, Z columns",
+                            excerpt(key.1)
+                        ),
+                    ));
                 };
-                match (find("X"), find("Y"), find("Z")) {
-                    (Some(x), Some(y), Some(z)) => position = Some([x, y, z]),
-                    _ => {
-                        return Err(self.err(
-                            axis_line,
-                            Some(i as u64 + 1),
-                            format!(
-                                "marker \"{}\" has no Position X, Y, Z columns",
-                                excerpt(key.1)
-                            ),
-                        ))
-                    }
-                }
+                position = Some(xyz);
             }
             self.channels.push(Channel {
                 name: key.1.to_string(),
@@ -451,7 +469,6 @@ impl MotiveCsvReader {
             });
             i = end;
         }
-        self.map_columns();
         Ok(())
     }
 
@@ -540,27 +557,52 @@ impl MotiveCsvReader {
             return Ok(None);
         };
         let line = self.rows.line();
-        if n < self.width {
-            // Trailing empty cells may be cut by hand-edited files; a row
-            // short of real data is malformed.
-            return Err(self.err(
+        self.check_field_count(n, line)?;
+        let (frame, time) = self.frame_and_time(in_place, line)?;
+        if let Some(t) = time {
+            self.check_time_column(frame, t, line);
+        }
+        self.rows_read += 1;
+        let markers = self.read_channel_cells(in_place, line)?;
+        Ok(Some(MarkerFrame::new(
+            frame,
+            self.frame_time(frame),
+            markers,
+        )))
+    }
+
+    /// Refuses a row whose field count is not the header's: trailing empty
+    /// cells may be cut by hand-edited files, but a row short of real data,
+    /// or with data past the header, is malformed.
+    fn check_field_count(&self, n: usize, line: u64) -> Result<()> {
+        let error = |column: usize| {
+            self.err(
                 line,
-                Some(n as u64 + 1),
+                Some(column as u64 + 1),
                 format!("row has {n} fields, the header has {}", self.width),
-            ));
+            )
+        };
+        if n < self.width {
+            return Err(error(n));
         }
         if let Some(&(c, _, _)) = self.cells.last().filter(|c| c.0 >= self.width) {
-            return Err(self.err(
-                line,
-                Some(c as u64 + 1),
-                format!("row has {n} fields, the header has {}", self.width),
-            ));
+            return Err(error(c));
         }
-        let buf = if in_place {
+        Ok(())
+    }
+
+    /// The bytes the current row's cell ranges point into.
+    fn row_bytes(&self, in_place: bool) -> &[u8] {
+        if in_place {
             self.rows.line_buffer()
         } else {
             self.rows.data_buffer()
-        };
+        }
+    }
+
+    /// The row's frame number (required) and Time column (optional).
+    fn frame_and_time(&self, in_place: bool, line: u64) -> Result<(i64, Option<f64>)> {
+        let buf = self.row_bytes(in_place);
         let text = |a: usize, b: usize| excerpt_bytes(&buf[a..b]);
         let (frame_cell, time_cell) = {
             let mut it = self.cells.iter().take(2).filter(|c| c.0 < 2);
@@ -575,42 +617,59 @@ impl MotiveCsvReader {
             .and_then(|(_, a, b)| std::str::from_utf8(&buf[a..b]).ok()?.trim().parse().ok())
             .ok_or_else(|| {
                 let t = frame_cell.map_or(String::new(), |(_, a, b)| text(a, b));
-                Error::at_line(
-                    &self.path,
+                self.err(
                     line,
                     Some(1),
                     format!("frame number \"{t}\" is not an integer"),
                 )
             })?;
-        if let Some((_, a, b)) = time_cell {
-            let t = cells::number(buf, a, b).ok_or_else(|| {
-                Error::at_line(
-                    &self.path,
+        let time = match time_cell {
+            Some((_, a, b)) => Some(cells::number(buf, a, b).ok_or_else(|| {
+                self.err(
                     line,
                     Some(2),
                     format!("time \"{}\" is not a number", text(a, b)),
                 )
-            })?;
-            let (f0, t0) = *self.time_origin.get_or_insert((frame, t));
-            let expected = t0 + (frame - f0) as f64 / self.info.frame_rate;
-            if (t - expected).abs() > self.time_tolerance_s {
-                self.time_mismatches += 1;
-                if self.time_mismatches == 1 {
-                    let msg = format!(
-                        "{}: line {line}: Time column {t} differs from frame/rate ({expected:.6}); \
-                         using frame/rate (further mismatches counted, not logged)",
-                        self.path.display()
-                    );
-                    tracing::warn!("{msg}");
-                    self.warnings.push(msg);
-                }
+            })?),
+            None => None,
+        };
+        Ok((frame, time))
+    }
+
+    /// Compares the Time column with frame / rate from the first row that
+    /// had one; the first disagreement beyond the tolerance is a warning,
+    /// later ones are only counted.
+    fn check_time_column(&mut self, frame: i64, t: f64, line: u64) {
+        let (f0, t0) = *self.time_origin.get_or_insert((frame, t));
+        let expected = t0 + (frame - f0) as f64 / self.info.frame_rate;
+        if (t - expected).abs() > self.time_tolerance_s {
+            self.time_mismatches += 1;
+            if self.time_mismatches == 1 {
+                let msg = format!(
+                    "{}: line {line}: Time column {t} differs from frame/rate ({expected:.6}); \
+                     using frame/rate (further mismatches counted, not logged)",
+                    self.path.display()
+                );
+                tracing::warn!("{msg}");
+                self.warnings.push(msg);
             }
         }
-        self.rows_read += 1;
+    }
+
+    /// Reads the row's channel cells: markers with X, Y and Z become the
+    /// frame's markers, other channels' values go to `poses`; counts
+    /// non-empty cells and present channels.
+    fn read_channel_cells(&mut self, in_place: bool, line: u64) -> Result<Vec<Marker>> {
         for (_, values) in &mut self.poses {
             values.fill(f64::NAN);
         }
         self.pose_filled.fill(0);
+        // Borrows only `rows`, so the counters below can change meanwhile.
+        let buf = if in_place {
+            self.rows.line_buffer()
+        } else {
+            self.rows.data_buffer()
+        };
         let mut markers = Vec::new();
         // The marker channel being filled: (channel, X Y Z, axes seen).
         let mut open: Option<(usize, [f64; 3], u8)> = None;
@@ -622,42 +681,20 @@ impl MotiveCsvReader {
             let (ci, axis) = ((role >> 2) as usize, (role & 3) as usize);
             self.nonempty[ci] += 1;
             let slot = self.pose_slot[ci];
+            if slot == u32::MAX && axis == 3 {
+                continue; // a marker's other columns (quality…) are not read
+            }
+            if slot == u32::MAX && open.is_some_and(|o| o.0 != ci) {
+                close_marker(open.take(), &mut markers, &mut self.channels, self.scale);
+            }
+            let v = cells::number(buf, a, b).ok_or_else(|| {
+                not_a_number(&self.path, line, c, &buf[a..b], &self.channels[ci], slot)
+            })?;
             if slot == u32::MAX {
-                if axis == 3 {
-                    continue; // a marker's other columns (quality…) are not read
-                }
-                if open.is_some_and(|o| o.0 != ci) {
-                    close_marker(open.take(), &mut markers, &mut self.channels, self.scale);
-                }
-                let v = cells::number(buf, a, b).ok_or_else(|| {
-                    Error::at_line(
-                        &self.path,
-                        line,
-                        Some(c as u64 + 1),
-                        format!(
-                            "\"{}\" is not a number (marker \"{}\")",
-                            text(a, b),
-                            excerpt(&self.channels[ci].name)
-                        ),
-                    )
-                })?;
                 let o = open.get_or_insert((ci, [0.0; 3], 0));
                 o.1[axis] = v;
                 o.2 |= 1 << axis;
             } else {
-                let v = cells::number(buf, a, b).ok_or_else(|| {
-                    Error::at_line(
-                        &self.path,
-                        line,
-                        Some(c as u64 + 1),
-                        format!(
-                            "\"{}\" is not a number ({} \"{}\")",
-                            text(a, b),
-                            kind_name(self.channels[ci].kind),
-                            excerpt(&self.channels[ci].name)
-                        ),
-                    )
-                })?;
                 let slot = slot as usize;
                 self.poses[slot].1[c - self.columns[ci].first] = v;
                 self.pose_filled[slot] += 1;
@@ -669,16 +706,105 @@ impl MotiveCsvReader {
                 self.channels[*ci].present += 1;
             }
         }
-        // The Time column's clock, anchored on the first row that has one
-        // (a take whose first frame is not 0 keeps its own Time), advanced
-        // by frame / rate so that a 1 ms quantized column adds no jitter.
+        Ok(markers)
+    }
+
+    /// The Time column's clock, anchored on the first row that has one
+    /// (a take whose first frame is not 0 keeps its own Time), advanced
+    /// by frame / rate so that a 1 ms quantized column adds no jitter.
+    fn frame_time(&self, frame: i64) -> f64 {
         let rate = self.info.frame_rate;
-        let time = match self.time_origin {
+        match self.time_origin {
             Some((f0, t0)) => t0 + (frame - f0) as f64 / rate,
             None => frame as f64 / rate,
-        };
-        Ok(Some(MarkerFrame::new(frame, time, markers)))
+        }
     }
+}
+
+/// The error for a channel cell that is not a number, naming the channel
+/// (`slot` is `u32::MAX` for marker channels, whose kind goes unsaid).
+fn not_a_number(
+    path: &Path,
+    line: u64,
+    column: usize,
+    cell: &[u8],
+    channel: &Channel,
+    slot: u32,
+) -> Error {
+    let what = if slot == u32::MAX {
+        format!("marker \"{}\"", excerpt(&channel.name))
+    } else {
+        format!("{} \"{}\"", kind_name(channel.kind), excerpt(&channel.name))
+    };
+    Error::at_line(
+        path,
+        line,
+        Some(column as u64 + 1),
+        format!("\"{}\" is not a number ({what})", excerpt_bytes(cell)),
+    )
+}
+
+/// Header rows with the label they stand for (`Type`, `Name`, `ID`, `Parent`).
+type LabeledRows = Vec<(String, Row)>;
+
+/// The header rows between row 1 and the data, as read: labeled rows
+/// (`Type`, `Name`, `ID`, `Parent`), rows with an empty label in order, and
+/// the axis row `Frame,Time,…`.
+struct DescriptorRows {
+    labeled: LabeledRows,
+    unlabeled: Vec<Row>,
+    axis: Row,
+}
+
+/// The descriptor rows that name a column, once the unlabeled ones have been
+/// given their meaning: what [`MotiveCsvReader::group_channels`] reads.
+struct Descriptors<'a> {
+    types: &'a Row,
+    names: Option<&'a Row>,
+    ids: Option<&'a Row>,
+    /// The component row (`Position`, `Rotation`…), if the file has one.
+    component: Option<&'a Row>,
+    axis: &'a Row,
+}
+
+impl<'a> Descriptors<'a> {
+    /// A column's (Type, Name, ID): equal keys in a run make one channel.
+    fn key(&self, i: usize) -> (&'a str, &'a str, &'a str) {
+        let cell = |row: Option<&'a Row>| row.map_or("", move |r| r.text(i));
+        (self.types.text(i), cell(self.names), cell(self.ids))
+    }
+
+    /// The X, Y, Z columns of a marker's `Position` component (or of a file
+    /// without a component row) among `cols`.
+    fn position_columns(&self, cols: std::ops::Range<usize>) -> Option<[usize; 3]> {
+        let find = |axis: &str| {
+            cols.clone().find(|&c| {
+                self.axis.text(c) == axis
+                    && self.component.is_none_or(|r| {
+                        let s = r.text(c);
+                        s == "Position" || s.is_empty()
+                    })
+            })
+        };
+        Some([find("X")?, find("Y")?, find("Z")?])
+    }
+}
+
+/// Gives the unlabeled header rows their meaning: the last one is the
+/// component row; earlier ones (format 1.21) stand for Type, Name, ID in that
+/// order, skipping labels already present. `None` if there are more of them
+/// than labels left.
+fn assign_unlabeled_rows(
+    mut labeled: LabeledRows,
+    mut unlabeled: Vec<Row>,
+) -> Option<(LabeledRows, Option<Row>)> {
+    let component = unlabeled.pop();
+    let mut order = ["Type", "Name", "ID"].into_iter();
+    for row in unlabeled {
+        let label = order.find(|l| !labeled.iter().any(|(k, _)| k == l))?;
+        labeled.push((label.to_string(), row));
+    }
+    Some((labeled, component))
 }
 
 /// Column role of Frame, Time, TimeCode and unnamed columns.

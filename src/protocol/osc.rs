@@ -285,108 +285,69 @@ impl Assembler {
         now_s: f64,
         out: &mut Output,
     ) -> bool {
-        let bad = |msg: String| Problem {
-            kind: ProblemKind::BadArgs,
-            address: m.addr.clone(),
-            msg,
-        };
-        match m.addr.as_str() {
-            "/frame/start" => {
-                let n = match int_arg(&m.args, 0, "frame number") {
-                    Ok(n) => n,
-                    Err(e) => {
-                        out.problems.push(bad(e));
-                        return false;
-                    }
-                };
-                if frame.content && unbundled {
-                    // The previous bracket's /frame/end was lost.
-                    out.problems.push(Problem {
-                        kind: ProblemKind::BrokenFrame,
-                        address: "/frame/start".into(),
-                        msg: format!(
-                            "frame {n} started before {} ended (its /frame/end was lost)",
-                            describe_number(frame.number)
-                        ),
-                    });
-                    let prev = std::mem::replace(
-                        frame,
-                        Partial {
-                            received_s: now_s,
-                            ..Partial::default()
-                        },
-                    );
-                    self.emit(prev, out);
-                }
-                frame.number = Some(n);
-                frame.content = true;
-                false
-            }
+        let result = match m.addr.as_str() {
+            "/frame/start" => int_arg(&m.args, 0, "frame number")
+                .map(|n| self.frame_start(n, frame, unbundled, now_s, out)),
             "/frame/end" => {
-                let n = match int_arg(&m.args, 0, "frame number") {
-                    Ok(n) => n,
-                    Err(e) => {
-                        out.problems.push(bad(e));
-                        return false;
-                    }
-                };
-                match frame.number {
-                    Some(s) if s != n => out.problems.push(Problem {
-                        kind: ProblemKind::BrokenFrame,
-                        address: "/frame/end".into(),
-                        msg: format!("frame {n} ended but frame {s} was started; keeping {s}"),
-                    }),
-                    Some(_) => {}
-                    None if frame.markers.is_empty() => {
-                        out.problems.push(Problem {
-                            kind: ProblemKind::BrokenFrame,
-                            address: "/frame/end".into(),
-                            msg: format!("frame {n} ended but was never started"),
-                        });
-                        if unbundled {
-                            frame.content = false;
-                            return false;
-                        }
-                        frame.number = Some(n);
-                    }
-                    None => {
-                        if unbundled {
-                            out.problems.push(Problem {
-                                kind: ProblemKind::BrokenFrame,
-                                address: "/frame/start".into(),
-                                msg: format!(
-                                    "frame {n}: /frame/start was lost; delivering its markers"
-                                ),
-                            });
-                        }
-                        frame.number = Some(n);
-                    }
-                }
-                frame.content = true;
-                unbundled
+                int_arg(&m.args, 0, "frame number").map(|n| frame_end(n, frame, unbundled, out))
             }
-            "/frame/timestamp" => {
-                match number_arg(&m.args, 0, "timestamp (ms)") {
-                    Ok(ms) => frame.time_s = Some(ms / 1000.0),
-                    Err(e) => out.problems.push(bad(e)),
-                }
+            "/frame/timestamp" => number_arg(&m.args, 0, "timestamp (ms)").map(|ms| {
+                frame.time_s = Some(ms / 1000.0);
                 false
-            }
-            addr => {
-                let Some(kind) = marker_kind(addr, self.opts.othermarkers) else {
+            }),
+            addr => match marker_kind(addr, self.opts.othermarkers) {
+                None => {
                     self.ignore(addr, out);
-                    return false;
-                };
-                match self.marker(m, kind) {
-                    Ok(marker) => {
-                        frame.markers.push(marker);
-                        frame.content = true;
-                    }
-                    Err(e) => out.problems.push(bad(e)),
+                    Ok(false)
                 }
-                false
-            }
+                Some(kind) => self.marker(m, kind).map(|marker| {
+                    frame.markers.push(marker);
+                    frame.content = true;
+                    false
+                }),
+            },
+        };
+        result.unwrap_or_else(|msg| {
+            out.problems.push(Problem {
+                kind: ProblemKind::BadArgs,
+                address: m.addr.clone(),
+                msg,
+            });
+            false
+        })
+    }
+
+    /// `/frame/start n`: opens frame `n`. An unbundled frame still open
+    /// lost its `/frame/end`: it is delivered first, with a problem.
+    fn frame_start(
+        &mut self,
+        n: i64,
+        frame: &mut Partial,
+        unbundled: bool,
+        now_s: f64,
+        out: &mut Output,
+    ) -> bool {
+        if frame.content && unbundled {
+            out.problems.push(Problem {
+                kind: ProblemKind::BrokenFrame,
+                address: "/frame/start".into(),
+                msg: format!(
+                    "frame {n} started before {} ended (its /frame/end was lost)",
+                    describe_number(frame.number)
+                ),
+            });
+            let prev = std::mem::replace(
+                frame,
+                Partial {
+                    received_s: now_s,
+                    ..Partial::default()
+                },
+            );
+            self.emit(prev, out);
         }
+        frame.number = Some(n);
+        frame.content = true;
+        false
     }
 
     fn marker(&self, m: &OscMessage, kind: MarkerAddress) -> Result<Marker, String> {
@@ -478,6 +439,45 @@ struct Census {
     own: usize,
     /// Everything else.
     others: usize,
+}
+
+/// `/frame/end n`: closes frame `n`; true when an unbundled bracket is
+/// complete. A number other than the start's keeps the start's; an end
+/// without a start delivers the markers seen (or, unbundled and without
+/// markers, nothing).
+fn frame_end(n: i64, frame: &mut Partial, unbundled: bool, out: &mut Output) -> bool {
+    match frame.number {
+        Some(s) if s != n => out.problems.push(Problem {
+            kind: ProblemKind::BrokenFrame,
+            address: "/frame/end".into(),
+            msg: format!("frame {n} ended but frame {s} was started; keeping {s}"),
+        }),
+        Some(_) => {}
+        None if frame.markers.is_empty() => {
+            out.problems.push(Problem {
+                kind: ProblemKind::BrokenFrame,
+                address: "/frame/end".into(),
+                msg: format!("frame {n} ended but was never started"),
+            });
+            if unbundled {
+                frame.content = false;
+                return false;
+            }
+            frame.number = Some(n);
+        }
+        None => {
+            if unbundled {
+                out.problems.push(Problem {
+                    kind: ProblemKind::BrokenFrame,
+                    address: "/frame/start".into(),
+                    msg: format!("frame {n}: /frame/start was lost; delivering its markers"),
+                });
+            }
+            frame.number = Some(n);
+        }
+    }
+    frame.content = true;
+    unbundled
 }
 
 /// The addresses that only make sense inside a frame bracket.

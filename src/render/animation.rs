@@ -184,20 +184,39 @@ impl Skin {
             )
             .into());
         }
-        let times: Vec<f32> = motion.times.iter().map(|&t| t as f32).collect();
-        let bytes: Vec<u8> = times.iter().flat_map(|t| t.to_le_bytes()).collect();
-        let view = b.view(bytes, None);
-        let (lo, hi) = (times[0], times[keys - 1]);
-        let input = accessor(
-            b,
-            view,
-            0,
-            keys,
-            ComponentType::F32,
-            Type::Scalar,
-            Some((vec![lo], vec![hi])),
-        );
-        // The moving joints' local translations, joint after joint.
+        let input = key_times(b, motion);
+        let (moving, translations) = self.moving_translations(tree, motion);
+        let view = b.view(translations, None);
+        let mut samplers = Vec::with_capacity(moving.len());
+        let mut channels = Vec::with_capacity(moving.len());
+        for (s, &(i, offset)) in moving.iter().enumerate() {
+            let output = accessor(b, view, offset, keys, ComponentType::F32, Type::Vec3, None);
+            samplers.push(linear_sampler(input, output));
+            channels.push(self.translation_channel(s, i));
+        }
+        if channels.is_empty() {
+            // Nothing moved: a glTF animation needs at least one channel.
+            return Ok(());
+        }
+        b.root.push(json::Animation {
+            extensions: None,
+            extras: Some(motion_extras(motion)?),
+            channels,
+            name: Some("capture".into()),
+            samplers,
+        });
+        Ok(())
+    }
+
+    /// The moving joints' local translations (to their parent), joint after
+    /// joint, as little-endian floats, with each joint's index and byte
+    /// offset; joints that never leave their rest translation are left out.
+    fn moving_translations(
+        &self,
+        tree: &Tree,
+        motion: &TreeMotion,
+    ) -> (Vec<(usize, usize)>, Vec<u8>) {
+        let keys = motion.keys();
         let mut moving = Vec::new();
         let mut out: Vec<u8> = Vec::new();
         let mut local = Vec::with_capacity(keys);
@@ -215,52 +234,70 @@ impl Skin {
             moving.push((i, out.len()));
             out.extend(local.iter().flatten().flat_map(|v| v.to_le_bytes()));
         }
-        let view = b.view(out, None);
-        let mut samplers = Vec::with_capacity(moving.len());
-        let mut channels = Vec::with_capacity(moving.len());
-        for (s, &(i, offset)) in moving.iter().enumerate() {
-            let output = accessor(b, view, offset, keys, ComponentType::F32, Type::Vec3, None);
-            samplers.push(json::animation::Sampler {
-                extensions: None,
-                extras: Default::default(),
-                input,
-                interpolation: Valid(json::animation::Interpolation::Linear),
-                output,
-            });
-            channels.push(json::animation::Channel {
-                sampler: json::Index::new(s as u32),
-                target: json::animation::Target {
-                    extensions: None,
-                    extras: Default::default(),
-                    node: self.joints[i],
-                    path: Valid(json::animation::Property::Translation),
-                },
-                extensions: None,
-                extras: Default::default(),
-            });
-        }
-        if channels.is_empty() {
-            // Nothing moved: a glTF animation needs at least one channel.
-            return Ok(());
-        }
-        let extras = raw(&serde_json::json!({
-            "start_s": motion.start_s,
-            "rate_hz": motion.rate_hz,
-            "keys": keys,
-            "bend_power": motion.bend_power,
-            "stretch_max_pct": motion.stretch.max_pct,
-            "stretch_mean_pct": motion.stretch.mean_pct,
-            "cut_to_max_duration": motion.cut,
-        }))?;
-        b.root.push(json::Animation {
-            extensions: None,
-            extras: Some(extras),
-            channels,
-            name: Some("capture".into()),
-            samplers,
-        });
-        Ok(())
+        (moving, out)
     }
+
+    /// The channel that drives joint `i`'s translation from sampler `s`.
+    fn translation_channel(&self, s: usize, i: usize) -> json::animation::Channel {
+        json::animation::Channel {
+            sampler: json::Index::new(s as u32),
+            target: json::animation::Target {
+                extensions: None,
+                extras: Default::default(),
+                node: self.joints[i],
+                path: Valid(json::animation::Property::Translation),
+            },
+            extensions: None,
+            extras: Default::default(),
+        }
+    }
+}
+
+/// The key times (s) as the samplers' shared input accessor, with the
+/// min/max glTF requires of an animation input.
+fn key_times(b: &mut Builder, motion: &TreeMotion) -> json::Index<json::Accessor> {
+    let keys = motion.keys();
+    let times: Vec<f32> = motion.times.iter().map(|&t| t as f32).collect();
+    let bytes: Vec<u8> = times.iter().flat_map(|t| t.to_le_bytes()).collect();
+    let view = b.view(bytes, None);
+    let (lo, hi) = (times[0], times[keys - 1]);
+    accessor(
+        b,
+        view,
+        0,
+        keys,
+        ComponentType::F32,
+        Type::Scalar,
+        Some((vec![lo], vec![hi])),
+    )
+}
+
+/// A linear sampler from key times to values.
+fn linear_sampler(
+    input: json::Index<json::Accessor>,
+    output: json::Index<json::Accessor>,
+) -> json::animation::Sampler {
+    json::animation::Sampler {
+        extensions: None,
+        extras: Default::default(),
+        input,
+        interpolation: Valid(json::animation::Interpolation::Linear),
+        output,
+    }
+}
+
+/// What the animation's extras tell a viewer about the motion: its clock,
+/// the bending law and how far the branches had to stretch.
+fn motion_extras(motion: &TreeMotion) -> Result<Box<RawValue>> {
+    raw(&serde_json::json!({
+        "start_s": motion.start_s,
+        "rate_hz": motion.rate_hz,
+        "keys": motion.keys(),
+        "bend_power": motion.bend_power,
+        "stretch_max_pct": motion.stretch.max_pct,
+        "stretch_mean_pct": motion.stretch.mean_pct,
+        "cut_to_max_duration": motion.cut,
+    }))
 }
 
 /// `extras` of a captured tip's joint: its marker and, with a motion, the

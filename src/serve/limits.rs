@@ -255,42 +255,8 @@ pub async fn serve(
             }
             _ = &mut stopped => break,
         };
-        if !shared.limits.allow.allows(peer.ip()) {
-            shared.bad.add(BadInputKind::NotAllowed);
-            shared
-                .throttle
-                .warn("http: clients not in daemon.http_allow", || {
-                    format!(
-                        "http: refused {peer}: not in daemon.http_allow {:?} \
-                     (to allow it: --set 'daemon.http_allow=[\"{}\"]')",
-                        shared
-                            .limits
-                            .allow
-                            .0
-                            .iter()
-                            .map(|r| r.to_string())
-                            .collect::<Vec<_>>(),
-                        peer.ip()
-                    )
-                });
-            refuse(&shared, tcp, "403 Forbidden", "not in daemon.http_allow\n");
-            continue;
-        }
-        if shared.table.len() >= shared.limits.max_connections && !shared.table.evict_oldest_idle()
-        {
-            shared.throttle.warn("http: connection cap reached", || {
-                format!(
-                    "http: refused {peer}: {} connections are open and all busy \
-                     (daemon.http_max_connections)",
-                    shared.limits.max_connections
-                )
-            });
-            refuse(
-                &shared,
-                tcp,
-                "503 Service Unavailable",
-                "too many connections\n",
-            );
+        if let Some((status, body)) = refusal(&shared, peer) {
+            refuse(&shared, tcp, status, body);
             continue;
         }
         next_id += 1;
@@ -306,6 +272,44 @@ pub async fn serve(
     }
     shared.throttle.finish();
     Ok(())
+}
+
+/// Why a new connection from `peer` is refused, as the status line and body
+/// to answer with, or `None` to serve it: a peer outside
+/// `daemon.http_allow` (counted as bad input), or a full table with no idle
+/// connection to evict. Each reason is logged, throttled.
+fn refusal(shared: &Shared, peer: SocketAddr) -> Option<(&'static str, &'static str)> {
+    if !shared.limits.allow.allows(peer.ip()) {
+        shared.bad.add(BadInputKind::NotAllowed);
+        shared
+            .throttle
+            .warn("http: clients not in daemon.http_allow", || {
+                format!(
+                    "http: refused {peer}: not in daemon.http_allow {:?} \
+                     (to allow it: --set 'daemon.http_allow=[\"{}\"]')",
+                    shared
+                        .limits
+                        .allow
+                        .0
+                        .iter()
+                        .map(|r| r.to_string())
+                        .collect::<Vec<_>>(),
+                    peer.ip()
+                )
+            });
+        return Some(("403 Forbidden", "not in daemon.http_allow\n"));
+    }
+    if shared.table.len() >= shared.limits.max_connections && !shared.table.evict_oldest_idle() {
+        shared.throttle.warn("http: connection cap reached", || {
+            format!(
+                "http: refused {peer}: {} connections are open and all busy \
+                 (daemon.http_max_connections)",
+                shared.limits.max_connections
+            )
+        });
+        return Some(("503 Service Unavailable", "too many connections\n"));
+    }
+    None
 }
 
 /// Answers `status` and closes, without reading the request: cheap enough

@@ -13,6 +13,7 @@ use std::io::{self, Write};
 
 use super::motion::stream;
 use super::Synthetic;
+use crate::model::frame::MarkerFrame;
 use crate::rng::Rng;
 
 /// Stream label for the take's ID suffix.
@@ -29,8 +30,35 @@ fn bad(msg: String) -> io::Error {
 /// Writes `syn` as a Motive 1.23 CSV. Every marker's `id` must name one of
 /// `syn.columns`, and markers of a frame must come in column order.
 pub fn write_motive_csv(syn: &Synthetic, out: &mut impl Write) -> io::Result<()> {
-    let truth = &syn.truth;
     let ncols = syn.columns.len();
+    let mut line = String::with_capacity(64 + ncols * 40);
+    key_value_rows(syn, &mut line)?;
+    out.write_all(line.as_bytes())?;
+    let suffix = id_suffix(syn);
+    for (label, cell) in [("Type", 0), ("Name", 1), ("ID", 2), ("", 3)] {
+        line.clear();
+        descriptor_row(syn, label, cell, &suffix, &mut line);
+        out.write_all(line.as_bytes())?;
+    }
+    line.clear();
+    line.push_str("Frame,Time (Seconds)");
+    for _ in 0..ncols {
+        line.push_str(",X,Y,Z");
+    }
+    line.push_str("\r\n");
+    out.write_all(line.as_bytes())?;
+    for frame in &syn.frames {
+        line.clear();
+        data_row(frame, ncols, &mut line)?;
+        out.write_all(line.as_bytes())?;
+    }
+    out.flush()
+}
+
+/// Row 1 (the take's keys and values) and the empty row 2. The take name
+/// is written unquoted, so it may not hold CSV delimiters.
+fn key_value_rows(syn: &Synthetic, line: &mut String) -> io::Result<()> {
+    let truth = &syn.truth;
     let take = if truth.options.take_name.is_empty() {
         "synthetic"
     } else {
@@ -43,7 +71,6 @@ pub fn write_motive_csv(syn: &Synthetic, out: &mut impl Write) -> io::Result<()>
     }
     let rate = format!("{:.6}", truth.frame_rate);
     let n = syn.frames.len();
-    let mut line = String::with_capacity(64 + ncols * 40);
     write!(
         line,
         "Format Version,1.23,Take Name,{take},Take Notes,,Capture Frame Rate,{rate},\
@@ -52,71 +79,67 @@ pub fn write_motive_csv(syn: &Synthetic, out: &mut impl Write) -> io::Result<()>
          Coordinate Space,Global\r\n\r\n"
     )
     .ok();
-    out.write_all(line.as_bytes())?;
+    Ok(())
+}
 
-    // Motive 2.x unlabeled IDs look like "1A2A8F984BAAD11EE": a running
-    // number in hex followed by a per-take suffix.
-    let suffix = format!(
+/// The per-take part of the marker IDs. Motive 2.x unlabeled IDs look like
+/// "1A2A8F984BAAD11EE": a running number in hex followed by this suffix.
+fn id_suffix(syn: &Synthetic) -> String {
+    format!(
         "{:016X}",
-        stream(&Rng::new(truth.options.seed), ID_SUFFIX).next_u64()
-    );
-    for (label, cell) in [("Type", 0), ("Name", 1), ("ID", 2), ("", 3)] {
-        line.clear();
-        write!(line, ",{label}").ok();
-        for (c, col) in syn.columns.iter().enumerate() {
-            for _ in 0..3 {
-                match cell {
-                    0 => line.push_str(",Marker"),
-                    1 => {
-                        line.push(',');
-                        line.push_str(&col.name);
-                    }
-                    2 => {
-                        write!(line, ",\"{:X}{suffix}\"", c + 1).ok();
-                    }
-                    _ => line.push_str(",Position"),
+        stream(&Rng::new(syn.truth.options.seed), ID_SUFFIX).next_u64()
+    )
+}
+
+/// One of the `Type`, `Name`, `ID` and component rows (`cell` 0 to 3):
+/// the same cell three times per column, for its X, Y and Z.
+fn descriptor_row(syn: &Synthetic, label: &str, cell: u8, suffix: &str, line: &mut String) {
+    write!(line, ",{label}").ok();
+    for (c, col) in syn.columns.iter().enumerate() {
+        for _ in 0..3 {
+            match cell {
+                0 => line.push_str(",Marker"),
+                1 => {
+                    line.push(',');
+                    line.push_str(&col.name);
                 }
+                2 => {
+                    write!(line, ",\"{:X}{suffix}\"", c + 1).ok();
+                }
+                _ => line.push_str(",Position"),
             }
         }
-        line.push_str("\r\n");
-        out.write_all(line.as_bytes())?;
-    }
-    line.clear();
-    line.push_str("Frame,Time (Seconds)");
-    for _ in 0..ncols {
-        line.push_str(",X,Y,Z");
     }
     line.push_str("\r\n");
-    out.write_all(line.as_bytes())?;
+}
 
-    for frame in &syn.frames {
-        line.clear();
-        write!(line, "{},{:.6}", frame.frame, frame.time_s).ok();
-        let mut next = 0usize;
-        for m in &frame.markers {
-            let c =
-                m.id.and_then(|id| usize::try_from(id).ok())
-                    .filter(|&c| c < ncols && c >= next)
-                    .ok_or_else(|| {
-                        bad(format!(
-                            "frame {}: marker id {:?} is not a column after {next} (of {ncols})",
-                            frame.frame, m.id
-                        ))
-                    })?;
-            for _ in next..c {
-                line.push_str(",,,");
-            }
-            let p = m.position * 1000.0;
-            write!(line, ",{:.6},{:.6},{:.6}", p.x, p.y, p.z).ok();
-            next = c + 1;
-        }
-        for _ in next..ncols {
+/// One frame's row: millimetres to 6 decimals in each marker's column,
+/// empty cells for the columns without a marker.
+fn data_row(frame: &MarkerFrame, ncols: usize, line: &mut String) -> io::Result<()> {
+    write!(line, "{},{:.6}", frame.frame, frame.time_s).ok();
+    let mut next = 0usize;
+    for m in &frame.markers {
+        let c =
+            m.id.and_then(|id| usize::try_from(id).ok())
+                .filter(|&c| c < ncols && c >= next)
+                .ok_or_else(|| {
+                    bad(format!(
+                        "frame {}: marker id {:?} is not a column after {next} (of {ncols})",
+                        frame.frame, m.id
+                    ))
+                })?;
+        for _ in next..c {
             line.push_str(",,,");
         }
-        line.push_str("\r\n");
-        out.write_all(line.as_bytes())?;
+        let p = m.position * 1000.0;
+        write!(line, ",{:.6},{:.6},{:.6}", p.x, p.y, p.z).ok();
+        next = c + 1;
     }
-    out.flush()
+    for _ in next..ncols {
+        line.push_str(",,,");
+    }
+    line.push_str("\r\n");
+    Ok(())
 }
 
 #[cfg(test)]

@@ -9,8 +9,9 @@ use std::collections::HashMap;
 
 use glam::DVec3;
 
+use super::truth::GapTruth;
 use super::{Synthetic, Truth};
-use crate::model::tips::Tips;
+use crate::model::tips::{Tip, Tips};
 use crate::model::trace::{SampleKind, Trace};
 use crate::track::gaps::{self, GapSettings};
 
@@ -122,8 +123,26 @@ pub fn score(tips: &Tips, syn: &Synthetic) -> Score {
         tips_placed: truth.tips.len(),
         ..Score::default()
     };
+    let ours = match_tips(tips, truth, &mut s);
+    let baseline = pchip_baseline(tips, syn);
+    for (k, tip) in ours.iter().enumerate() {
+        let filled = tip.map(|t| filled_positions(tips, t)).unwrap_or_default();
+        for g in truth.gaps.iter().filter(|g| g.tip == k) {
+            if let Some(fill) = score_gap(truth, g, &filled, &baseline[k]) {
+                s.fills.push(fill);
+            }
+        }
+    }
+    s
+}
+
+/// Gives each output tip the true tip most of its samples came from; the
+/// first tip to claim a true tip is its match, later ones and tips made
+/// mostly of ghosts are fragments. Counts wrong samples, bridged fills,
+/// rest errors and missed tips into `s`; returns the match of each true tip.
+fn match_tips<'a>(tips: &'a Tips, truth: &Truth, s: &mut Score) -> Vec<Option<&'a Tip>> {
     let mut claimed = vec![0usize; truth.tips.len()];
-    let mut ours: Vec<Option<&crate::model::tips::Tip>> = vec![None; truth.tips.len()];
+    let mut ours: Vec<Option<&Tip>> = vec![None; truth.tips.len()];
     for tip in &tips.tips {
         let mut counts: HashMap<Option<usize>, usize> = HashMap::new();
         let mut owner_at: HashMap<i64, Option<usize>> = HashMap::new();
@@ -139,27 +158,20 @@ pub fn score(tips: &Tips, syn: &Synthetic) -> Score {
         };
         let total: usize = counts.values().sum();
         s.wrong_samples += total - n;
-        for f in tip.trace.fills() {
-            if owner_at.get(&f.from) != owner_at.get(&f.to) {
-                s.bridged += 1;
-            }
-        }
+        // A fill whose two ends came from different tips bridges them.
+        s.bridged += tip
+            .trace
+            .fills()
+            .iter()
+            .filter(|f| owner_at.get(&f.from) != owner_at.get(&f.to))
+            .count();
         let Some(k) = owner else {
             s.fragments += 1;
             continue;
         };
         claimed[k] += 1;
         if claimed[k] > 1 {
-            if std::env::var_os("TRACK_DEBUG").is_some() {
-                eprintln!(
-                    "fragment of true tip {k}: frames {}..{} measured {} rest {:?} (true {:?})",
-                    tip.trace.first_frame(),
-                    tip.trace.last_frame(),
-                    tip.trace.measured(),
-                    tip.rest,
-                    truth.tips[k].rest
-                );
-            }
+            debug_fragment(tip, k, truth);
             s.fragments += 1;
             continue;
         }
@@ -167,45 +179,66 @@ pub fn score(tips: &Tips, syn: &Synthetic) -> Score {
         s.rest_errors.push(tip.rest.distance(truth.tips[k].rest));
     }
     s.missed_tips = claimed.iter().filter(|c| **c == 0).count();
-    let baseline = pchip_baseline(tips, syn);
-    for (k, tip) in ours.iter().enumerate() {
-        let filled: HashMap<i64, DVec3> = tip
-            .map(|t| {
-                t.trace
-                    .samples()
-                    .filter(|x| x.kind == SampleKind::Filled)
-                    .map(|x| {
-                        (
-                            tips.timeline.source_frame(x.frame).unwrap_or(-1),
-                            x.position,
-                        )
-                    })
-                    .collect()
-            })
-            .unwrap_or_default();
-        for g in truth.gaps.iter().filter(|g| g.tip == k) {
-            if truth.time_of(g.first_frame) < truth.wind.0 + truth.wind_ramp_s
-                || g.first_frame == 0
-                || g.last_frame + 1 >= truth.frames as i64
-            {
-                continue;
-            }
-            let err = |get: &dyn Fn(i64) -> Option<DVec3>| -> Option<f64> {
-                let mut sum = 0.0;
-                for f in g.first_frame..=g.last_frame {
-                    sum += get(f)?.distance(truth.position(k, truth.time_of(f)));
-                }
-                Some(sum / (g.last_frame - g.first_frame + 1) as f64)
-            };
-            let base = &baseline[k];
-            s.fills.push(FillScore {
-                len: g.last_frame - g.first_frame + 1,
-                ours: err(&|f| filled.get(&f).copied()),
-                pchip: err(&|f| base.get(&f).copied()),
-            });
-        }
+    ours
+}
+
+/// With `TRACK_DEBUG` set, says which frames a second claim on true tip
+/// `k` covers: what to look at when the tracker splits a tip.
+fn debug_fragment(tip: &Tip, k: usize, truth: &Truth) {
+    if std::env::var_os("TRACK_DEBUG").is_some() {
+        eprintln!(
+            "fragment of true tip {k}: frames {}..{} measured {} rest {:?} (true {:?})",
+            tip.trace.first_frame(),
+            tip.trace.last_frame(),
+            tip.trace.measured(),
+            tip.rest,
+            truth.tips[k].rest
+        );
     }
-    s
+}
+
+/// The positions our tracker filled in, by source frame.
+fn filled_positions(tips: &Tips, tip: &Tip) -> HashMap<i64, DVec3> {
+    tip.trace
+        .samples()
+        .filter(|x| x.kind == SampleKind::Filled)
+        .map(|x| {
+            (
+                tips.timeline.source_frame(x.frame).unwrap_or(-1),
+                x.position,
+            )
+        })
+        .collect()
+}
+
+/// The mean error of our fill and of the PCHIP baseline over one true gap;
+/// `None` for gaps neither could fairly fill (before the wind is up, or at
+/// either end of the take).
+fn score_gap(
+    truth: &Truth,
+    g: &GapTruth,
+    filled: &HashMap<i64, DVec3>,
+    base: &HashMap<i64, DVec3>,
+) -> Option<FillScore> {
+    if truth.time_of(g.first_frame) < truth.wind.0 + truth.wind_ramp_s
+        || g.first_frame == 0
+        || g.last_frame + 1 >= truth.frames as i64
+    {
+        return None;
+    }
+    let k = g.tip;
+    let err = |get: &dyn Fn(i64) -> Option<DVec3>| -> Option<f64> {
+        let mut sum = 0.0;
+        for f in g.first_frame..=g.last_frame {
+            sum += get(f)?.distance(truth.position(k, truth.time_of(f)));
+        }
+        Some(sum / (g.last_frame - g.first_frame + 1) as f64)
+    };
+    Some(FillScore {
+        len: g.last_frame - g.first_frame + 1,
+        ours: err(&|f| filled.get(&f).copied()),
+        pchip: err(&|f| base.get(&f).copied()),
+    })
 }
 
 /// PCHIP fills of every true tip's own samples (perfect identity), by

@@ -83,109 +83,27 @@ pub fn encode(spec: &WriteSpec) -> Vec<u8> {
     let p = spec.processor;
     let points = spec.frames.first().map_or(spec.labels.len(), |f| f.len());
     let n = spec.frames.len();
-    let signed_scale = if spec.float { -spec.scale } else { spec.scale };
-    let analog_values = spec.analog_channels * spec.analog_per_channel;
-
-    let mut list: Vec<(u8, &str, Value)> = vec![
-        (
-            1,
-            "USED",
-            if spec.used_as_byte {
-                Value::Byte(vec![points as u8], vec![])
-            } else {
-                Value::Int16(vec![points as u16 as i16], vec![])
-            },
-        ),
-        (1, "SCALE", Value::Float(vec![signed_scale], vec![])),
-        (1, "RATE", Value::Float(vec![spec.rate], vec![])),
-        (
-            1,
-            "FRAMES",
-            Value::Int16(vec![n.min(65535) as u16 as i16], vec![]),
-        ),
-        (1, "DATA_START", Value::Int16(vec![0], vec![])),
-        (
-            1,
-            "UNITS",
-            Value::Chars {
-                strings: vec![spec.units.clone()],
-                array: false,
-            },
-        ),
-        (
-            2,
-            "USED",
-            Value::Int16(vec![spec.analog_channels as i16], vec![]),
-        ),
-        (
-            2,
-            "RATE",
-            Value::Float(vec![spec.rate * spec.analog_per_channel as f32], vec![]),
-        ),
-    ];
-    if let Some(y) = &spec.y_screen {
-        list.push((
-            1,
-            "X_SCREEN",
-            Value::Chars {
-                strings: vec!["+X".into()],
-                array: false,
-            },
-        ));
-        list.push((
-            1,
-            "Y_SCREEN",
-            Value::Chars {
-                strings: vec![y.clone()],
-                array: false,
-            },
-        ));
-    }
-    const LABEL_NAMES: [&str; 8] = [
-        "LABELS", "LABELS2", "LABELS3", "LABELS4", "LABELS5", "LABELS6", "LABELS7", "LABELS8",
-    ];
-    for (chunk, name) in spec.labels.chunks(255).zip(LABEL_NAMES) {
-        list.push((
-            1,
-            name,
-            Value::Chars {
-                strings: chunk.to_vec(),
-                array: true,
-            },
-        ));
-    }
-    if !spec.descriptions.is_empty() {
-        list.push((
-            1,
-            "DESCRIPTIONS",
-            Value::Chars {
-                strings: spec.descriptions.iter().take(255).cloned().collect(),
-                array: true,
-            },
-        ));
-    }
     let last = spec.first_frame as u64 + n as u64 - 1;
+    let mut list = point_and_analog_parameters(spec, points, n);
+    list.extend(label_parameters(spec));
     if n > 65535 {
-        list.push((1, "LONG_FRAMES", Value::Float(vec![n as f32], vec![])));
-        let words = |v: u64| Value::Int16(vec![v as u16 as i16, (v >> 16) as u16 as i16], vec![2]);
-        list.push((3, "ACTUAL_START_FIELD", words(spec.first_frame as u64)));
-        list.push((3, "ACTUAL_END_FIELD", words(last)));
+        list.extend(long_take_parameters(spec, n, last));
     }
     // The data block is only known once the section's size is, and
     // DATA_START is inside it; its size does not depend on the value.
-    let probe = params::encode(&[(1, "POINT"), (2, "ANALOG"), (3, "TRIAL")], &list, p);
+    let probe = params::encode(&GROUPS, &list, p);
     let data_block = spec.param_block as usize + probe.len() / BLOCK + spec.gap_blocks;
-    list[4].2 = Value::Int16(vec![data_block as u16 as i16], vec![]);
-    let section = params::encode(&[(1, "POINT"), (2, "ANALOG"), (3, "TRIAL")], &list, p);
+    list[DATA_START_INDEX].2 = Value::Int16(vec![data_block as u16 as i16], vec![]);
+    let section = params::encode(&GROUPS, &list, p);
 
     let header = Header {
         param_block: spec.param_block,
         points: points as u16,
-        analog_total: analog_values as u16,
+        analog_total: (spec.analog_channels * spec.analog_per_channel) as u16,
         first_frame: spec.first_frame,
         last_frame: last.min(65535) as u16,
         max_gap: 0,
-        scale: signed_scale,
+        scale: signed_scale(spec),
         data_block: data_block as u16,
         analog_per_channel: spec.analog_per_channel as u16,
         frame_rate: spec.rate,
@@ -194,21 +112,109 @@ pub fn encode(spec: &WriteSpec) -> Vec<u8> {
     out.resize((spec.param_block as usize - 1) * BLOCK, 0);
     out.extend_from_slice(&section);
     out.resize((data_block - 1) * BLOCK, 0);
+    encode_frames(spec, &mut out);
+    if spec.pad {
+        out.resize(out.len().div_ceil(BLOCK) * BLOCK, 0);
+    }
+    out
+}
 
+/// The groups every written file has, with their ids.
+const GROUPS: [(u8, &str); 3] = [(1, "POINT"), (2, "ANALOG"), (3, "TRIAL")];
+
+/// Where POINT:DATA_START is in [`point_and_analog_parameters`]' list: it
+/// is filled in once the section's size is known.
+const DATA_START_INDEX: usize = 4;
+
+/// POINT:SCALE as written: negative for float storage.
+fn signed_scale(spec: &WriteSpec) -> f32 {
+    if spec.float {
+        -spec.scale
+    } else {
+        spec.scale
+    }
+}
+
+/// A character parameter value.
+fn chars(strings: Vec<String>, array: bool) -> Value {
+    Value::Chars { strings, array }
+}
+
+/// The POINT and ANALOG parameters every file has (DATA_START still 0),
+/// then X_SCREEN/Y_SCREEN if the spec sets an up axis.
+fn point_and_analog_parameters(
+    spec: &WriteSpec,
+    points: usize,
+    n: usize,
+) -> Vec<(u8, &'static str, Value)> {
+    let used = if spec.used_as_byte {
+        Value::Byte(vec![points as u8], vec![])
+    } else {
+        Value::Int16(vec![points as u16 as i16], vec![])
+    };
+    let analog_rate = spec.rate * spec.analog_per_channel as f32;
+    let mut list = vec![
+        (1, "USED", used),
+        (1, "SCALE", Value::Float(vec![signed_scale(spec)], vec![])),
+        (1, "RATE", Value::Float(vec![spec.rate], vec![])),
+        (
+            1,
+            "FRAMES",
+            Value::Int16(vec![n.min(65535) as u16 as i16], vec![]),
+        ),
+        (1, "DATA_START", Value::Int16(vec![0], vec![])),
+        (1, "UNITS", chars(vec![spec.units.clone()], false)),
+        (
+            2,
+            "USED",
+            Value::Int16(vec![spec.analog_channels as i16], vec![]),
+        ),
+        (2, "RATE", Value::Float(vec![analog_rate], vec![])),
+    ];
+    if let Some(y) = &spec.y_screen {
+        list.push((1, "X_SCREEN", chars(vec!["+X".into()], false)));
+        list.push((1, "Y_SCREEN", chars(vec![y.clone()], false)));
+    }
+    list
+}
+
+/// POINT:LABELS split into LABELS2… every 255 labels, and at most 255
+/// DESCRIPTIONS, as Vicon and Motive write them.
+fn label_parameters(spec: &WriteSpec) -> Vec<(u8, &'static str, Value)> {
+    const LABEL_NAMES: [&str; 8] = [
+        "LABELS", "LABELS2", "LABELS3", "LABELS4", "LABELS5", "LABELS6", "LABELS7", "LABELS8",
+    ];
+    let mut list: Vec<(u8, &'static str, Value)> = spec
+        .labels
+        .chunks(255)
+        .zip(LABEL_NAMES)
+        .map(|(chunk, name)| (1, name, chars(chunk.to_vec(), true)))
+        .collect();
+    if !spec.descriptions.is_empty() {
+        let descriptions = spec.descriptions.iter().take(255).cloned().collect();
+        list.push((1, "DESCRIPTIONS", chars(descriptions, true)));
+    }
+    list
+}
+
+/// The parameters of a take longer than the header's 16-bit frame numbers:
+/// POINT:LONG_FRAMES and TRIAL:ACTUAL_START_FIELD/ACTUAL_END_FIELD.
+fn long_take_parameters(spec: &WriteSpec, n: usize, last: u64) -> Vec<(u8, &'static str, Value)> {
+    let words = |v: u64| Value::Int16(vec![v as u16 as i16, (v >> 16) as u16 as i16], vec![2]);
+    vec![
+        (1, "LONG_FRAMES", Value::Float(vec![n as f32], vec![])),
+        (3, "ACTUAL_START_FIELD", words(spec.first_frame as u64)),
+        (3, "ACTUAL_END_FIELD", words(last)),
+    ]
+}
+
+/// Appends the data section: each frame's points, then its analog values.
+fn encode_frames(spec: &WriteSpec, out: &mut Vec<u8>) {
+    let p = spec.processor;
+    let analog_values = spec.analog_channels * spec.analog_per_channel;
     for (f, frame) in spec.frames.iter().enumerate() {
         for s in frame {
-            if spec.float {
-                for v in s.position {
-                    out.extend_from_slice(&p.put_f32(v as f32));
-                }
-                out.extend_from_slice(&p.put_f32(s.residual));
-            } else {
-                for v in s.position {
-                    let q = (v / spec.scale as f64).round().clamp(-32768.0, 32767.0) as i16;
-                    out.extend_from_slice(&p.put_i16(q));
-                }
-                out.extend_from_slice(&p.put_i16(s.residual.clamp(-32768.0, 32767.0) as i16));
-            }
+            encode_sample(spec, s, out);
         }
         // Analog values that look like points if misread: a reader that
         // miscounts them shifts every later frame.
@@ -221,8 +227,22 @@ pub fn encode(spec: &WriteSpec) -> Vec<u8> {
             }
         }
     }
-    if spec.pad {
-        out.resize(out.len().div_ceil(BLOCK) * BLOCK, 0);
+}
+
+/// Appends one point: X, Y, Z and the residual word, as float32 or as
+/// int16 steps of the scale.
+fn encode_sample(spec: &WriteSpec, s: &Sample, out: &mut Vec<u8>) {
+    let p = spec.processor;
+    if spec.float {
+        for v in s.position {
+            out.extend_from_slice(&p.put_f32(v as f32));
+        }
+        out.extend_from_slice(&p.put_f32(s.residual));
+    } else {
+        for v in s.position {
+            let q = (v / spec.scale as f64).round().clamp(-32768.0, 32767.0) as i16;
+            out.extend_from_slice(&p.put_i16(q));
+        }
+        out.extend_from_slice(&p.put_i16(s.residual.clamp(-32768.0, 32767.0) as i16));
     }
-    out
 }

@@ -151,97 +151,207 @@ fn read_at<R: Read + Seek>(
     r.read_exact(buf).map_err(|e| Error::io(path, e))
 }
 
+/// Reads the 512-byte header block and checks the two bytes every C3D file
+/// starts with: the first parameter block (byte 0) and the key 0x50.
+fn read_header_block<R: Read + Seek>(
+    source: &mut R,
+    path: &Path,
+    file_len: u64,
+) -> Result<([u8; header::BLOCK], u64)> {
+    let mut block = [0u8; header::BLOCK];
+    read_at(source, path, 0, &mut block, "512-byte header", file_len)?;
+    if block[1] != header::KEY {
+        return Err(Error::parse(
+            path,
+            Location::Offset(1),
+            format!(
+                "not a C3D file: header byte 1 is 0x{:02X}, expected 0x50",
+                block[1]
+            ),
+        ));
+    }
+    let param_block = block[0] as u64;
+    if param_block < 2 {
+        return Err(Error::parse(
+            path,
+            Location::Offset(0),
+            format!("header byte 0 (first parameter block) is {param_block}; it must be 2 or more"),
+        ));
+    }
+    Ok((block, param_block))
+}
+
+/// Reads the parameter section's 4-byte prefix: the processor type, which
+/// the header's numbers need to be decoded, and the section's block count.
+fn read_parameter_prefix<R: Read + Seek>(
+    source: &mut R,
+    path: &Path,
+    param_block: u64,
+    file_len: u64,
+) -> Result<(Processor, u8)> {
+    let param_at = (param_block - 1) * header::BLOCK as u64;
+    let mut prefix = [0u8; 4];
+    read_at(
+        source,
+        path,
+        param_at,
+        &mut prefix,
+        "parameter section (header byte 0)",
+        file_len,
+    )?;
+    let processor = Processor::from_code(prefix[3]).ok_or_else(|| {
+        Error::parse(
+            path,
+            Location::Offset(param_at + 3),
+            format!(
+                "processor type {} is not 84 (Intel), 85 (DEC) or 86 (MIPS)",
+                prefix[3]
+            ),
+        )
+    })?;
+    Ok((processor, prefix[2]))
+}
+
+/// Reads and decodes the parameter section. The section is as long as its
+/// block count says (as py-c3d reads it), but never overlaps a data section
+/// that follows it; with no count it reaches up to that data section.
+fn read_parameters<R: Read + Seek>(
+    source: &mut R,
+    path: &Path,
+    param_block: u64,
+    param_blocks: u8,
+    data_block: u64,
+    processor: Processor,
+    file_len: u64,
+) -> Result<params::Params> {
+    let param_at = (param_block - 1) * header::BLOCK as u64;
+    let mut end_block = if param_blocks > 0 {
+        param_block + param_blocks as u64
+    } else if data_block > param_block {
+        data_block
+    } else {
+        param_block + 1
+    };
+    if data_block > param_block {
+        end_block = end_block.min(data_block);
+    }
+    let end = (end_block - 1) * header::BLOCK as u64;
+    if end > file_len {
+        return Err(Error::parse(
+            path,
+            Location::Offset(file_len),
+            format!(
+                "file ends inside the parameter section (blocks {param_block} to {}, parameter byte 2 \
+                 and header word 9)",
+                end_block - 1
+            ),
+        ));
+    }
+    let mut section = vec![0u8; (end - param_at) as usize];
+    read_at(
+        source,
+        path,
+        param_at,
+        &mut section,
+        "parameter section",
+        file_len,
+    )?;
+    params::decode(&section, param_at, processor).map_err(|e| e.into_error(path))
+}
+
+/// The frames the file really holds. A capture cut short (a full disk, an
+/// interrupted copy): ezc3d and py-c3d read the complete frames, and so do
+/// we, saying so once; --strict refuses the file.
+fn complete_frames(
+    layout: &Layout,
+    file_len: u64,
+    options: &C3dOptions,
+    path: &Path,
+    warnings: &mut Vec<String>,
+) -> Result<u64> {
+    let room = file_len.saturating_sub(layout.data_offset);
+    let frames_available = if layout.frame_bytes == 0 {
+        layout.frames
+    } else {
+        (room / layout.frame_bytes as u64).min(layout.frames)
+    };
+    if frames_available < layout.frames {
+        let msg = format!(
+            "the file declares {} frames but holds {frames_available} complete ones",
+            layout.frames
+        );
+        if options.strict {
+            let end = layout.data_offset + frames_available * layout.frame_bytes as u64;
+            return Err(Error::parse(
+                path,
+                Location::Offset(end),
+                format!("{msg}; refused (--strict)"),
+            ));
+        }
+        warnings.push(format!(
+            "{msg}; reading those (--strict refuses such files)"
+        ));
+    }
+    Ok(frames_available)
+}
+
+/// One channel per point label; `*n` and `Unlabeled…` points are the
+/// unlabeled markers vendors write.
+fn marker_channels(layout: &Layout) -> Vec<Channel> {
+    layout
+        .labels
+        .iter()
+        .map(|name| Channel {
+            name: name.clone(),
+            kind: if name.starts_with('*') || name.starts_with("Unlabeled") {
+                ChannelKind::Unlabeled
+            } else {
+                ChannelKind::Marker
+            },
+            present: 0,
+            empty_cells: 0,
+        })
+        .collect()
+}
+
+/// What `inspect` and the reports say about the file: processor and
+/// storage, rate, units, up axis, and the writing software (else the file
+/// name).
+fn recording_info(path: &Path, processor: Processor, layout: &Layout) -> RecordingInfo {
+    RecordingInfo {
+        format: Format::C3d,
+        version: format!("{} {}", processor.name(), layout.storage.name()),
+        frame_rate: layout.rate,
+        units: layout.units.clone(),
+        up_axis: match layout.up {
+            UpAxis::Y => "Y".into(),
+            UpAxis::Z => "Z".into(),
+        },
+        source: layout.software.clone().unwrap_or_else(|| {
+            path.file_name()
+                .map(|n| n.to_string_lossy().into_owned())
+                .unwrap_or_default()
+        }),
+    }
+}
+
 impl<R: Read + Seek + Send> C3dReader<R> {
+    /// Decodes the header and parameters, reconciles them into a layout
+    /// and positions `source` at the first frame.
     fn new(path: &Path, mut source: R, file_len: u64, options: &C3dOptions) -> Result<Self> {
-        let mut block = [0u8; header::BLOCK];
-        read_at(
-            &mut source,
-            path,
-            0,
-            &mut block,
-            "512-byte header",
-            file_len,
-        )?;
-        if block[1] != header::KEY {
-            return Err(Error::parse(
-                path,
-                Location::Offset(1),
-                format!(
-                    "not a C3D file: header byte 1 is 0x{:02X}, expected 0x50",
-                    block[1]
-                ),
-            ));
-        }
-        let param_block = block[0] as u64;
-        if param_block < 2 {
-            return Err(Error::parse(
-                path,
-                Location::Offset(0),
-                format!(
-                    "header byte 0 (first parameter block) is {param_block}; it must be 2 or more"
-                ),
-            ));
-        }
-        let param_at = (param_block - 1) * header::BLOCK as u64;
-        let mut prefix = [0u8; 4];
-        read_at(
-            &mut source,
-            path,
-            param_at,
-            &mut prefix,
-            "parameter section (header byte 0)",
-            file_len,
-        )?;
-        let processor = Processor::from_code(prefix[3]).ok_or_else(|| {
-            Error::parse(
-                path,
-                Location::Offset(param_at + 3),
-                format!(
-                    "processor type {} is not 84 (Intel), 85 (DEC) or 86 (MIPS)",
-                    prefix[3]
-                ),
-            )
-        })?;
+        let (block, param_block) = read_header_block(&mut source, path, file_len)?;
+        let (processor, param_blocks) =
+            read_parameter_prefix(&mut source, path, param_block, file_len)?;
         let head = header::Header::decode(&block, processor);
-
-        // The section is as long as its block count says (as py-c3d reads
-        // it), but never overlaps a data section that follows it; with no
-        // count it reaches up to that data section.
-        let data_block = head.data_block as u64;
-        let mut end_block = if prefix[2] > 0 {
-            param_block + prefix[2] as u64
-        } else if data_block > param_block {
-            data_block
-        } else {
-            param_block + 1
-        };
-        if data_block > param_block {
-            end_block = end_block.min(data_block);
-        }
-        let end = (end_block - 1) * header::BLOCK as u64;
-        if end > file_len {
-            return Err(Error::parse(
-                path,
-                Location::Offset(file_len),
-                format!(
-                    "file ends inside the parameter section (blocks {param_block} to {}, parameter byte 2 \
-                     and header word 9)",
-                    end_block - 1
-                ),
-            ));
-        }
-        let mut section = vec![0u8; (end - param_at) as usize];
-        read_at(
+        let params = read_parameters(
             &mut source,
             path,
-            param_at,
-            &mut section,
-            "parameter section",
+            param_block,
+            param_blocks,
+            head.data_block as u64,
+            processor,
             file_len,
         )?;
-        let params =
-            params::decode(&section, param_at, processor).map_err(|e| e.into_error(path))?;
-
         let mut warnings = Vec::new();
         let layout = layout::resolve(
             &head,
@@ -252,66 +362,12 @@ impl<R: Read + Seek + Send> C3dReader<R> {
             &mut warnings,
         )
         .map_err(|e| e.into_error(path))?;
-
-        let room = file_len.saturating_sub(layout.data_offset);
-        let frames_available = if layout.frame_bytes == 0 {
-            layout.frames
-        } else {
-            (room / layout.frame_bytes as u64).min(layout.frames)
-        };
-        if frames_available < layout.frames {
-            // A capture cut short (a full disk, an interrupted copy): ezc3d
-            // and py-c3d read the complete frames, and so do we, saying so
-            // once; --strict refuses the file.
-            let msg = format!(
-                "the file declares {} frames but holds {frames_available} complete ones",
-                layout.frames
-            );
-            if options.strict {
-                let end = layout.data_offset + frames_available * layout.frame_bytes as u64;
-                return Err(Error::parse(
-                    path,
-                    Location::Offset(end),
-                    format!("{msg}; refused (--strict)"),
-                ));
-            }
-            warnings.push(format!(
-                "{msg}; reading those (--strict refuses such files)"
-            ));
-        }
+        let frames_available = complete_frames(&layout, file_len, options, path, &mut warnings)?;
         source
             .seek(SeekFrom::Start(layout.data_offset))
             .map_err(|e| Error::io(path, e))?;
-
-        let channels = layout
-            .labels
-            .iter()
-            .map(|name| Channel {
-                name: name.clone(),
-                kind: if name.starts_with('*') || name.starts_with("Unlabeled") {
-                    ChannelKind::Unlabeled
-                } else {
-                    ChannelKind::Marker
-                },
-                present: 0,
-                empty_cells: 0,
-            })
-            .collect();
-        let info = RecordingInfo {
-            format: Format::C3d,
-            version: format!("{} {}", processor.name(), layout.storage.name()),
-            frame_rate: layout.rate,
-            units: layout.units.clone(),
-            up_axis: match layout.up {
-                UpAxis::Y => "Y".into(),
-                UpAxis::Z => "Z".into(),
-            },
-            source: layout.software.clone().unwrap_or_else(|| {
-                path.file_name()
-                    .map(|n| n.to_string_lossy().into_owned())
-                    .unwrap_or_default()
-            }),
-        };
+        let channels = marker_channels(&layout);
+        let info = recording_info(path, processor, &layout);
         for w in &warnings {
             tracing::warn!("{}: {w}", path.display());
         }

@@ -175,89 +175,20 @@ pub fn decode(sec: &[u8], base: u64, p: Processor) -> Result<Params, FormatError
         if name_len == 0 || id == 0 {
             break;
         }
-        let record = pos;
         let n = name_len.unsigned_abs() as usize;
-        let name_bytes = take(sec, pos + 2, n, base, "a parameter name")?;
-        let name = String::from_utf8_lossy(name_bytes)
-            .trim()
-            .to_ascii_uppercase();
-        // The name as messages quote it: a name is file content and may
-        // hold newlines or escape codes.
-        let shown = crate::error::excerpt(&name);
+        let name = record_name(sec, pos, n, base)?;
         let off_at = pos + 2 + n;
-        let ob = take(
-            sec,
-            off_at,
-            2,
-            base,
-            &format!("the record offset of \"{shown}\""),
-        )?;
-        let offset = p.i16([ob[0], ob[1]]);
-        let end = if offset == 0 {
-            sec.len()
-        } else if offset < 0 {
-            return Err(FormatError {
-                at: base + off_at as u64,
-                msg: format!(
-                    "parameter \"{shown}\": offset to the next record is negative ({offset})"
-                ),
-            });
-        } else {
-            off_at + offset as usize
-        };
-        let body = off_at + 2;
+        let offset = record_offset(sec, off_at, base, &name, p)?;
         if id < 0 {
             groups.push((id.unsigned_abs(), name));
         } else {
-            let kb = take(sec, body, 2, base, &format!("parameter \"{shown}\""))?;
-            let kind = ParamType::from_code(kb[0] as i8).ok_or_else(|| FormatError {
-                at: base + body as u64,
-                msg: format!(
-                    "parameter \"{shown}\": type {} is not one of -1 (char), 1 (byte), 2 (int16), 4 (float)",
-                    kb[0] as i8
-                ),
-            })?;
-            let ndims = kb[1] as usize;
-            let dims: Vec<usize> = take(
-                sec,
-                body + 2,
-                ndims,
-                base,
-                &format!("parameter \"{shown}\" dimensions"),
-            )?
-            .iter()
-            .map(|&d| d as usize)
-            .collect();
-            // Each dimension is at most 255, but up to 255 of them could
-            // overflow: the product is checked against the section instead.
-            let mut elems: usize = 1;
-            for &d in &dims {
-                elems = elems.saturating_mul(d);
-            }
-            let bytes = elems.saturating_mul(kind.size());
-            let data = take(
-                sec,
-                body + 2 + ndims,
-                bytes,
-                base,
-                &format!("parameter \"{shown}\" data ({bytes} bytes)"),
-            )?;
-            raw.push((
-                id.unsigned_abs(),
-                Param {
-                    group: String::new(),
-                    name,
-                    kind,
-                    dims,
-                    data: data.to_vec(),
-                    offset: base + record as u64,
-                    processor: p,
-                },
-            ));
+            let param = decode_param(sec, pos, off_at + 2, base, name, p)?;
+            raw.push((id.unsigned_abs(), param));
         }
         if offset == 0 {
             break;
         }
+        let end = off_at + offset as usize;
         if end <= pos {
             return Err(FormatError {
                 at: base + off_at as u64,
@@ -266,8 +197,109 @@ pub fn decode(sec: &[u8], base: u64, p: Processor) -> Result<Params, FormatError
         }
         pos = end;
     }
-    let list = raw
-        .into_iter()
+    Ok(Params {
+        list: name_groups(raw, &groups),
+    })
+}
+
+/// The name of the record at `pos` (`n` bytes after its two leading bytes),
+/// trimmed and upper-cased as lookups expect.
+fn record_name(sec: &[u8], pos: usize, n: usize, base: u64) -> Result<String, FormatError> {
+    let name_bytes = take(sec, pos + 2, n, base, "a parameter name")?;
+    Ok(String::from_utf8_lossy(name_bytes)
+        .trim()
+        .to_ascii_uppercase())
+}
+
+/// The record's offset to the next record (at `off_at`, relative to it);
+/// 0 ends the section, a negative one is an error so that a corrupt file
+/// cannot loop.
+fn record_offset(
+    sec: &[u8],
+    off_at: usize,
+    base: u64,
+    name: &str,
+    p: Processor,
+) -> Result<i16, FormatError> {
+    // The name as messages quote it: a name is file content and may
+    // hold newlines or escape codes.
+    let shown = crate::error::excerpt(name);
+    let ob = take(
+        sec,
+        off_at,
+        2,
+        base,
+        &format!("the record offset of \"{shown}\""),
+    )?;
+    let offset = p.i16([ob[0], ob[1]]);
+    if offset < 0 {
+        return Err(FormatError {
+            at: base + off_at as u64,
+            msg: format!("parameter \"{shown}\": offset to the next record is negative ({offset})"),
+        });
+    }
+    Ok(offset)
+}
+
+/// Decodes a parameter record's body (type, dimensions, data) starting at
+/// `body`; `record` is where the record starts, kept for re-encoding.
+fn decode_param(
+    sec: &[u8],
+    record: usize,
+    body: usize,
+    base: u64,
+    name: String,
+    p: Processor,
+) -> Result<Param, FormatError> {
+    let shown = crate::error::excerpt(&name);
+    let kb = take(sec, body, 2, base, &format!("parameter \"{shown}\""))?;
+    let kind = ParamType::from_code(kb[0] as i8).ok_or_else(|| FormatError {
+        at: base + body as u64,
+        msg: format!(
+            "parameter \"{shown}\": type {} is not one of -1 (char), 1 (byte), 2 (int16), 4 (float)",
+            kb[0] as i8
+        ),
+    })?;
+    let ndims = kb[1] as usize;
+    let dims: Vec<usize> = take(
+        sec,
+        body + 2,
+        ndims,
+        base,
+        &format!("parameter \"{shown}\" dimensions"),
+    )?
+    .iter()
+    .map(|&d| d as usize)
+    .collect();
+    // Each dimension is at most 255, but up to 255 of them could
+    // overflow: the product is checked against the section instead.
+    let mut elems: usize = 1;
+    for &d in &dims {
+        elems = elems.saturating_mul(d);
+    }
+    let bytes = elems.saturating_mul(kind.size());
+    let data = take(
+        sec,
+        body + 2 + ndims,
+        bytes,
+        base,
+        &format!("parameter \"{shown}\" data ({bytes} bytes)"),
+    )?;
+    Ok(Param {
+        group: String::new(),
+        name,
+        kind,
+        dims,
+        data: data.to_vec(),
+        offset: base + record as u64,
+        processor: p,
+    })
+}
+
+/// Gives each parameter its group's name once all group records are known
+/// (`GROUPn` for a group id without a record).
+fn name_groups(raw: Vec<(u8, Param)>, groups: &[(u8, String)]) -> Vec<Param> {
+    raw.into_iter()
         .map(|(gid, mut param)| {
             param.group = groups
                 .iter()
@@ -276,8 +308,7 @@ pub fn decode(sec: &[u8], base: u64, p: Processor) -> Result<Params, FormatError
                 .unwrap_or_else(|| format!("GROUP{gid}"));
             param
         })
-        .collect();
-    Ok(Params { list })
+        .collect()
 }
 
 /// A parameter value to encode.
