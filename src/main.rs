@@ -2,12 +2,12 @@
 //! in the library. Every failure becomes one line naming the file and what is
 //! wrong, with exit code 2 for bad usage or config and 1 for everything else.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 use treemocap::app::record::RecordOptions;
-use treemocap::config::TransportSetting;
+use treemocap::config::{Config, TransportSetting};
 use treemocap::protocol::natnet;
 use treemocap::shutdown::Shutdown;
 use treemocap::{Error, Result};
@@ -472,20 +472,7 @@ fn run(command: Command) -> Result<()> {
             recording,
             http,
             config,
-        } => {
-            let config = config.load()?;
-            let session = treemocap::app::view::load(&path, recording.as_deref(), &config)?;
-            let listener = std::net::TcpListener::bind(&http)
-                .map_err(|e| Error::Runtime(format!("view: HTTP on {http}: {e}")))?;
-            let frames = session.frames.len();
-            let (_stop, shutdown) = tokio::sync::watch::channel(false);
-            treemocap::app::view::serve(session, listener, shutdown, |url| {
-                let _ = say!(
-                    "{}: {frames} frames; the page is at {url} (Ctrl-C stops)\n",
-                    path.display()
-                );
-            })
-        }
+        } => view(&path, recording.as_deref(), &http, config),
         Command::Replay {
             file,
             config,
@@ -510,15 +497,7 @@ fn run(command: Command) -> Result<()> {
         } => {
             let mut config = config.load()?;
             config.replay.natnet_version = natnet_version.or(config.replay.natnet_version);
-            let (_, _, text) = treemocap::app::tips::tips_command(
-                &file,
-                &config,
-                json.as_deref(),
-                traces,
-                plot.as_deref(),
-            )?;
-            say!("{text}")?;
-            Ok(())
+            tips(&file, &config, json.as_deref(), traces, plot.as_deref())
         }
         Command::Export {
             session,
@@ -536,18 +515,7 @@ fn run(command: Command) -> Result<()> {
             json,
             natnet_version,
             strict,
-        } => {
-            let mut options = treemocap::app::open::ReplayOptions::default();
-            options.pcap.version = natnet_version;
-            options.c3d.strict = strict;
-            let report = treemocap::app::inspect::inspect_with(&file, &options)?;
-            if json {
-                say!("{}\n", to_json(&report)?)?;
-            } else {
-                say!("{report}")?;
-            }
-            Ok(())
-        }
+        } => inspect(&file, json, natnet_version, strict),
         Command::Record(args) => record(args),
         Command::Serve(args) => serve(args),
         Command::Synth(args) => {
@@ -568,6 +536,54 @@ fn run(command: Command) -> Result<()> {
             Ok(())
         }
     }
+}
+
+/// `treemocap view`: a finished session served to the live page until Ctrl-C.
+fn view(path: &Path, recording: Option<&Path>, http: &str, config: ConfigArgs) -> Result<()> {
+    let config = config.load()?;
+    let session = treemocap::app::view::load(path, recording, &config)?;
+    let listener = std::net::TcpListener::bind(http)
+        .map_err(|e| Error::Runtime(format!("view: HTTP on {http}: {e}")))?;
+    let frames = session.frames.len();
+    let (_stop, shutdown) = tokio::sync::watch::channel(false);
+    treemocap::app::view::serve(session, listener, shutdown, |url| {
+        let _ = say!(
+            "{}: {frames} frames; the page is at {url} (Ctrl-C stops)\n",
+            path.display()
+        );
+    })
+}
+
+/// `treemocap tips`: the marker stage's table, and the files asked for.
+fn tips(
+    file: &Path,
+    config: &Config,
+    json: Option<&Path>,
+    traces: bool,
+    plot: Option<&Path>,
+) -> Result<()> {
+    let (_, _, text) = treemocap::app::tips::tips_command(file, config, json, traces, plot)?;
+    say!("{text}")?;
+    Ok(())
+}
+
+/// `treemocap inspect`: what a recording holds, as a table or JSON.
+fn inspect(
+    file: &Path,
+    json: bool,
+    natnet_version: Option<natnet::Version>,
+    strict: bool,
+) -> Result<()> {
+    let mut options = treemocap::app::open::ReplayOptions::default();
+    options.pcap.version = natnet_version;
+    options.c3d.strict = strict;
+    let report = treemocap::app::inspect::inspect_with(file, &options)?;
+    if json {
+        say!("{}\n", to_json(&report)?)?;
+    } else {
+        say!("{report}")?;
+    }
+    Ok(())
 }
 
 /// `treemocap run`: the daemon until Ctrl-C or SIGTERM; SIGHUP reloads.

@@ -104,26 +104,11 @@ const TIP_COLOURS: [(Rgb, Rgb); 6] = [
 /// first tree's (a tree alone; several trees are drawn still).
 fn render_trees(trees: &[(&str, &Tree)], labelled: bool, motion: Option<&TreeMotion>) -> Canvas {
     let mut canvas = Canvas::new(WIDTH, HEIGHT);
-    let mut nodes = trees.iter().flat_map(|(_, t)| t.nodes.iter());
-    let Some(first) = nodes.next() else {
+    let Some(first) = trees.iter().flat_map(|(_, t)| t.nodes.iter()).next() else {
         return canvas;
     };
     let extreme = motion.and_then(|m| Some((m, extremes(trees.first()?.1, m)?)));
-    let mut lo = first.position;
-    let mut hi = first.position;
-    for n in trees.iter().flat_map(|(_, t)| t.nodes.iter()) {
-        lo = lo.min(n.position - DVec3::splat(n.radius));
-        hi = hi.max(n.position + DVec3::splat(n.radius));
-    }
-    if let Some((m, (keys, _, _))) = extreme {
-        for k in keys {
-            for p in m.pose(k) {
-                let p = DVec3::from(p.map(f64::from));
-                lo = lo.min(p);
-                hi = hi.max(p);
-            }
-        }
-    }
+    let (lo, hi) = bounds(trees, extreme.map(|(m, (keys, _, _))| (m, keys)));
     // The ground: under the lowest trunk base.
     let ground = trees
         .iter()
@@ -140,21 +125,10 @@ fn render_trees(trees: &[(&str, &Tree)], labelled: bool, motion: Option<&TreeMot
         ("front (x right, y up)", |p| p.x, lo.x, span.x),
         ("side (z right, y up)", |p| p.z, lo.z, span.z),
     ];
-    // Segments thickest first, so thin branches stay visible on top.
-    let mut segments: Vec<(usize, usize)> = trees
-        .iter()
-        .enumerate()
-        .flat_map(|(k, (_, t))| {
-            (0..t.nodes.len())
-                .filter(|&i| t.nodes[i].parent.is_some())
-                .map(move |i| (k, i))
-        })
-        .collect();
-    let radius = |(k, i): (usize, usize)| trees[k].1.nodes[i].radius;
-    segments.sort_by(|&a, &b| radius(b).total_cmp(&radius(a)).then(a.cmp(&b)));
-
+    let segments = thickest_first(trees);
     for (v, (title, horizontal, h_lo, h_span)) in views.iter().enumerate() {
-        let left = MARGIN + v as f64 * (panel_w + MARGIN) + 0.5 * (panel_w - h_span * scale);
+        let panel_left = MARGIN + v as f64 * (panel_w + MARGIN);
+        let left = panel_left + 0.5 * (panel_w - h_span * scale);
         let base = HEIGHT as f64 - BOTTOM;
         let to_px = |p: DVec3| {
             (
@@ -162,57 +136,13 @@ fn render_trees(trees: &[(&str, &Tree)], labelled: bool, motion: Option<&TreeMot
                 base - (p.y - lo.y) * scale,
             )
         };
-        canvas.text_scaled(MARGIN + v as f64 * (panel_w + MARGIN), 20.0, title, 2, INK);
+        canvas.text_scaled(panel_left, 20.0, title, 2, INK);
         let (_, gy) = to_px(ground);
-        canvas.line(
-            MARGIN + v as f64 * (panel_w + MARGIN),
-            gy,
-            MARGIN + v as f64 * (panel_w + MARGIN) + panel_w,
-            gy,
-            1.0,
-            GROUND,
-        );
+        canvas.line(panel_left, gy, panel_left + panel_w, gy, 1.0, GROUND);
         if let Some((m, (keys, _, _))) = extreme {
-            let tree = trees[0].1;
-            for (g, k) in keys.into_iter().enumerate() {
-                let pose = m.pose(k);
-                let at = |n: usize| DVec3::from(pose[n].map(f64::from));
-                for &(_, i) in segments.iter().filter(|s| s.0 == 0) {
-                    let Some(p) = tree.nodes[i].parent else {
-                        continue;
-                    };
-                    let (x0, y0) = to_px(at(i));
-                    let (x1, y1) = to_px(at(p));
-                    let width = (2.0 * tree.nodes[i].radius * scale).max(1.0);
-                    canvas.line(x0, y0, x1, y1, width, GHOST[g]);
-                }
-            }
-            for c in &m.captured {
-                let mut last: Option<(f64, f64)> = None;
-                for k in 0..m.keys() {
-                    let here = to_px(DVec3::from(m.pose(k)[c.node].map(f64::from)));
-                    if let Some((x, y)) = last {
-                        canvas.line(x, y, here.0, here.1, 1.0, PATH);
-                    }
-                    last = Some(here);
-                }
-            }
+            draw_motion(&mut canvas, trees[0].1, m, keys, &segments, &to_px, scale);
         }
-        for &(k, i) in &segments {
-            let tree = trees[k].1;
-            let node = &tree.nodes[i];
-            let Some(parent) = node.parent.and_then(|p| tree.nodes.get(p)) else {
-                continue;
-            };
-            let (x0, y0) = to_px(node.position);
-            let (x1, y1) = to_px(parent.position);
-            let colour = if node.kind == Kind::Trunk {
-                TRUNK
-            } else {
-                BRANCH
-            };
-            canvas.line(x0, y0, x1, y1, (2.0 * node.radius * scale).max(1.0), colour);
-        }
+        draw_branches(&mut canvas, trees, &segments, &to_px, scale);
         for (k, (name, tree)) in trees.iter().enumerate() {
             let (fill, edge) = TIP_COLOURS[k % TIP_COLOURS.len()];
             for node in &tree.nodes {
@@ -240,6 +170,105 @@ fn render_trees(trees: &[(&str, &Tree)], labelled: bool, motion: Option<&TreeMot
         canvas.text_scaled(MARGIN, 48.0, &text, 1, INK);
     }
     canvas
+}
+
+/// The box holding every node with its radius, and the extreme poses of
+/// the motion (so a swaying tree is not cut at the edge of the picture).
+fn bounds(trees: &[(&str, &Tree)], extreme: Option<(&TreeMotion, [usize; 2])>) -> (DVec3, DVec3) {
+    let mut lo = DVec3::splat(f64::INFINITY);
+    let mut hi = DVec3::splat(f64::NEG_INFINITY);
+    for n in trees.iter().flat_map(|(_, t)| t.nodes.iter()) {
+        lo = lo.min(n.position - DVec3::splat(n.radius));
+        hi = hi.max(n.position + DVec3::splat(n.radius));
+    }
+    if let Some((m, keys)) = extreme {
+        for k in keys {
+            for p in m.pose(k) {
+                let p = DVec3::from(p.map(f64::from));
+                lo = lo.min(p);
+                hi = hi.max(p);
+            }
+        }
+    }
+    (lo, hi)
+}
+
+/// Every segment (tree, child node) of every tree, thickest first, so thin
+/// branches stay visible on top; ties in tree and node order.
+fn thickest_first(trees: &[(&str, &Tree)]) -> Vec<(usize, usize)> {
+    let mut segments: Vec<(usize, usize)> = trees
+        .iter()
+        .enumerate()
+        .flat_map(|(k, (_, t))| {
+            (0..t.nodes.len())
+                .filter(|&i| t.nodes[i].parent.is_some())
+                .map(move |i| (k, i))
+        })
+        .collect();
+    let radius = |(k, i): (usize, usize)| trees[k].1.nodes[i].radius;
+    segments.sort_by(|&a, &b| radius(b).total_cmp(&radius(a)).then(a.cmp(&b)));
+    segments
+}
+
+/// The first tree's two extreme poses as ghosts behind it, and each
+/// captured tip's path over the motion.
+fn draw_motion(
+    canvas: &mut Canvas,
+    tree: &Tree,
+    m: &TreeMotion,
+    keys: [usize; 2],
+    segments: &[(usize, usize)],
+    to_px: &dyn Fn(DVec3) -> (f64, f64),
+    scale: f64,
+) {
+    for (g, k) in keys.into_iter().enumerate() {
+        let pose = m.pose(k);
+        let at = |n: usize| DVec3::from(pose[n].map(f64::from));
+        for &(_, i) in segments.iter().filter(|s| s.0 == 0) {
+            let Some(p) = tree.nodes[i].parent else {
+                continue;
+            };
+            let (x0, y0) = to_px(at(i));
+            let (x1, y1) = to_px(at(p));
+            let width = (2.0 * tree.nodes[i].radius * scale).max(1.0);
+            canvas.line(x0, y0, x1, y1, width, GHOST[g]);
+        }
+    }
+    for c in &m.captured {
+        let mut last: Option<(f64, f64)> = None;
+        for k in 0..m.keys() {
+            let here = to_px(DVec3::from(m.pose(k)[c.node].map(f64::from)));
+            if let Some((x, y)) = last {
+                canvas.line(x, y, here.0, here.1, 1.0, PATH);
+            }
+            last = Some(here);
+        }
+    }
+}
+
+/// The branches at rest, as wide as they are thick, the trunk in its colour.
+fn draw_branches(
+    canvas: &mut Canvas,
+    trees: &[(&str, &Tree)],
+    segments: &[(usize, usize)],
+    to_px: &dyn Fn(DVec3) -> (f64, f64),
+    scale: f64,
+) {
+    for &(k, i) in segments {
+        let tree = trees[k].1;
+        let node = &tree.nodes[i];
+        let Some(parent) = node.parent.and_then(|p| tree.nodes.get(p)) else {
+            continue;
+        };
+        let (x0, y0) = to_px(node.position);
+        let (x1, y1) = to_px(parent.position);
+        let colour = if node.kind == Kind::Trunk {
+            TRUNK
+        } else {
+            BRANCH
+        };
+        canvas.line(x0, y0, x1, y1, (2.0 * node.radius * scale).max(1.0), colour);
+    }
 }
 
 /// `name` centred above the highest node of `tree`.

@@ -129,50 +129,109 @@ pub fn plan(
         .into());
     }
     let positions: Vec<DVec3> = tips.iter().map(|t| t.position).collect();
-    let (bases, names, source, fits, fits_well) = if configured.is_empty() {
-        let found = detect::find(&positions, s);
-        let names: Vec<String> = (0..found.centres.len())
-            .map(settings::default_name)
-            .collect();
-        (
-            found.centres,
-            names,
-            BaseSource::Detected,
-            found.rms,
-            found.fits,
-        )
-    } else {
-        let bases = configured.iter().map(ConfiguredTree::base).collect();
-        let names = (0..configured.len())
-            .map(|i| settings::tree_name(configured, i))
-            .collect();
-        (bases, names, BaseSource::Configured, Vec::new(), true)
-    };
+    let bases = where_trees_stand(&positions, configured, s);
     let index_of = |marker: usize| tips.iter().position(|t| t.marker == marker);
     let links: Vec<assign::Link> = links
         .iter()
         .filter_map(|l| Some((index_of(l.a)?, index_of(l.b)?, l.correlation)))
         .collect();
-    let split = assign::assign(&positions, &bases, &links, s);
+    let split = assign::assign(&positions, &bases.centres, &links, s);
+    let (mut trees, empty) = tree_plans(tips, &split, &bases, recon);
+    let beyond_planes = place_in_cells(&mut trees, recon);
+    let ambiguous = split
+        .ambiguous(s.ambiguous_ratio)
+        .into_iter()
+        .map(|(i, tree, other, a, b)| AmbiguousTip {
+            marker: tips[i].marker,
+            tree,
+            other,
+            costs: [a, b],
+        })
+        .collect();
+    Ok(ForestPlan {
+        trees,
+        empty,
+        ambiguous,
+        rule: split.rule,
+        fits: bases.fits,
+        fits_well: bases.fits_well,
+        beyond_planes,
+    })
+}
+
+/// Where the trees stand before tips are given to them: configured, or
+/// found from the tips (with how well the crowns fit).
+struct Bases {
+    /// One base per tree, in tree-id order.
+    centres: Vec<DVec3>,
+    /// The trees' names, in the same order.
+    names: Vec<String>,
+    /// Configured or detected (a detected base is moved under its tips).
+    source: BaseSource,
+    /// RMS fit of the crowns for each tree count tried (empty when
+    /// configured).
+    fits: Vec<(usize, f64)>,
+    /// Whether the found crowns explain the tips (true when configured).
+    fits_well: bool,
+}
+
+fn where_trees_stand(
+    positions: &[DVec3],
+    configured: &[ConfiguredTree],
+    s: &ForestSettings,
+) -> Bases {
+    if configured.is_empty() {
+        let found = detect::find(positions, s);
+        let names = (0..found.centres.len())
+            .map(settings::default_name)
+            .collect();
+        Bases {
+            centres: found.centres,
+            names,
+            source: BaseSource::Detected,
+            fits: found.rms,
+            fits_well: found.fits,
+        }
+    } else {
+        Bases {
+            centres: configured.iter().map(ConfiguredTree::base).collect(),
+            names: (0..configured.len())
+                .map(|i| settings::tree_name(configured, i))
+                .collect(),
+            source: BaseSource::Configured,
+            fits: Vec::new(),
+            fits_well: true,
+        }
+    }
+}
+
+/// One plan per tree that got tips, in tree-id order; the names of the
+/// trees that got none (reported, not grown).
+fn tree_plans(
+    tips: &[CapturedTip],
+    split: &assign::Assignment,
+    bases: &Bases,
+    recon: &ReconstructSettings,
+) -> (Vec<TreePlan>, Vec<String>) {
     let mut trees = Vec::new();
     let mut empty = Vec::new();
-    for (id, name) in names.into_iter().enumerate() {
+    for (id, name) in bases.names.iter().enumerate() {
         let own: Vec<CapturedTip> = (0..tips.len())
             .filter(|&i| split.tree[i] == id)
             .map(|i| tips[i])
             .collect();
         if own.is_empty() {
-            empty.push(name);
+            empty.push(name.clone());
             continue;
         }
-        let base = match source {
-            BaseSource::Configured => bases[id],
+        let base = match bases.source {
+            BaseSource::Configured => bases.centres[id],
             // The ground under the centre of the tree's tips: where a tree
             // alone has always stood.
             BaseSource::Detected => {
                 let b = Bounds::of(own.iter().map(|t| t.position)).unwrap_or(Bounds {
-                    min: bases[id],
-                    max: bases[id],
+                    min: bases.centres[id],
+                    max: bases.centres[id],
                 });
                 let c = 0.5 * (b.min + b.max);
                 DVec3::new(c.x, recon.ground_height, c.z)
@@ -180,14 +239,20 @@ pub fn plan(
         };
         trees.push(TreePlan {
             id,
-            name,
+            name: name.clone(),
             base,
-            source,
+            source: bases.source,
             tips: own,
             cell: cell::Cell::default(),
             seed: recon.seed,
         });
     }
+    (trees, empty)
+}
+
+/// Gives each tree its cell (a tree alone: all of space) and, with several
+/// trees, its own seed; the number of tips outside their own tree's cell.
+fn place_in_cells(trees: &mut [TreePlan], recon: &ReconstructSettings) -> usize {
     let single = trees.len() == 1;
     let own_tips: Vec<Vec<DVec3>> = trees
         .iter()
@@ -206,25 +271,7 @@ pub fn plan(
             t.seed = tree_seed(recon.seed, t.id);
         }
     }
-    let ambiguous = split
-        .ambiguous(s.ambiguous_ratio)
-        .into_iter()
-        .map(|(i, tree, other, a, b)| AmbiguousTip {
-            marker: tips[i].marker,
-            tree,
-            other,
-            costs: [a, b],
-        })
-        .collect();
-    Ok(ForestPlan {
-        trees,
-        empty,
-        ambiguous,
-        rule: split.rule,
-        fits,
-        fits_well,
-        beyond_planes,
-    })
+    beyond_planes
 }
 
 /// Label of the stream the per-tree seeds are drawn from.
