@@ -82,28 +82,27 @@ fn cmuphyscomp_six_markers_with_data_become_six_tips() {
     let (tips, summary) = run("cmuphyscomp_sample_take_v1.21.csv");
     // 9 Marker columns, 3 of them empty in every row; rigid bodies are not tips.
     assert_eq!(summary.frames, 250);
-    // The motion model ends a trace where its marker jitters beyond the
-    // gate; the identity layer joins the pieces back into six markers.
     assert!(summary.traces >= 6);
     assert_eq!(summary.tips, 6);
     assert!(summary.dropped.is_empty());
-    let expected = [
-        ([-0.72258, 0.71474, 2.8287], 4.731),
+    // Five markers hold still: each is one tip with every sample, at the
+    // position and spread read from the file.
+    let still = [
         ([-0.73364, 0.73126, 2.33717], 0.329),
         ([-0.72487, 0.71866, 2.66139], 0.031),
         ([0.01003, 0.01916, 0.00975], 0.118),
         ([0.01003, 0.0192, 0.21013], 0.139),
         ([0.16013, 0.01915, 0.00974], 0.139),
     ];
-    // Each marker of the take is one tip (in whatever order the tracker
-    // confirmed them).
-    for (want, spread_mm) in expected {
-        let want = DVec3::from_array(want);
-        let tip = tips
-            .tips
+    let nearest = |want: DVec3| {
+        tips.tips
             .iter()
             .min_by(|a, b| a.rest.distance(want).total_cmp(&b.rest.distance(want)))
-            .unwrap();
+            .unwrap()
+    };
+    for (want, spread_mm) in still {
+        let want = DVec3::from_array(want);
+        let tip = nearest(want);
         assert!(
             tip.rest.distance(want) < 2e-5,
             "{want:?}: nearest tip at {:?}",
@@ -116,13 +115,24 @@ fn cmuphyscomp_six_markers_with_data_become_six_tips() {
         );
         assert_eq!(tip.samples, 250);
     }
-    // The first marker moves 4.7 mm RMS in this 2-second take: no still
-    // phase under 2 mm exists, and the summary says so.
-    assert_eq!(summary.rest_source, RestSource::WholeRecording);
-    assert!(summary
-        .warnings
-        .iter()
-        .any(|w| w.contains("no still phase")));
+    // The sixth marker's centroid flips, frame by frame, between two spots
+    // 9.5 mm apart (two centroid solutions in Motive; 4.7 mm RMS about
+    // their mean (-0.72258, 0.71474, 2.8287)). The tracker follows one
+    // spot and drops the pieces on the other as ghosts (a known limit,
+    // README): the tip is within half the flip of the mean, from more than
+    // the noise rule's quarter of the frames, and still to the millimetre.
+    let mean = DVec3::new(-0.72258, 0.71474, 2.8287);
+    let flipping = nearest(mean);
+    assert!(
+        flipping.rest.distance(mean) < 0.00475,
+        "{:?}",
+        flipping.rest
+    );
+    assert!(flipping.samples >= 63, "{}", flipping.samples);
+    assert!(flipping.spread_m < 0.001, "{}", flipping.spread_m);
+    // Every marker is still (one spot of the sixth): the whole take is the
+    // rest window.
+    assert!(summary.rest_window_s[0] <= 0.01 && summary.rest_window_s[1] >= 2.07);
 }
 
 #[test]
