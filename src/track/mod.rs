@@ -27,6 +27,7 @@ pub mod rest;
 pub mod settings;
 pub mod tracker;
 
+use crate::model::trace::{Timeline, Trace};
 pub use settings::TrackingSettings;
 
 use std::fmt;
@@ -210,77 +211,9 @@ pub fn clean(
         ));
     }
 
-    let mut assigner = assign::Assigner::default();
-
     let total = timeline.len() as i64;
-    let window = match cfg.rest_window_s.as_slice() {
-        [a, b] => {
-            let start = timeline.frame_at(*a);
-            let end = timeline.frame_at(*b).max(start);
-            if end <= start {
-                warnings.push(format!(
-                    "tracking.rest_window_s [{a}, {b}] lies outside the recording; whole recording used"
-                ));
-                None
-            } else {
-                Some(RestWindow {
-                    start,
-                    end,
-                    source: RestSource::Config,
-                })
-            }
-        }
-        _ => rest::find_rest_window(&traces, &timeline, cfg.rest_motion_mm / 1000.0),
-    };
-    let window = window.unwrap_or(RestWindow {
-        start: 0,
-        end: total,
-        source: RestSource::WholeRecording,
-    });
-    if window.source == RestSource::WholeRecording && cfg.rest_window_s.is_empty() {
-        warnings.push(format!(
-            "no still phase found (no window where every marker moved less than {} mm): \
-             rest positions are means over the whole recording; name the still phase with \
-             tracking.rest_window_s",
-            cfg.rest_motion_mm
-        ));
-    }
-
-    let rests: Vec<Option<DVec3>> = traces
-        .iter()
-        .map(|t| {
-            rest::rest_of(t, window.start, window.end)
-                .filter(|r| r.2 >= rest::MIN_REST_SAMPLES)
-                .map(|r| r.0)
-        })
-        .collect();
-    let rest_by_id: std::collections::HashMap<usize, bool> = traces
-        .iter()
-        .zip(&rests)
-        .flat_map(|(t, r)| t.pieces.iter().map(move |p| (*p, r.is_some())))
-        .collect();
-    let (traces, joined_by_rest) =
-        noise::join_by_rest(traces, &rests, cfg.merge_radius_mm / 1000.0);
-    // After joining by rest, a trace has a rest position if any piece had.
-    let has_rest: Vec<bool> = traces
-        .iter()
-        .map(|t| {
-            t.pieces
-                .iter()
-                .any(|p| rest_by_id.get(p).copied().unwrap_or(false))
-        })
-        .collect();
-    let one_second = timeline
-        .frame_interval()
-        .map_or(100, |dt| (1.0 / dt).round().max(1.0) as i64);
-    let (traces, joined_into_gaps) = noise::join_into_gaps(
-        traces,
-        &has_rest,
-        one_second as usize,
-        one_second,
-        cfg.max_jump_mm / 1000.0,
-        &mut assigner,
-    );
+    let window = rest_window(cfg, &traces, &timeline, &mut warnings);
+    let (traces, joined_by_rest, joined_into_gaps) = join_pieces(traces, window, &timeline, cfg);
     let (mut kept, mut dropped) = noise::drop_noise(traces, frames, cfg.noise_fraction);
     dropped.sort_by(|a, b| b.measured.cmp(&a.measured).then(a.id.cmp(&b.id)));
 
@@ -292,32 +225,7 @@ pub fn clean(
     let gap_stats = gaps::fill_gaps(&mut kept, &timeline, settings);
 
     kept.sort_by_key(|t| (t.first_frame(), t.id));
-    let mut tips = Vec::with_capacity(kept.len());
-    for trace in kept {
-        let in_window = rest::rest_of(&trace, window.start, window.end)
-            .filter(|r| r.2 >= rest::MIN_REST_SAMPLES);
-        let (rest, spread, samples) = match in_window {
-            Some(r) => r,
-            None => {
-                warnings.push(format!(
-                    "trace {} has fewer than {} samples in the rest window; its rest position \
-                     is its mean over the whole recording",
-                    trace.id,
-                    rest::MIN_REST_SAMPLES
-                ));
-                rest::rest_of(&trace, 0, total).unwrap_or((trace.last_position(), 0.0, 0))
-            }
-        };
-        let gap_fraction = 1.0 - trace.measured() as f64 / frames.max(1) as f64;
-        tips.push(Tip {
-            marker: tips.len(),
-            rest,
-            samples,
-            gap_fraction: gap_fraction.clamp(0.0, 1.0),
-            spread_m: spread,
-            trace,
-        });
-    }
+    let tips = tips_of(kept, window, total, frames, &mut warnings);
 
     let rest_window_s = [timeline.time(window.start), timeline.time(window.end - 1)];
     let duration_s = match (timeline.times.first(), timeline.times.last()) {
@@ -353,4 +261,135 @@ pub fn clean(
         timeline,
     };
     (tips, summary)
+}
+
+/// The still phase: `tracking.rest_window_s` when set (and inside the
+/// recording), else found from the traces, else the whole recording, with
+/// a warning naming what the user can do.
+fn rest_window(
+    cfg: &TrackingSettings,
+    traces: &[Trace],
+    timeline: &Timeline,
+    warnings: &mut Vec<String>,
+) -> RestWindow {
+    let window = match cfg.rest_window_s.as_slice() {
+        [a, b] => {
+            let start = timeline.frame_at(*a);
+            let end = timeline.frame_at(*b).max(start);
+            if end <= start {
+                warnings.push(format!(
+                    "tracking.rest_window_s [{a}, {b}] lies outside the recording; whole recording used"
+                ));
+                None
+            } else {
+                Some(RestWindow {
+                    start,
+                    end,
+                    source: RestSource::Config,
+                })
+            }
+        }
+        _ => rest::find_rest_window(traces, timeline, cfg.rest_motion_mm / 1000.0),
+    };
+    let window = window.unwrap_or(RestWindow {
+        start: 0,
+        end: timeline.len() as i64,
+        source: RestSource::WholeRecording,
+    });
+    if window.source == RestSource::WholeRecording && cfg.rest_window_s.is_empty() {
+        warnings.push(format!(
+            "no still phase found (no window where every marker moved less than {} mm): \
+             rest positions are means over the whole recording; name the still phase with \
+             tracking.rest_window_s",
+            cfg.rest_motion_mm
+        ));
+    }
+    window
+}
+
+/// Pieces of one marker the tracker could not join on line: joined by rest
+/// position, then long pieces without one put into a gap of the marker
+/// whose neighbourhood they occupy; (traces, joined by rest, joined into gaps).
+fn join_pieces(
+    traces: Vec<Trace>,
+    window: RestWindow,
+    timeline: &Timeline,
+    cfg: &TrackingSettings,
+) -> (Vec<Trace>, usize, usize) {
+    let rests: Vec<Option<DVec3>> = traces
+        .iter()
+        .map(|t| {
+            rest::rest_of(t, window.start, window.end)
+                .filter(|r| r.2 >= rest::MIN_REST_SAMPLES)
+                .map(|r| r.0)
+        })
+        .collect();
+    let rest_by_id: std::collections::HashMap<usize, bool> = traces
+        .iter()
+        .zip(&rests)
+        .flat_map(|(t, r)| t.pieces.iter().map(move |p| (*p, r.is_some())))
+        .collect();
+    let (traces, joined_by_rest) =
+        noise::join_by_rest(traces, &rests, cfg.merge_radius_mm / 1000.0);
+    // After joining by rest, a trace has a rest position if any piece had.
+    let has_rest: Vec<bool> = traces
+        .iter()
+        .map(|t| {
+            t.pieces
+                .iter()
+                .any(|p| rest_by_id.get(p).copied().unwrap_or(false))
+        })
+        .collect();
+    let one_second = timeline
+        .frame_interval()
+        .map_or(100, |dt| (1.0 / dt).round().max(1.0) as i64);
+    let mut assigner = assign::Assigner::default();
+    let (traces, joined_into_gaps) = noise::join_into_gaps(
+        traces,
+        &has_rest,
+        one_second as usize,
+        one_second,
+        cfg.max_jump_mm / 1000.0,
+        &mut assigner,
+    );
+    (traces, joined_by_rest, joined_into_gaps)
+}
+
+/// One tip per kept trace, in order of first appearance: its mean over the
+/// rest window, or over the whole recording (with a warning) when it has
+/// too few samples there.
+fn tips_of(
+    kept: Vec<Trace>,
+    window: RestWindow,
+    total: i64,
+    frames: u64,
+    warnings: &mut Vec<String>,
+) -> Vec<Tip> {
+    let mut tips = Vec::with_capacity(kept.len());
+    for trace in kept {
+        let in_window = rest::rest_of(&trace, window.start, window.end)
+            .filter(|r| r.2 >= rest::MIN_REST_SAMPLES);
+        let (rest, spread, samples) = match in_window {
+            Some(r) => r,
+            None => {
+                warnings.push(format!(
+                    "trace {} has fewer than {} samples in the rest window; its rest position \
+                     is its mean over the whole recording",
+                    trace.id,
+                    rest::MIN_REST_SAMPLES
+                ));
+                rest::rest_of(&trace, 0, total).unwrap_or((trace.last_position(), 0.0, 0))
+            }
+        };
+        let gap_fraction = 1.0 - trace.measured() as f64 / frames.max(1) as f64;
+        tips.push(Tip {
+            marker: tips.len(),
+            rest,
+            samples,
+            gap_fraction: gap_fraction.clamp(0.0, 1.0),
+            spread_m: spread,
+            trace,
+        });
+    }
+    tips
 }
