@@ -35,6 +35,13 @@ impl Rng {
         Rng::new(self.next_u64() ^ label.wrapping_mul(0xD6E8_FEB8_6659_FD93))
     }
 
+    /// A stream that depends only on this generator's state and `label`, not
+    /// on how many other streams were taken before ([`Rng::fork`] advances
+    /// its parent; this leaves it as it is).
+    pub fn stream(&self, label: u64) -> Rng {
+        self.clone().fork(label)
+    }
+
     /// The next 64 raw bits of the stream; every other draw is built on it.
     pub fn next_u64(&mut self) -> u64 {
         let result = self.s[1].wrapping_mul(5).rotate_left(7).wrapping_mul(9);

@@ -22,7 +22,7 @@ use json::validation::{Checked::Valid, USize64};
 use serde_json::value::RawValue;
 
 use super::error::RenderError;
-use super::gltf::Builder;
+use super::glb::{Attributes, Builder, Skinning};
 use crate::error::Result;
 use crate::model::motion::{TipSource, TreeMotion};
 use crate::model::tree::{Kind, Tree};
@@ -100,77 +100,9 @@ impl Skin {
         })
     }
 
-    /// The skin's index, for the skinned mesh nodes.
-    pub(super) fn index(&self) -> json::Index<json::Skin> {
-        self.index
-    }
-
     /// The root joint (the trunk base), a scene root.
     pub(super) fn root(&self) -> json::Index<json::Node> {
         self.joints[0]
-    }
-
-    /// Adds `JOINTS_0` and `WEIGHTS_0` for vertices that follow `binds`.
-    pub(super) fn bind(
-        &self,
-        b: &mut Builder,
-        binds: &[Bind],
-        attributes: &mut std::collections::BTreeMap<
-            json::validation::Checked<json::mesh::Semantic>,
-            json::Index<json::Accessor>,
-        >,
-    ) -> Result<()> {
-        let n = self.joints.len();
-        let mut joints = Vec::with_capacity(binds.len() * 8);
-        let mut weights = Vec::with_capacity(binds.len() * 16);
-        for bind in binds {
-            let [a, c] = bind.nodes.map(|j| j as usize);
-            if a >= n || c >= n || a > usize::from(u16::MAX) || c > usize::from(u16::MAX) {
-                return Err(RenderError::Inconsistent(format!(
-                    "a vertex follows node {} of a {n}-node tree (glTF skins take at most 65 536 joints)",
-                    a.max(c)
-                ))
-                .into());
-            }
-            // Unused slots: joint 0 with weight 0 (the validator wants
-            // zero-weight slots to name joint 0).
-            let (j, w) = if a == c || bind.weight >= 1.0 {
-                ([a, 0], [1.0f32, 0.0])
-            } else if bind.weight <= 0.0 {
-                ([c, 0], [1.0, 0.0])
-            } else {
-                ([a, c], [bind.weight, 1.0 - bind.weight])
-            };
-            for v in [j[0] as u16, j[1] as u16, 0, 0] {
-                joints.extend(v.to_le_bytes());
-            }
-            for v in [w[0], w[1], 0.0, 0.0] {
-                weights.extend(v.to_le_bytes());
-            }
-        }
-        let view = b.view(joints, Some(json::buffer::Target::ArrayBuffer));
-        let j = accessor(
-            b,
-            view,
-            0,
-            binds.len(),
-            ComponentType::U16,
-            Type::Vec4,
-            None,
-        );
-        let view = b.view(weights, Some(json::buffer::Target::ArrayBuffer));
-        let w = accessor(
-            b,
-            view,
-            0,
-            binds.len(),
-            ComponentType::F32,
-            Type::Vec4,
-            None,
-        );
-        attributes.insert(Valid(json::mesh::Semantic::Joints(0)), j);
-        attributes.insert(Valid(json::mesh::Semantic::Weights(0)), w);
-        Ok(())
     }
 
     /// Adds the animation `capture`: every joint whose translation changes
@@ -250,6 +182,68 @@ impl Skin {
             extensions: None,
             extras: Default::default(),
         }
+    }
+}
+
+impl Skinning for Skin {
+    /// Adds `JOINTS_0` and `WEIGHTS_0` for vertices that follow `binds`.
+    fn bind(&self, b: &mut Builder, binds: &[Bind], attributes: &mut Attributes) -> Result<()> {
+        let n = self.joints.len();
+        let mut joints = Vec::with_capacity(binds.len() * 8);
+        let mut weights = Vec::with_capacity(binds.len() * 16);
+        for bind in binds {
+            let [a, c] = bind.nodes.map(|j| j as usize);
+            if a >= n || c >= n || a > usize::from(u16::MAX) || c > usize::from(u16::MAX) {
+                return Err(RenderError::Inconsistent(format!(
+                    "a vertex follows node {} of a {n}-node tree (glTF skins take at most 65 536 joints)",
+                    a.max(c)
+                ))
+                .into());
+            }
+            // Unused slots: joint 0 with weight 0 (the validator wants
+            // zero-weight slots to name joint 0).
+            let (j, w) = if a == c || bind.weight >= 1.0 {
+                ([a, 0], [1.0f32, 0.0])
+            } else if bind.weight <= 0.0 {
+                ([c, 0], [1.0, 0.0])
+            } else {
+                ([a, c], [bind.weight, 1.0 - bind.weight])
+            };
+            for v in [j[0] as u16, j[1] as u16, 0, 0] {
+                joints.extend(v.to_le_bytes());
+            }
+            for v in [w[0], w[1], 0.0, 0.0] {
+                weights.extend(v.to_le_bytes());
+            }
+        }
+        let view = b.view(joints, Some(json::buffer::Target::ArrayBuffer));
+        let j = accessor(
+            b,
+            view,
+            0,
+            binds.len(),
+            ComponentType::U16,
+            Type::Vec4,
+            None,
+        );
+        let view = b.view(weights, Some(json::buffer::Target::ArrayBuffer));
+        let w = accessor(
+            b,
+            view,
+            0,
+            binds.len(),
+            ComponentType::F32,
+            Type::Vec4,
+            None,
+        );
+        attributes.insert(Valid(json::mesh::Semantic::Joints(0)), j);
+        attributes.insert(Valid(json::mesh::Semantic::Weights(0)), w);
+        Ok(())
+    }
+
+    /// The skin's index, for the skinned mesh nodes.
+    fn index(&self) -> json::Index<json::Skin> {
+        self.index
     }
 }
 

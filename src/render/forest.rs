@@ -4,94 +4,20 @@
 //! single tree standing where a tree alone stands gives exactly the
 //! one-tree outputs.
 
-use std::fmt;
 use std::sync::Arc;
 
 use glam::DVec3;
-use serde::Serialize;
 use serde_json::json;
 
 use crate::error::Result;
 use crate::model::motion::TreeMotion;
 use crate::model::tree::{Kind, Tree};
-use crate::reconstruct::forest::{self, AssignRule, BaseSource, ForestCache, ForestPlan};
+use crate::reconstruct::forest::{self, ForestCache, ForestPlan};
 use crate::reconstruct::{leaves, mesh, ReconstructSettings};
 use crate::render::outputs::{build_model, Motion, Outputs, Report};
 
-/// One tree of the outputs.
-#[derive(Debug, Clone)]
-pub struct Member {
-    /// Its id (tree.json `id`, the OSC `tree` argument, `/trees/{id}.json`).
-    pub id: usize,
-    /// Its name.
-    pub name: String,
-    /// Its trunk base (m).
-    pub base: DVec3,
-    /// Where the base came from.
-    pub source: BaseSource,
-    /// The seed it was grown from.
-    pub seed: u64,
-    /// The tree.
-    pub tree: Arc<Tree>,
-    /// Grown for these outputs (false: taken unchanged from the last ones).
-    pub rebuilt: bool,
-}
-
-/// The forest's part of the report: the trees, how they were found, and
-/// the tips that were close calls.
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct ForestReport {
-    /// Per tree: id, name, base, where it came from, tips, nodes, forced
-    /// joins, rebuilt.
-    pub trees: Vec<TreeLine>,
-    /// Configured trees that got no tip.
-    pub empty: Vec<String>,
-    /// The rule that gave tips to trees.
-    pub rule: AssignRule,
-    /// The automatic search's RMS crown fit per number of trees (empty for
-    /// configured trees).
-    pub fits: Vec<(usize, f64)>,
-    /// False when no number of trees fitted within the tolerance.
-    pub fits_well: bool,
-    /// Tips that were close calls: marker, its tree, the runner-up, costs.
-    pub ambiguous: Vec<AmbiguousLine>,
-    /// Captured tips beyond one of their tree's planes.
-    pub beyond_planes: usize,
-}
-
-/// One tree in the report.
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct TreeLine {
-    /// Tree id.
-    pub id: usize,
-    /// Tree name.
-    pub name: String,
-    /// Trunk base (m).
-    pub base: [f64; 3],
-    /// `configured` or `detected`.
-    pub source: BaseSource,
-    /// Captured tips given to it.
-    pub tips: usize,
-    /// Nodes of its skeleton.
-    pub nodes: usize,
-    /// Its particles joined to the trunk after `max_steps`.
-    pub forced_joins: usize,
-    /// Grown for these outputs.
-    pub rebuilt: bool,
-}
-
-/// An ambiguous tip in the report, trees by name.
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct AmbiguousLine {
-    /// The marker.
-    pub marker: usize,
-    /// The tree it went to.
-    pub tree: String,
-    /// The runner-up.
-    pub other: String,
-    /// Its costs for both.
-    pub costs: [f64; 2],
-}
+use super::forest_report::source_name;
+pub use super::forest_report::{AmbiguousLine, ForestReport, Member, TreeLine};
 
 /// Grows the trees of `plan` (through `cache` when given: only trees whose
 /// inputs changed are grown) and encodes the outputs, the picture left
@@ -221,13 +147,6 @@ fn member(plan: &ForestPlan, k: usize, tree: Arc<Tree>, rebuilt: bool) -> Member
     }
 }
 
-fn source_name(s: BaseSource) -> &'static str {
-    match s {
-        BaseSource::Configured => "configured",
-        BaseSource::Detected => "detected",
-    }
-}
-
 /// The summed counts and the forest's lines.
 fn forest_report(
     plan: &ForestPlan,
@@ -285,70 +204,5 @@ fn forest_report(
                 .collect(),
             beyond_planes: plan.beyond_planes,
         }),
-    }
-}
-
-impl fmt::Display for ForestReport {
-    /// The trees (as `[[trees]]` tables to pin when they were found), the
-    /// empty ones and the close calls.
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        let found = self.trees.iter().all(|t| t.source == BaseSource::Detected);
-        if found {
-            let fits: Vec<String> = self
-                .fits
-                .iter()
-                .map(|(k, r)| format!("{k}: {:.3} m", r))
-                .collect();
-            writeln!(
-                f,
-                "trees: {} found from the tips (RMS crown fit by number of trees {}){}; to pin them, add to the config:",
-                self.trees.len(),
-                fits.join(", "),
-                if self.fits_well { "" } else { " — no number fitted well, check them" }
-            )?;
-            for t in &self.trees {
-                writeln!(
-                    f,
-                    "[[trees]]\nname = \"{}\"\nbase = [{:.3}, {:.3}, {:.3}]",
-                    t.name, t.base[0], t.base[1], t.base[2]
-                )?;
-            }
-        }
-        for t in &self.trees {
-            writeln!(
-                f,
-                "{} ({}): {} tips, {} nodes, {} forced joins{}",
-                t.name,
-                source_name(t.source),
-                t.tips,
-                t.nodes,
-                t.forced_joins,
-                if t.rebuilt { "" } else { ", unchanged" }
-            )?;
-        }
-        for e in &self.empty {
-            writeln!(f, "{e}: no tips (not grown)")?;
-        }
-        if !self.ambiguous.is_empty() {
-            let list: Vec<String> = self
-                .ambiguous
-                .iter()
-                .map(|a| {
-                    format!(
-                        "marker {} ({} {:.3}, {} {:.3})",
-                        a.marker, a.tree, a.costs[0], a.other, a.costs[1]
-                    )
-                })
-                .collect();
-            writeln!(f, "ambiguous tips: {}", list.join("; "))?;
-        }
-        if self.beyond_planes > 0 {
-            writeln!(
-                f,
-                "{} captured tips lie beyond their tree's planes",
-                self.beyond_planes
-            )?;
-        }
-        Ok(())
     }
 }

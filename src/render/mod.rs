@@ -5,7 +5,9 @@
 mod animation;
 pub mod error;
 pub mod forest;
+mod forest_report;
 pub mod frames;
+mod glb;
 pub mod gltf;
 pub mod json;
 pub mod outputs;

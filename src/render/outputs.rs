@@ -93,7 +93,7 @@ pub struct Report {
     /// With several trees: the trees, how they were found, the close calls
     /// (docs/forest.md). `None` for a tree alone.
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub forest: Option<super::forest::ForestReport>,
+    pub forest: Option<super::forest_report::ForestReport>,
 }
 
 /// Everything one reconstruction produces, in memory: the daemon shares
@@ -105,7 +105,7 @@ pub struct Outputs {
     pub tree: Tree,
     /// Every tree with its id, name and base; one entry for a tree alone
     /// (empty from [`build_model`] until [`super::forest`] fills it).
-    pub trees: Vec<super::forest::Member>,
+    pub trees: Vec<super::forest_report::Member>,
     /// tree.glb bytes.
     pub glb: Vec<u8>,
     /// tree.json text.

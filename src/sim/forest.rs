@@ -15,7 +15,6 @@ use std::f64::consts::TAU;
 use glam::DVec3;
 use serde::{Deserialize, Serialize};
 
-use super::motion::stream;
 use super::tree::{grow, q9, CrownShape, TreeNode, TreeTruth};
 use super::SynthOptions;
 use crate::error::{Error, Result};
@@ -97,8 +96,8 @@ pub(crate) fn place(
     tree_stream: u64,
     layout_stream: u64,
 ) -> Result<Placed> {
-    let mut layout = stream(root, layout_stream);
-    let trees_rng = stream(root, tree_stream);
+    let mut layout = root.stream(layout_stream);
+    let trees_rng = root.stream(tree_stream);
     let mut placed: Vec<PlacedTree> = Vec::with_capacity(opts.trees);
     for k in 0..opts.trees {
         let shape = if opts.mixed {
@@ -110,7 +109,7 @@ pub(crate) fn place(
         } else {
             opts.shape
         };
-        let local = grow(shape, &mut stream(&trees_rng, k as u64 + 1));
+        let local = grow(shape, &mut trees_rng.stream(k as u64 + 1));
         let turn = layout.range(0.0, TAU);
         let base = site(&placed, &local, opts, &mut layout)?;
         placed.push(PlacedTree {

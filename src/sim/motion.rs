@@ -35,7 +35,7 @@ use crate::rng::Rng;
 /// A random stream that depends only on `base`'s state and `label`, not on
 /// how many other streams were taken before (fork() advances its parent).
 pub(crate) fn stream(base: &Rng, label: u64) -> Rng {
-    base.clone().fork(label)
+    base.stream(label)
 }
 
 fn sinusoid(direction: DVec3, amplitude: f64, frequency: f64, phase: f64) -> Sinusoid {
