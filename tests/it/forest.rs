@@ -294,33 +294,6 @@ fn no_branch_grows_into_another_trees_volume() {
     }
 }
 
-/// Runs the Khronos glTF validator on `path`: (errors, warnings).
-fn validate(path: &Path) -> (u64, u64) {
-    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/peers/validate_gltf.js");
-    let out = Command::new("node")
-        .arg(&script)
-        .arg(path)
-        .output()
-        .unwrap_or_else(|e| {
-            panic!(
-                "cannot run node ({e}): install Node.js, then `npm install --prefix tests/peers`"
-            )
-        });
-    if out.status.code() == Some(3) {
-        panic!("the glTF validator is missing: run `npm install --prefix tests/peers`");
-    }
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let report: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
-    (
-        report["numErrors"].as_u64().unwrap(),
-        report["numWarnings"].as_u64().unwrap(),
-    )
-}
-
 /// The README's command for the shipped three-tree replay.
 const SHIPPED: &[&str] = &[
     "synth",
@@ -455,7 +428,8 @@ fn replay_splits_the_shipped_forest_replay_into_trees() {
             "branches, leaves, skeleton"
         );
     }
-    assert_eq!(validate(&out.join("tree.glb")), (0, 0));
+    let (errors, warnings, messages) = crate::common::gltf::validate(&out.join("tree.glb"));
+    assert_eq!((errors, warnings), (0, 0), "{messages}");
     assert!(std::fs::metadata(out.join("tree.png")).unwrap().len() > 10_000);
 
     // Pinning the trees found gives the same trees.
