@@ -2,10 +2,10 @@
 //! of them the tips claim (the rest is noise once there are tips), and each
 //! tip's state.
 //!
-//! Until the tracker runs frame by frame (issue 14), the live tips are the
-//! follower's ([`super::follow`]): a tip not found in a frame is held at its
-//! last position and shown as gap-filled for up to `tracking.max_fill_s`
-//! (the longest gap the marker stage fills), then as not seen now.
+//! The live tips come from the marker stage's tracker run frame by frame
+//! (`crate::track::live`); a tip not found in a frame is held at its last
+//! position and shown as gap-filled for up to `tracking.max_fill_s` (the
+//! longest gap the marker stage fills), then as not seen now.
 
 use glam::DVec3;
 
