@@ -108,24 +108,6 @@ fn score(tips: &Tips, truth: &Truth) -> Score {
     s
 }
 
-/// Smallest distance between two true tips at any frame (noiseless).
-fn smallest_spacing(truth: &Truth) -> f64 {
-    let mut best = f64::INFINITY;
-    let step = (truth.frame_rate / 50.0).max(1.0) as usize;
-    for f in (0..truth.frames).step_by(step) {
-        let t = truth.time_of(f as i64);
-        let p: Vec<_> = (0..truth.tips.len())
-            .map(|k| truth.position(k, t))
-            .collect();
-        for i in 0..p.len() {
-            for j in i + 1..p.len() {
-                best = best.min(p[i].distance(p[j]));
-            }
-        }
-    }
-    best
-}
-
 fn run_frames(frames: &[treemocap::MarkerFrame], cfg: &TrackingSettings, rate: f64) -> Tips {
     let mut tracker = Tracker::new(cfg, Some(rate));
     for f in frames {
@@ -263,7 +245,7 @@ fn twenty_generated_sessions_match_their_truth() {
         let syn = sim::generate(&opts).unwrap();
         // The condition for zero swaps: gate at most half the
         // smallest distance between true markers over the whole session.
-        let spacing = smallest_spacing(&syn.truth);
+        let spacing = treemocap::sim::score::smallest_spacing(&syn.truth);
         let mut cfg = cfg.clone();
         cfg.gate_mm = cfg.gate_mm.min(spacing * 1000.0 / 2.0);
         let tips = run_frames(&syn.frames, &cfg, opts.frame_rate);
