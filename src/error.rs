@@ -130,6 +130,16 @@ impl Error {
         Self::parse(path, Location::Line { line, column }, msg)
     }
 
+    /// A JSON file serde could not read, at the line and column it names.
+    pub fn json(path: impl Into<PathBuf>, e: &serde_json::Error) -> Self {
+        Self::at_line(
+            path,
+            e.line() as u64,
+            Some(e.column() as u64),
+            e.to_string(),
+        )
+    }
+
     /// A bad configuration value, named by its dotted key.
     pub fn config(key: impl Into<String>, msg: impl Into<String>) -> Self {
         Error::Config {

@@ -439,14 +439,7 @@ fn read_sidecar(path: &Path, warnings: &mut Vec<String>) -> Result<(String, f64)
         }
         Err(e) => return Err(Error::io(&side, e)),
     };
-    let meta: Sidecar = serde_json::from_str(&text).map_err(|e| {
-        Error::at_line(
-            &side,
-            e.line() as u64,
-            Some(e.column() as u64),
-            e.to_string(),
-        )
-    })?;
+    let meta: Sidecar = serde_json::from_str(&text).map_err(|e| Error::json(&side, &e))?;
     let field =
         |name: &str, msg: String| Error::parse(&side, crate::Location::Field(name.into()), msg);
     if meta.format != FORMAT_NAME || meta.version != VERSION {

@@ -148,14 +148,7 @@ struct WindJson {
 
 /// Parses tips.json text; `path` only names the file in errors.
 pub fn parse_tips(text: &str, path: &Path) -> Result<TipsInput> {
-    let file: TipsJson = serde_json::from_str(text).map_err(|e| {
-        Error::at_line(
-            path,
-            e.line() as u64,
-            Some(e.column() as u64),
-            e.to_string(),
-        )
-    })?;
+    let file: TipsJson = serde_json::from_str(text).map_err(|e| Error::json(path, &e))?;
     let field = |name: String, msg: String| Error::parse(path, Location::Field(name), msg);
     if file.version != 1 {
         return Err(Error::Unsupported {

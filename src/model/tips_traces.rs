@@ -52,14 +52,7 @@ struct FileTip {
 /// The trajectories of a tips.json text, `None` when it has none; `path`
 /// only names the file in errors.
 pub fn parse_traces(text: &str, path: &Path) -> Result<Option<TipTraces>> {
-    let file: File = serde_json::from_str(text).map_err(|e| {
-        Error::at_line(
-            path,
-            e.line() as u64,
-            Some(e.column() as u64),
-            e.to_string(),
-        )
-    })?;
+    let file: File = serde_json::from_str(text).map_err(|e| Error::json(path, &e))?;
     let field = |name: String, msg: &str| Error::parse(path, Location::Field(name), msg);
     let Some(times_s) = file.times_s else {
         return Ok(None);
