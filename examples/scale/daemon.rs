@@ -67,7 +67,12 @@ impl Iterator for Session {
         let f = self.next;
         self.next += 1;
         let t = f as f64 / self.info.frame_rate;
-        let wind = if t < 60.0 { 0.0 } else { 1.0 };
+        // The wind rises over 3 s: a tree starts swaying from rest. (A step
+        // here would move every marker by up to 30 mm in one frame, which
+        // no tree does and which the tracker rightly takes as every marker
+        // lost at once.)
+        let ramp = ((t - 60.0) / 3.0).clamp(0.0, 1.0);
+        let wind = ramp * ramp * (3.0 - 2.0 * ramp);
         let mut markers = Vec::with_capacity(self.rest.len());
         for &(p, freq, ph) in &self.rest {
             if self.rng.chance(0.01) {
