@@ -33,11 +33,17 @@
 use std::collections::{BTreeMap, HashMap, VecDeque};
 
 use glam::DVec3;
+use kiddo::{ImmutableKdTree, SquaredEuclidean};
 
 use super::assign::{Assigner, Edge};
 
 /// Neighbours kept per identity.
 const NEIGHBOURS: usize = 8;
+/// Up to this many recent identities the neighbours are found by comparing
+/// every pair (a tree capture: 24–70 tips); beyond, from a kd-tree, so that
+/// the once-a-second refresh stays O(n log n): at 1 000 markers comparing
+/// every pair took 13–26 ms in one frame, a stall of the live daemon.
+const DIRECT_NEIGHBOURS_MAX: usize = 128;
 /// Error of the neighbours' prediction per metre they moved since the gap
 /// began (a tip swings further or less far than its neighbours).
 const MOVED_ERROR: f64 = 0.3;
@@ -410,22 +416,16 @@ impl Identities {
             .filter(|(_, id)| t - id.last.0 <= horizon)
             .map(|(i, id)| (i, id.last.1))
             .collect();
-        for &(i, pi) in &recent {
+        let finder = NearestFinder::new(&recent);
+        let mut near = Vec::with_capacity(NEIGHBOURS + 1);
+        for (k, &(i, _)) in recent.iter().enumerate() {
             if self.idents[i].gap.is_some() {
                 continue;
             }
-            let mut near: Vec<(f64, usize)> = recent
-                .iter()
-                .filter(|(j, _)| *j != i)
-                .map(|(j, pj)| (pi.distance_squared(*pj), *j))
-                .collect();
-            let k = NEIGHBOURS.min(near.len());
-            if k == 0 {
+            finder.nearest(&recent, k, &mut near);
+            if near.is_empty() {
                 continue;
             }
-            near.select_nth_unstable_by(k - 1, |a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
-            near.truncate(k);
-            near.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
             let old = std::mem::take(&mut self.idents[i].neighbours);
             self.idents[i].neighbours = near
                 .iter()
@@ -645,6 +645,59 @@ fn path_cost(samples: &[(i64, DVec3)], g: &Gap, s: &IdentitySettings) -> Option<
     let radius = (s.link_min_m + 3.0 * g.spread + MOVED_ERROR * g.moved).min(s.link_max_m);
     let cost = rms / radius;
     (cost <= 1.0).then_some(cost)
+}
+
+/// Finds the `NEIGHBOURS` nearest of a set of identities' positions: by
+/// comparing every pair for a few, from a kd-tree for many. Ties go to the
+/// lower identity either way.
+struct NearestFinder {
+    tree: Option<ImmutableKdTree<f64, 3>>,
+}
+
+impl NearestFinder {
+    fn new(recent: &[(usize, DVec3)]) -> Self {
+        let tree = (recent.len() > DIRECT_NEIGHBOURS_MAX)
+            .then(|| {
+                let points: Vec<[f64; 3]> = recent.iter().map(|(_, p)| p.to_array()).collect();
+                ImmutableKdTree::<f64, 3>::new_from_slice(&points).ok()
+            })
+            .flatten();
+        NearestFinder { tree }
+    }
+
+    /// The nearest others of `recent[k]`, as (squared distance, identity),
+    /// nearest first, into `near`.
+    fn nearest(&self, recent: &[(usize, DVec3)], k: usize, near: &mut Vec<(f64, usize)>) {
+        near.clear();
+        let (i, pi) = recent[k];
+        match (&self.tree, std::num::NonZeroUsize::new(NEIGHBOURS + 1)) {
+            (Some(tree), Some(n)) => {
+                let found = tree
+                    .query(&pi.to_array())
+                    .nearest_n::<SquaredEuclidean<f64>>(n)
+                    .execute();
+                near.extend(
+                    found
+                        .into_iter()
+                        .map(|f| (f.distance, recent[f.item as usize].0))
+                        .filter(|&(_, j)| j != i),
+                );
+            }
+            _ => near.extend(
+                recent
+                    .iter()
+                    .filter(|(j, _)| *j != i)
+                    .map(|(j, pj)| (pi.distance_squared(*pj), *j)),
+            ),
+        }
+        let keep = NEIGHBOURS.min(near.len());
+        if keep == 0 {
+            return;
+        }
+        near.select_nth_unstable_by(keep - 1, |a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+        near.truncate(keep);
+        near.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+    }
 }
 
 #[cfg(test)]

@@ -49,6 +49,9 @@ impl LiveTips {
     /// A new tree: label the markers with its tips.
     pub fn set_tips(&mut self, tips: &[(usize, DVec3)]) {
         self.tips = tips.to_vec();
+        // By marker, so that `displacements` finds a tip by binary search:
+        // a search per tip was 1 000 × 1 000 steps a frame at 1 000 tips.
+        self.tips.sort_by_key(|t| t.0);
         self.label.clear();
         self.unmatched.clear();
         self.claimed = vec![false; tips.len()];
@@ -83,8 +86,10 @@ impl LiveTips {
         &'a self,
         seen: &'a [(usize, DVec3)],
     ) -> impl Iterator<Item = DVec3> + 'a {
-        seen.iter()
-            .filter_map(|(m, p)| self.tips.iter().find(|t| t.0 == *m).map(|t| *p - t.1))
+        seen.iter().filter_map(|(m, p)| {
+            let k = self.tips.binary_search_by_key(m, |t| t.0).ok()?;
+            Some(*p - self.tips[k].1)
+        })
     }
 
     fn match_identity(&mut self, identity: usize) -> Option<usize> {
