@@ -51,9 +51,7 @@ pub fn adopt_ghosts(marks: &mut [Trace], ghosts: Vec<Trace>, gate_m: f64) -> (Ve
                     m.first_frame() <= ghost.last_frame() + HANDOVER_FRAMES
                         && ghost.first_frame() <= m.last_frame() + HANDOVER_FRAMES
                 })
-                .filter_map(|(k, (m, seen))| {
-                    handover_cost(m, seen, &runs, gate_m).map(|c| (c, k))
-                })
+                .filter_map(|(k, (m, seen))| handover_cost(m, seen, &runs, gate_m).map(|c| (c, k)))
                 .min_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
             let Some((_, k)) = best else {
                 continue;
@@ -180,7 +178,8 @@ mod tests {
     #[test]
     fn a_chain_of_hand_overs_joins_and_a_late_one_does_not() {
         let p = |f: i64| DVec3::new(0.001 * f as f64, 1.0, 0.0);
-        let run = |id, r: std::ops::Range<i64>| trace(id, &r.map(|f| (f, p(f))).collect::<Vec<_>>());
+        let run =
+            |id, r: std::ops::Range<i64>| trace(id, &r.map(|f| (f, p(f))).collect::<Vec<_>>());
         let mut marks = vec![run(0, 20..60)];
         let ghosts = vec![run(1, 0..5), run(2, 5..12), run(3, 12..20), run(4, 70..75)];
         let (left, adopted) = adopt_ghosts(&mut marks, ghosts, 0.025);

@@ -231,7 +231,7 @@ pub fn clean(
 
     let total = timeline.len() as i64;
     // The still phase is judged on the markers as the tracker followed
-    // them: a marker seen as two blobs flips by millimetres without moving.
+    // them: a marker seen as two blobs jumps by millimetres while still.
     let window = rest_window(cfg, &traces, &timeline, &mut warnings);
     let (ghosts, adopted) = adopt::adopt_ghosts(&mut traces, ghosts, cfg.gate_mm / 1000.0);
     let ghosts = ghosts.len();

@@ -123,11 +123,7 @@ fn cmuphyscomp_six_markers_with_data_become_six_tips() {
     let mean = DVec3::new(-0.7225846, 0.7147400, 2.8287007);
     let flipping = nearest(mean);
     assert_eq!(flipping.samples, 250);
-    assert!(
-        flipping.rest.distance(mean) < 1e-5,
-        "{:?}",
-        flipping.rest
-    );
+    assert!(flipping.rest.distance(mean) < 1e-5, "{:?}", flipping.rest);
     assert!(
         (flipping.spread_m * 1000.0 - 4.731).abs() < 0.01,
         "{}",
@@ -138,7 +134,7 @@ fn cmuphyscomp_six_markers_with_data_become_six_tips() {
     // Its pieces on the other spot were adopted, not dropped as ghosts.
     assert_eq!(summary.ghosts, 0);
     assert!(summary.adopted >= 2, "{}", summary.adopted);
-    // Every marker is still (the sixth flips without moving): the whole
+    // Every marker is still (the sixth flips, but stays put): the whole
     // take is the rest window, found as such.
     assert_eq!(summary.rest_source, RestSource::Auto);
     assert!(summary.rest_window_s[0] <= 0.01 && summary.rest_window_s[1] >= 2.07);
