@@ -15,7 +15,8 @@
 //! same frame and every run of the ghost's frames hands over to the marker
 //! and back: on each side where the marker has data, its nearest
 //! measurement is at most [`HANDOVER_FRAMES`] away and within `gate_mm` of
-//! the ghost's sample there. A spurious reflection would have to appear in
+//! the ghost's sample there, and no other marker fits (where two hidden
+//! markers pass close, the ghost stays one). A spurious reflection would have to appear in
 //! the very frame a marker is hidden, next to it, and vanish as it comes
 //! back; a marker's pieces do exactly that. Adopting is repeated while it
 //! succeeds, so a chain of hand-overs joins piece by piece.
@@ -43,7 +44,7 @@ pub fn adopt_ghosts(marks: &mut [Trace], ghosts: Vec<Trace>, gate_m: f64) -> (Ve
                 continue;
             };
             let runs = runs(ghost);
-            let best = marks
+            let mut fits = marks
                 .iter()
                 .zip(&cache)
                 .enumerate()
@@ -51,9 +52,11 @@ pub fn adopt_ghosts(marks: &mut [Trace], ghosts: Vec<Trace>, gate_m: f64) -> (Ve
                     m.first_frame() <= ghost.last_frame() + HANDOVER_FRAMES
                         && ghost.first_frame() <= m.last_frame() + HANDOVER_FRAMES
                 })
-                .filter_map(|(k, (m, seen))| handover_cost(m, seen, &runs, gate_m).map(|c| (c, k)))
-                .min_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
-            let Some((_, k)) = best else {
+                .filter(|(_, (m, seen))| handover_cost(m, seen, &runs, gate_m).is_some())
+                .map(|(k, _)| k);
+            // Only a ghost that one marker alone could have handed over to:
+            // where two hidden markers pass close, it stays a ghost.
+            let (Some(k), None) = (fits.next(), fits.next()) else {
                 continue;
             };
             if let Some(joined) = marks[k].merged(ghost) {
