@@ -6,9 +6,10 @@
 //!    per trace, gates from its uncertainty, kd-tree candidates, global
 //!    assignment), and [`identity`] joins the pieces of each marker on line
 //!    from its neighbours' motion; traces never confirmed are ghosts;
-//! 2. [`noise`]: pieces of one marker still apart are joined by rest
-//!    position;
-//! 3. [`rest`]: the still phase is found (or taken from the config);
+//! 2. [`rest`]: the still phase is found (or taken from the config);
+//! 3. [`adopt`]: ghosts that are pieces of a marker (a marker seen as two
+//!    blobs, a trace broken before it was confirmed) join it; [`noise`]:
+//!    pieces of one marker still apart are joined by rest position;
 //! 4. [`noise`]: traces measured in fewer than 1/4 of the frames are dropped;
 //! 5. [`gaps`]: gaps are filled from the neighbours' motion, or by PCHIP,
 //!    where plausible;
@@ -17,6 +18,7 @@
 //! The live daemon runs step 1 as frames arrive and steps 2–6 ([`clean`])
 //! when it wants tips; a replay does both in [`process`].
 
+pub mod adopt;
 pub mod assign;
 pub mod gaps;
 mod identity;
@@ -64,6 +66,11 @@ pub struct Summary {
     /// Pieces joined to an earlier piece of the same marker on line, from
     /// the neighbours' motion.
     pub joined_on_line: usize,
+    /// Traces never confirmed that were pieces of a marker: measured
+    /// exactly in the frames it missed, handing over to it within a frame
+    /// or two (a marker seen as two blobs, a trace broken before it was
+    /// confirmed); not counted in `ghosts`.
+    pub adopted: usize,
     /// Pieces joined afterwards by rest position.
     pub joined_by_rest: usize,
     /// Long fragments without a rest position put into a gap of the marker
@@ -96,8 +103,8 @@ impl fmt::Display for Summary {
         )?;
         writeln!(
             f,
-            "markers found: {} tips, from {} traces ({} ghosts never confirmed; pieces joined: {} from the neighbours' motion, {} by rest position, {} into a gap of their neighbourhood)",
-            self.tips, self.traces, self.ghosts, self.joined_on_line, self.joined_by_rest, self.joined_into_gaps
+            "markers found: {} tips, from {} traces ({} ghosts never confirmed; pieces joined: {} from the neighbours' motion, {} handing over to their marker, {} by rest position, {} into a gap of their neighbourhood)",
+            self.tips, self.traces, self.ghosts, self.joined_on_line, self.adopted, self.joined_by_rest, self.joined_into_gaps
         )?;
         let longest = self.dropped.first().map_or(String::new(), |d| {
             format!(
@@ -143,14 +150,16 @@ impl fmt::Display for Summary {
     }
 }
 
-/// One trace per identity (its pieces appended in time order); returns
-/// them in order of first appearance and the number of traces in none.
+/// One trace per identity (its pieces appended in time order, or merged
+/// where they interleave); returns them in order of first appearance and
+/// the traces in none (ghosts), in order of id.
 fn assemble(
     traces: Vec<crate::model::trace::Trace>,
     identities: &[Vec<usize>],
-) -> (Vec<crate::model::trace::Trace>, usize) {
-    let mut slots: Vec<Option<crate::model::trace::Trace>> = traces.into_iter().map(Some).collect();
+) -> (Vec<Trace>, Vec<Trace>) {
+    let mut slots: Vec<Option<Trace>> = traces.into_iter().map(Some).collect();
     let mut out = Vec::with_capacity(identities.len());
+    let mut loose = Vec::new();
     for pieces in identities {
         let mut iter = pieces.iter();
         let Some(mut joined) = iter.next().and_then(|&i| slots.get_mut(i)?.take()) else {
@@ -158,12 +167,21 @@ fn assemble(
         };
         for &i in iter {
             if let Some(piece) = slots.get_mut(i).and_then(Option::take) {
-                joined.append(&piece);
+                if joined.append(&piece) {
+                    continue;
+                }
+                // A piece judged on line while a later one was alive: it
+                // interleaves; one sharing a frame stays a loose trace.
+                match joined.merged(&piece) {
+                    Some(m) => joined = m,
+                    None => loose.push(piece),
+                }
             }
         }
         out.push(joined);
     }
-    let ghosts = slots.iter().flatten().count();
+    let mut ghosts: Vec<Trace> = slots.into_iter().flatten().chain(loose).collect();
+    ghosts.sort_by_key(|t| t.id);
     out.sort_by_key(|t| (t.first_frame(), t.id));
     (out, ghosts)
 }
@@ -199,7 +217,7 @@ pub fn clean(
     } = tracked;
     let n_traces = traces.len();
     let joined_on_line = stats.joined as usize;
-    let (traces, ghosts) = assemble(traces, &identities);
+    let (mut traces, ghosts) = assemble(traces, &identities);
     let frames = stats.frames;
     let mut warnings = Vec::new();
     if let Some(d) = stats.closest_spacing_m {
@@ -212,7 +230,11 @@ pub fn clean(
     }
 
     let total = timeline.len() as i64;
+    // The still phase is judged on the markers as the tracker followed
+    // them: a marker seen as two blobs jumps by millimetres while still.
     let window = rest_window(cfg, &traces, &timeline, &mut warnings);
+    let (ghosts, adopted) = adopt::adopt_ghosts(&mut traces, ghosts, cfg.gate_mm / 1000.0);
+    let ghosts = ghosts.len();
     let (traces, joined_by_rest, joined_into_gaps) = join_pieces(traces, window, &timeline, cfg);
     let (mut kept, mut dropped) = noise::drop_noise(traces, frames, cfg.noise_fraction);
     dropped.sort_by(|a, b| b.measured.cmp(&a.measured).then(a.id.cmp(&b.id)));
@@ -241,6 +263,7 @@ pub fn clean(
         traces: n_traces,
         ghosts,
         joined_on_line,
+        adopted,
         joined_by_rest,
         joined_into_gaps,
         dropped,

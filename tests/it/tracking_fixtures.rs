@@ -116,22 +116,27 @@ fn cmuphyscomp_six_markers_with_data_become_six_tips() {
         assert_eq!(tip.samples, 250);
     }
     // The sixth marker's centroid flips, frame by frame, between two spots
-    // 9.5 mm apart (two centroid solutions in Motive; 4.7 mm RMS about
-    // their mean (-0.72258, 0.71474, 2.8287)). The tracker follows one
-    // spot and drops the pieces on the other as ghosts (a known limit,
-    // README): the tip is within half the flip of the mean, from more than
-    // the noise rule's quarter of the frames, and still to the millimetre.
-    let mean = DVec3::new(-0.72258, 0.71474, 2.8287);
+    // 9.5 mm apart (two centroid solutions in Motive). It is one marker:
+    // one tip with every sample of its column, its rest position their
+    // mean and its spread their RMS distance from it (4.73 mm), both read
+    // from the file.
+    let mean = DVec3::new(-0.7225846, 0.7147400, 2.8287007);
     let flipping = nearest(mean);
+    assert_eq!(flipping.samples, 250);
+    assert!(flipping.rest.distance(mean) < 1e-5, "{:?}", flipping.rest);
     assert!(
-        flipping.rest.distance(mean) < 0.00475,
-        "{:?}",
-        flipping.rest
+        (flipping.spread_m * 1000.0 - 4.731).abs() < 0.01,
+        "{}",
+        flipping.spread_m
     );
-    assert!(flipping.samples >= 63, "{}", flipping.samples);
-    assert!(flipping.spread_m < 0.001, "{}", flipping.spread_m);
-    // Every marker is still (one spot of the sixth): the whole take is the
-    // rest window.
+    assert_eq!(flipping.trace.measured(), 250);
+    assert_eq!(flipping.gap_fraction, 0.0);
+    // Its pieces on the other spot were adopted, not dropped as ghosts.
+    assert_eq!(summary.ghosts, 0);
+    assert!(summary.adopted >= 2, "{}", summary.adopted);
+    // Every marker is still (the sixth flips, but stays put): the whole
+    // take is the rest window, found as such.
+    assert_eq!(summary.rest_source, RestSource::Auto);
     assert!(summary.rest_window_s[0] <= 0.01 && summary.rest_window_s[1] >= 2.07);
 }
 
