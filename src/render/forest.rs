@@ -52,16 +52,7 @@ pub fn forest_model(
         .enumerate()
         .map(|(k, (tree, rebuilt))| member(plan, k, tree, rebuilt))
         .collect();
-    let mut meshes = Vec::with_capacity(members.len());
-    for m in &members {
-        let branches = mesh::branches(&m.tree, cfg.sides)?;
-        let leaf = if cfg.leaves {
-            Some(leaves::leaves(&m.tree, cfg, m.seed)?)
-        } else {
-            None
-        };
-        meshes.push((branches, leaf));
-    }
+    let meshes = tree_meshes(&members, cfg)?;
     let motions = forest_motions(&members, motion)?;
     let glb = super::gltf::forest_glb(
         &members
@@ -106,6 +97,25 @@ pub fn forest_model(
         motion: None,
         report,
     })
+}
+
+/// Each tree's branch surface and leaves (when asked for).
+fn tree_meshes(
+    members: &[Member],
+    cfg: &ReconstructSettings,
+) -> Result<Vec<(mesh::Mesh, Option<mesh::Mesh>)>> {
+    members
+        .iter()
+        .map(|m| {
+            let branches = mesh::branches(&m.tree, cfg.sides)?;
+            let leaf = if cfg.leaves {
+                Some(leaves::leaves(&m.tree, cfg, m.seed)?)
+            } else {
+                None
+            };
+            Ok((branches, leaf))
+        })
+        .collect()
 }
 
 /// Every tree's share of the session's motion when `motion` has traces
