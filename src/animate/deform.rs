@@ -102,9 +102,7 @@ impl Deformer {
             self.acc[c.slot] = bend.extend(1.0);
         }
         for (&slot, &(a, b)) in rig.random.iter().zip(&rig.random_span) {
-            let bend = self
-                .borrowed(&rig.random_from[a..b])
-                .unwrap_or(DVec3::ZERO);
+            let bend = self.borrowed(&rig.random_from[a..b]).unwrap_or(DVec3::ZERO);
             self.acc[slot] = bend.extend(1.0);
         }
         for slot in (1..rig.nodes()).rev() {

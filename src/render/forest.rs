@@ -9,12 +9,12 @@ use std::sync::Arc;
 use glam::DVec3;
 use serde_json::json;
 
+use crate::animate::animate;
 use crate::error::Result;
 use crate::model::motion::TreeMotion;
 use crate::model::tree::{Kind, Tree};
 use crate::reconstruct::forest::{self, ForestCache, ForestPlan};
 use crate::reconstruct::{leaves, mesh, ReconstructSettings};
-use crate::animate::animate;
 use crate::render::animation::combined_stretch;
 use crate::render::outputs::{build_model, AnimationReport, Motion, Outputs, Report};
 

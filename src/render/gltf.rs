@@ -120,7 +120,12 @@ fn animated_forest_glb(trees: &[ForestTree<'_>]) -> Result<Vec<u8>> {
     let mut skins = Vec::with_capacity(trees.len());
     for t in trees {
         let skin = Skin::named(&mut b, t.tree, t.motion, Some(t.name))?;
-        let meshes = b.tree_nodes(t.tree, t.branches, t.leaves, Some((&skin as &dyn Skinning, t.name)))?;
+        let meshes = b.tree_nodes(
+            t.tree,
+            t.branches,
+            t.leaves,
+            Some((&skin as &dyn Skinning, t.name)),
+        )?;
         scene_nodes.push(b.root.push(json::Node {
             children: Some(vec![skin.root()]),
             name: Some(t.name.into()),

@@ -11,8 +11,8 @@ use std::process::Command;
 
 use glam::DVec3;
 use treemocap::config::Config;
-use treemocap::model::trace::SampleKind;
 use treemocap::model::tips::CapturedTip;
+use treemocap::model::trace::SampleKind;
 use treemocap::reconstruct::forest::{
     self, sway, AssignRule, ConfiguredTree, ForestCache, ForestPlan, ForestSettings, SwayLink,
 };
@@ -459,8 +459,18 @@ fn replay_splits_the_shipped_forest_replay_into_trees() {
     } as i64;
     for tree in trees {
         let (mut checked, mut moved) = (0, 0.0f64);
-        for marker in tree["markers"].as_array().unwrap().iter().filter_map(|m| m.as_u64()) {
-            let tip = report.tips.tips.iter().find(|t| t.marker as u64 == marker).unwrap();
+        for marker in tree["markers"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .filter_map(|m| m.as_u64())
+        {
+            let tip = report
+                .tips
+                .tips
+                .iter()
+                .find(|t| t.marker as u64 == marker)
+                .unwrap();
             let Some(s) = tip.trace.samples().find(|s| s.frame == frame) else {
                 continue;
             };
@@ -470,11 +480,20 @@ fn replay_splits_the_shipped_forest_replay_into_trees() {
             let joint = glb.node(&format!("tip_{marker:02}")).unwrap();
             let at = glb.world(joint, Some(key));
             let off = at.distance(s.position);
-            assert!(off < 0.5e-3, "{}: tip {marker} {:.3} mm off", tree["name"], off * 1e3);
+            assert!(
+                off < 0.5e-3,
+                "{}: tip {marker} {:.3} mm off",
+                tree["name"],
+                off * 1e3
+            );
             moved = moved.max(at.distance(glb.world(joint, None)));
             checked += 1;
         }
-        assert!(checked > 0, "no tracked tip of {} at key {key}", tree["name"]);
+        assert!(
+            checked > 0,
+            "no tracked tip of {} at key {key}",
+            tree["name"]
+        );
         assert!(moved > 1e-3, "{} does not move ({moved} m)", tree["name"]);
     }
     assert!(std::fs::metadata(out.join("tree.png")).unwrap().len() > 10_000);
