@@ -166,8 +166,11 @@ impl Rig {
     }
 }
 
+/// A range `[start, end)` in a flat list.
+type Span = (usize, usize);
+
 /// The borrow lists one after another, and each one's range.
-fn flatten(borrows: &[Borrow]) -> (Vec<(usize, f64)>, Vec<(usize, usize)>) {
+fn flatten(borrows: &[Borrow]) -> (Vec<(usize, f64)>, Vec<Span>) {
     let mut from = Vec::with_capacity(borrows.iter().map(|b| b.from.len()).sum());
     let mut span = Vec::with_capacity(borrows.len());
     for b in borrows {
