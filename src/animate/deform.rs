@@ -1,11 +1,19 @@
 //! One frame's deformation (docs/animation.md, steps 1–4): bends of the
 //! tips, borrowing, the blend over subtrees, rotation about the parents and
-//! the correction of the tracked tips. Four linear passes over the slots,
-//! no allocation after the first frame.
+//! the correction of the tracked tips. Everything that depends on the tree
+//! alone (slots in root-first order, profiles, borrowing weights in one flat
+//! list, the slots the correction can reach) is in the [`Rig`]; a frame is
+//! two sweeps over the slots (a backward sum, a forward blend-and-rotate),
+//! a backward sum over the captured tips' paths only, and a forward
+//! correction that writes the output. No allocation after the first frame.
+//!
+//! Every value is computed by the same operations in the same order as the
+//! straightforward passes described in docs/animation.md, so the positions
+//! are the same bits.
 
 use glam::{DVec3, DVec4};
 
-use super::rig::{Borrow, Rig};
+use super::rig::{Rig, NOT_CAPTURED};
 use crate::model::motion::TipSource;
 
 /// A captured tip's displacement in one frame, as the deformation takes it.
@@ -20,11 +28,15 @@ pub enum TipInput {
 /// Scratch space for deforming one rig, reused frame after frame.
 #[derive(Debug, Clone, Default)]
 pub struct Deformer {
-    /// Bend of each captured tip this frame, if it has a value.
-    bend: Vec<Option<DVec3>>,
-    /// Per slot: (sum of bends below, count) for the blend, then the same
-    /// for the residuals of the tracked tips.
+    /// Bend of each captured tip this frame (zero when it has none).
+    bend: Vec<DVec3>,
+    /// Whether each captured tip has a bend this frame.
+    has_bend: Vec<bool>,
+    /// Per slot: (sum of bends below, count) for the blend.
     acc: Vec<DVec4>,
+    /// Per slot: the same for the residuals of the tracked tips; zero off
+    /// the rig's spine (no tracked tip below), always.
+    residual: Vec<DVec4>,
     /// Per slot: the blended bend (A_i), then the correction (C_i).
     field: Vec<DVec3>,
     /// Per slot: the new position.
@@ -36,8 +48,10 @@ impl Deformer {
     pub fn new(rig: &Rig) -> Self {
         let n = rig.nodes();
         Deformer {
-            bend: vec![None; rig.captured.len()],
+            bend: vec![DVec3::ZERO; rig.captured.len()],
+            has_bend: vec![false; rig.captured.len()],
             acc: vec![DVec4::ZERO; n],
+            residual: vec![DVec4::ZERO; n],
             field: vec![DVec3::ZERO; n],
             pos: vec![DVec3::ZERO; n],
         }
@@ -60,27 +74,26 @@ impl Deformer {
         }
         out.resize(n, DVec3::ZERO);
         sources.clear();
-        self.blend(rig, tips, sources);
-        self.rotate(rig, tips);
-        self.correct(rig, tips);
-        for (slot, &node) in rig.order.iter().enumerate() {
-            out[node] = self.pos[slot];
-        }
+        self.tip_bends(rig, tips, sources);
+        self.blend_and_rotate(rig, tips);
+        self.correct(rig, tips, out);
     }
 
-    /// Steps 1–3: every slot's blended bend `A_i` into `field`.
-    fn blend(&mut self, rig: &Rig, tips: &[TipInput], sources: &mut Vec<TipSource>) {
+    /// Steps 1–2: every tip's bend (tracked, borrowed or none) into `acc`
+    /// with a count of 1, every other slot zero, then the sums over the
+    /// subtrees (children before parents: slots backwards).
+    fn tip_bends(&mut self, rig: &Rig, tips: &[TipInput], sources: &mut Vec<TipSource>) {
         for (i, c) in rig.captured.iter().enumerate() {
-            self.bend[i] = match tips.get(i) {
-                Some(TipInput::Tracked(d, _)) => Some(*d * c.inv_profile),
-                _ => None,
+            (self.bend[i], self.has_bend[i]) = match tips.get(i) {
+                Some(TipInput::Tracked(d, _)) => (*d * c.inv_profile, true),
+                _ => (DVec3::ZERO, false),
             };
         }
         self.acc.fill(DVec4::ZERO);
         for (i, c) in rig.captured.iter().enumerate() {
-            let (bend, source) = match (tips.get(i), self.bend[i]) {
-                (Some(TipInput::Tracked(_, s)), Some(b)) => (b, *s),
-                _ => match borrowed(&rig.captured_borrow[i], &self.bend) {
+            let (bend, source) = match tips.get(i) {
+                Some(TipInput::Tracked(_, s)) => (self.bend[i], *s),
+                _ => match self.borrowed(&rig.captured_borrow[i].from) {
                     Some(b) => (b, TipSource::Borrowed),
                     None => (DVec3::ZERO, TipSource::Rest),
                 },
@@ -88,100 +101,119 @@ impl Deformer {
             sources.push(source);
             self.acc[c.slot] = bend.extend(1.0);
         }
-        for (r, &slot) in rig.random.iter().enumerate() {
-            let bend = borrowed(&rig.random_borrow[r], &self.bend).unwrap_or(DVec3::ZERO);
+        for (&slot, &(a, b)) in rig.random.iter().zip(&rig.random_span) {
+            let bend = self.borrowed(&rig.random_from[a..b]).unwrap_or(DVec3::ZERO);
             self.acc[slot] = bend.extend(1.0);
         }
         for slot in (1..rig.nodes()).rev() {
             let a = self.acc[slot];
             self.acc[rig.parent[slot]] += a;
         }
+    }
+
+    /// Steps 3 and 4.1 in one root-first sweep: each slot's blended bend
+    /// `A_i`, its target (rest + A_i × profile, or exactly rest + d for a
+    /// tracked tip), and its new position at its rest distance from its
+    /// parent's new one, pointing at the target.
+    fn blend_and_rotate(&mut self, rig: &Rig, tips: &[TipInput]) {
         for slot in 0..rig.nodes() {
             let a = self.acc[slot];
             // A node with no tip below it (a bare trunk top) bends as its
             // parent does.
-            self.field[slot] = if a.w > 0.0 {
+            let field = if a.w > 0.0 {
                 a.truncate() / a.w
             } else {
                 self.field[rig.parent[slot]]
             };
-        }
-    }
-
-    /// Step 4.1: place every slot at its rest distance from its parent's new
-    /// position, pointing at its target.
-    fn rotate(&mut self, rig: &Rig, tips: &[TipInput]) {
-        for slot in 0..rig.nodes() {
-            self.pos[slot] = rig.rest[slot] + self.field[slot] * rig.profile[slot];
-        }
-        // Tracked tips aim at exactly rest + d (the profile round trip
-        // would leave a rounding error).
-        for (i, c) in rig.captured.iter().enumerate() {
-            if let Some(TipInput::Tracked(d, _)) = tips.get(i) {
-                self.pos[c.slot] = rig.rest[c.slot] + *d;
+            self.field[slot] = field;
+            if slot == 0 {
+                self.pos[0] = rig.rest[0];
+                continue;
             }
-        }
-        self.pos[0] = rig.rest[0];
-        for slot in 1..rig.nodes() {
+            // Tracked tips aim at exactly rest + d (the profile round trip
+            // would leave a rounding error).
+            let target = match tracked(rig, tips, slot) {
+                Some(d) => rig.rest[slot] + d,
+                None => rig.rest[slot] + field * rig.profile[slot],
+            };
             let from = self.pos[rig.parent[slot]];
-            let aim = self.pos[slot] - from;
+            let aim = target - from;
             let dir = aim.try_normalize().unwrap_or(rig.rest_dir[slot]);
             self.pos[slot] = from + dir * rig.length[slot];
         }
     }
 
-    /// Step 4.2: carry each tracked tip's residual back along its path.
-    fn correct(&mut self, rig: &Rig, tips: &[TipInput]) {
-        self.acc.fill(DVec4::ZERO);
+    /// Step 4.2: carry each tracked tip's residual back along its path, and
+    /// write every node's position into `out` (node order).
+    fn correct(&mut self, rig: &Rig, tips: &[TipInput], out: &mut [DVec3]) {
+        for &slot in &rig.spine {
+            self.residual[slot] = DVec4::ZERO;
+        }
         let mut any = false;
         for (i, c) in rig.captured.iter().enumerate() {
             if let Some(TipInput::Tracked(d, _)) = tips.get(i) {
                 let residual = rig.rest[c.slot] + *d - self.pos[c.slot];
-                self.acc[c.slot] = (residual * c.inv_profile).extend(1.0);
+                self.residual[c.slot] = (residual * c.inv_profile).extend(1.0);
                 any = true;
             }
         }
         if !any {
+            for (slot, &node) in rig.order.iter().enumerate() {
+                out[node] = self.pos[slot];
+            }
             return;
         }
-        for slot in (1..rig.nodes()).rev() {
-            let a = self.acc[slot];
-            self.acc[rig.parent[slot]] += a;
+        // Off the spine every sum is zero: only the spine is summed.
+        for &slot in rig.spine.iter().skip(1).rev() {
+            let a = self.residual[slot];
+            self.residual[rig.parent[slot]] += a;
         }
         self.field[0] = DVec3::ZERO;
+        out[rig.order[0]] = self.pos[0];
         for slot in 1..rig.nodes() {
-            let a = self.acc[slot];
+            let a = self.residual[slot];
             // No tracked tip below: move rigidly with the parent.
-            self.field[slot] = if a.w > 0.0 {
+            let field = if a.w > 0.0 {
                 a.truncate() / a.w * rig.profile[slot]
             } else {
                 self.field[rig.parent[slot]]
             };
+            self.field[slot] = field;
+            self.pos[slot] += field;
+            // The tracked tips themselves: exactly where they were tracked.
+            out[rig.order[slot]] = match tracked(rig, tips, slot) {
+                Some(d) => rig.rest[slot] + d,
+                None => self.pos[slot],
+            };
         }
-        for slot in 1..rig.nodes() {
-            self.pos[slot] += self.field[slot];
-        }
-        // The tracked tips themselves: exactly where they were tracked.
-        for (i, c) in rig.captured.iter().enumerate() {
-            if let Some(TipInput::Tracked(d, _)) = tips.get(i) {
-                self.pos[c.slot] = rig.rest[c.slot] + *d;
+    }
+
+    /// A borrower's bend: the weighted mean over the neighbours that have
+    /// one, renormalised; `None` when none has.
+    fn borrowed(&self, from: &[(usize, f64)]) -> Option<DVec3> {
+        let mut sum = DVec3::ZERO;
+        let mut weight = 0.0;
+        for &(i, w) in from {
+            if self.has_bend[i] {
+                sum += self.bend[i] * w;
+                weight += w;
             }
         }
+        (weight > 0.0).then(|| sum / weight)
     }
 }
 
-/// A borrower's bend: the weighted mean over the neighbours that have one,
-/// renormalised; `None` when none has.
-fn borrowed(b: &Borrow, bends: &[Option<DVec3>]) -> Option<DVec3> {
-    let mut sum = DVec3::ZERO;
-    let mut weight = 0.0;
-    for &(i, w) in &b.from {
-        if let Some(Some(bend)) = bends.get(i) {
-            sum += *bend * w;
-            weight += w;
-        }
+/// The displacement of the tracked tip at `slot`, if it is one this frame.
+#[inline]
+fn tracked(rig: &Rig, tips: &[TipInput], slot: usize) -> Option<DVec3> {
+    let c = rig.captured_at[slot];
+    if c == NOT_CAPTURED {
+        return None;
     }
-    (weight > 0.0).then(|| sum / weight)
+    match tips.get(c as usize) {
+        Some(TipInput::Tracked(d, _)) => Some(*d),
+        _ => None,
+    }
 }
 
 #[cfg(test)]

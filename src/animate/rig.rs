@@ -65,7 +65,22 @@ pub struct Rig {
     /// What each captured tip borrows when its marker is missing (its
     /// nearest other captured tips).
     pub(crate) captured_borrow: Vec<Borrow>,
+    /// The random tips' borrowing in one flat list, `random_borrow` after
+    /// another (what a frame reads: no pointer per tip to follow).
+    pub(crate) random_from: Vec<(usize, f64)>,
+    /// Each random tip's range in `random_from`.
+    pub(crate) random_span: Vec<(usize, usize)>,
+    /// Per slot: the index of its captured tip in `captured`, or
+    /// [`NOT_CAPTURED`].
+    pub(crate) captured_at: Vec<u32>,
+    /// The captured tips' slots and all their ancestors', increasing: the
+    /// only slots the correction's sums can reach (docs/animation.md,
+    /// step 4.2), so that a frame sums over them and not the whole tree.
+    pub(crate) spine: Vec<usize>,
 }
+
+/// `Rig::captured_at` of a slot that is not a captured tip.
+pub(crate) const NOT_CAPTURED: u32 = u32::MAX;
 
 impl Rig {
     /// The rig of `tree` (which must pass `Tree::check`).
@@ -86,7 +101,7 @@ impl Rig {
         let (captured, random) = tip_slots(tree, &slot_of, &profile);
         let k = settings.neighbours.max(1);
         let captured_pos: Vec<DVec3> = captured.iter().map(|c| rest[c.slot]).collect();
-        let random_borrow = random
+        let random_borrow: Vec<Borrow> = random
             .iter()
             .map(|&s| borrow(rest[s], &captured_pos, None, k))
             .collect();
@@ -96,6 +111,13 @@ impl Rig {
             .map(|(i, c)| borrow(rest[c.slot], &captured_pos, Some(i), k))
             .collect();
         let random_profile = random.iter().map(|&s| profile[s]).collect();
+        let (random_from, random_span) = flatten(&random_borrow);
+        let mut captured_at = vec![NOT_CAPTURED; order.len()];
+        for (i, c) in captured.iter().enumerate() {
+            captured_at[c.slot] = u32::try_from(i)
+                .map_err(|_| Error::Runtime("too many captured tips to animate".into()))?;
+        }
+        let spine = spine(&parent, &captured);
         Ok(Rig {
             order,
             parent,
@@ -109,6 +131,10 @@ impl Rig {
             random_borrow,
             captured,
             captured_borrow,
+            random_from,
+            random_span,
+            captured_at,
+            spine,
         })
     }
 
@@ -138,6 +164,38 @@ impl Rig {
     pub fn captured_nodes(&self) -> Vec<usize> {
         self.captured.iter().map(|c| c.node).collect()
     }
+}
+
+/// A range `[start, end)` in a flat list.
+type Span = (usize, usize);
+
+/// The borrow lists one after another, and each one's range.
+fn flatten(borrows: &[Borrow]) -> (Vec<(usize, f64)>, Vec<Span>) {
+    let mut from = Vec::with_capacity(borrows.iter().map(|b| b.from.len()).sum());
+    let mut span = Vec::with_capacity(borrows.len());
+    for b in borrows {
+        let start = from.len();
+        from.extend_from_slice(&b.from);
+        span.push((start, from.len()));
+    }
+    (from, span)
+}
+
+/// The captured tips' slots and their ancestors', in increasing slot order
+/// (the root included).
+fn spine(parent: &[usize], captured: &[CapturedSlot]) -> Vec<usize> {
+    let mut on = vec![false; parent.len()];
+    for c in captured {
+        let mut s = c.slot;
+        while !on[s] {
+            on[s] = true;
+            if s == 0 {
+                break;
+            }
+            s = parent[s];
+        }
+    }
+    (0..parent.len()).filter(|&s| on[s]).collect()
 }
 
 /// Each node's slot in root-first order (the order the rig walks in).
@@ -288,6 +346,14 @@ mod tests {
         assert!(b[0].1 > b[1].1 && (b[0].1 + b[1].1 - 1.0).abs() < 1e-12);
         // A captured tip never borrows from itself.
         assert_eq!(rig.captured_borrow[0].from, vec![(1, 1.0)]);
+        // The flat copies of what a frame reads.
+        assert_eq!(rig.random_span, vec![(0, 2)]);
+        assert_eq!(rig.random_from, rig.random_borrow[0].from);
+        assert_eq!(rig.captured_at[4], 0);
+        assert_eq!(rig.captured_at[3], NOT_CAPTURED);
+        // Tips 3 (slot 4) and 4 (slot 5) and their ancestors: not the
+        // random tip (slot 3).
+        assert_eq!(rig.spine, vec![0, 1, 2, 4, 5]);
     }
 
     #[test]

@@ -3,14 +3,16 @@
 //! - one joint node per tree node, nested as the skeleton is (the trunk
 //!   base is the root joint), each with its rest offset from its parent as
 //!   `translation`; captured tips are named `tip_07` (marker 7, also in
-//!   `extras`), the others `node_123` (the node's index in tree.json);
+//!   `extras`), the others `node_123` (the node's index in tree.json; in a
+//!   forest `tree-1_node_123`, so that every joint's name is unique);
 //! - inverse bind matrices that are translations by −rest position (joints
 //!   carry no rotation or scale);
 //! - `JOINTS_0`/`WEIGHTS_0` on every vertex: one or two weights (a ring
 //!   vertex follows its node, a leaf the point of its segment);
 //! - one animation, `capture`: a LINEAR translation sampler per joint that
-//!   moves, all sharing one input (the key times), all outputs in one
-//!   buffer view.
+//!   moves, all sharing one input (the key times), each tree's outputs in
+//!   one buffer view; in a forest the one animation drives every tree's
+//!   joints ([`animate_skins`]).
 //!
 //! Translations only: a joint's local translation is its node's offset from
 //! its parent's node, so positions and lengths read directly off the
@@ -24,7 +26,7 @@ use serde_json::value::RawValue;
 use super::error::RenderError;
 use super::glb::{Attributes, Builder, Skinning};
 use crate::error::Result;
-use crate::model::motion::{TipSource, TreeMotion};
+use crate::model::motion::{Stretch, TipSource, TreeMotion};
 use crate::model::tree::{Kind, Tree};
 use crate::reconstruct::mesh::Bind;
 
@@ -42,6 +44,17 @@ impl Skin {
     /// `motion`, captured tips' extras also list the keys in which their
     /// displacement was not measured.
     pub(super) fn new(b: &mut Builder, tree: &Tree, motion: Option<&TreeMotion>) -> Result<Skin> {
+        Skin::named(b, tree, motion, None)
+    }
+
+    /// [`Skin::new`] for one tree of a forest: its joints other than the
+    /// captured tips are named `{tree}_node_{i}` and the skin `tree`.
+    pub(super) fn named(
+        b: &mut Builder,
+        tree: &Tree,
+        motion: Option<&TreeMotion>,
+        tree_name: Option<&str>,
+    ) -> Result<Skin> {
         let n = tree.nodes.len();
         let first = b.root.nodes.len();
         let joint = |i: usize| json::Index::<json::Node>::new((first + i) as u32);
@@ -65,7 +78,10 @@ impl Skin {
                     format!("tip_{marker:02}"),
                     Some(tip_extras(marker, i, motion)?),
                 ),
-                _ => (format!("node_{i}"), None),
+                _ => match tree_name {
+                    Some(t) => (format!("{t}_node_{i}"), None),
+                    None => (format!("node_{i}"), None),
+                },
             };
             let kids: Vec<_> = children[i].iter().map(|&c| joint(c)).collect();
             b.root.push(json::Node {
@@ -90,7 +106,7 @@ impl Skin {
             extras: Default::default(),
             inverse_bind_matrices: Some(ibm),
             joints: joints.clone(),
-            name: Some("tree".into()),
+            name: Some(tree_name.unwrap_or("tree").into()),
             skeleton: joints.first().copied(),
         });
         Ok(Skin {
@@ -108,36 +124,7 @@ impl Skin {
     /// Adds the animation `capture`: every joint whose translation changes
     /// gets a LINEAR sampler over the shared key times.
     pub(super) fn animate(&self, b: &mut Builder, tree: &Tree, motion: &TreeMotion) -> Result<()> {
-        let n = self.joints.len();
-        let keys = motion.keys();
-        if motion.nodes != n || motion.positions.len() != keys * n || keys == 0 {
-            return Err(RenderError::Inconsistent(
-                "the motion does not belong to this tree".into(),
-            )
-            .into());
-        }
-        let input = key_times(b, motion);
-        let (moving, translations) = self.moving_translations(tree, motion);
-        let view = b.view(translations, None);
-        let mut samplers = Vec::with_capacity(moving.len());
-        let mut channels = Vec::with_capacity(moving.len());
-        for (s, &(i, offset)) in moving.iter().enumerate() {
-            let output = accessor(b, view, offset, keys, ComponentType::F32, Type::Vec3, None);
-            samplers.push(linear_sampler(input, output));
-            channels.push(self.translation_channel(s, i));
-        }
-        if channels.is_empty() {
-            // Nothing moved: a glTF animation needs at least one channel.
-            return Ok(());
-        }
-        b.root.push(json::Animation {
-            extensions: None,
-            extras: Some(motion_extras(motion)?),
-            channels,
-            name: Some("capture".into()),
-            samplers,
-        });
-        Ok(())
+        animate_skins(b, &[(self, tree, motion)])
     }
 
     /// The moving joints' local translations (to their parent), joint after
@@ -247,6 +234,59 @@ impl Skinning for Skin {
     }
 }
 
+/// Adds one animation, `capture`, over several trees' skins (a forest: one
+/// clock for every tree, so they sway together): every joint whose
+/// translation changes gets a LINEAR sampler over the shared key times.
+/// The motions must share their key times.
+pub(super) fn animate_skins(b: &mut Builder, skins: &[(&Skin, &Tree, &TreeMotion)]) -> Result<()> {
+    let Some(&(_, _, first)) = skins.first() else {
+        return Ok(());
+    };
+    let keys = first.keys();
+    for &(skin, _, motion) in skins {
+        let n = skin.joints.len();
+        if motion.nodes != n
+            || motion.positions.len() != motion.keys() * n
+            || keys == 0
+            || motion.times != first.times
+        {
+            return Err(RenderError::Inconsistent(
+                "the motion does not belong to this tree".into(),
+            )
+            .into());
+        }
+    }
+    let input = key_times(b, first);
+    let mut samplers = Vec::new();
+    let mut channels = Vec::new();
+    for &(skin, tree, motion) in skins {
+        let (moving, translations) = skin.moving_translations(tree, motion);
+        if moving.is_empty() {
+            // A glTF buffer view may not be empty.
+            continue;
+        }
+        let view = b.view(translations, None);
+        for &(i, offset) in &moving {
+            let output = accessor(b, view, offset, keys, ComponentType::F32, Type::Vec3, None);
+            channels.push(skin.translation_channel(samplers.len(), i));
+            samplers.push(linear_sampler(input, output));
+        }
+    }
+    if channels.is_empty() {
+        // Nothing moved: a glTF animation needs at least one channel.
+        return Ok(());
+    }
+    let motions: Vec<&TreeMotion> = skins.iter().map(|s| s.2).collect();
+    b.root.push(json::Animation {
+        extensions: None,
+        extras: Some(motion_extras(&motions)?),
+        channels,
+        name: Some("capture".into()),
+        samplers,
+    });
+    Ok(())
+}
+
 /// The key times (s) as the samplers' shared input accessor, with the
 /// min/max glTF requires of an animation input.
 fn key_times(b: &mut Builder, motion: &TreeMotion) -> json::Index<json::Accessor> {
@@ -281,17 +321,40 @@ fn linear_sampler(
 }
 
 /// What the animation's extras tell a viewer about the motion: its clock,
-/// the bending law and how far the branches had to stretch.
-fn motion_extras(motion: &TreeMotion) -> Result<Box<RawValue>> {
+/// the bending law and how far the branches had to stretch (over every
+/// tree of a forest: the largest change, and the mean over all nodes).
+fn motion_extras(motions: &[&TreeMotion]) -> Result<Box<RawValue>> {
+    let motion = motions[0];
+    let stretch = combined_stretch(motions);
     raw(&serde_json::json!({
         "start_s": motion.start_s,
         "rate_hz": motion.rate_hz,
         "keys": motion.keys(),
         "bend_power": motion.bend_power,
-        "stretch_max_pct": motion.stretch.max_pct,
-        "stretch_mean_pct": motion.stretch.mean_pct,
+        "stretch_max_pct": stretch.max_pct,
+        "stretch_mean_pct": stretch.mean_pct,
         "cut_to_max_duration": motion.cut,
     }))
+}
+
+/// The branch-length change of several trees' motions: the largest, and the
+/// mean weighted by node count (one tree: its own figures, unchanged).
+pub(crate) fn combined_stretch(motions: &[&TreeMotion]) -> Stretch {
+    if let [one] = motions {
+        return one.stretch;
+    }
+    let mut out = Stretch::default();
+    let (mut sum, mut nodes) = (0.0, 0usize);
+    for m in motions {
+        if m.stretch.max_pct > out.max_pct || out.worst_node.is_none() {
+            out.max_pct = m.stretch.max_pct;
+            out.worst_node = m.stretch.worst_node;
+        }
+        sum += m.stretch.mean_pct * m.nodes as f64;
+        nodes += m.nodes;
+    }
+    out.mean_pct = if nodes == 0 { 0.0 } else { sum / nodes as f64 };
+    out
 }
 
 /// `extras` of a captured tip's joint: its marker and, with a motion, the

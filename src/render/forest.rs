@@ -9,12 +9,14 @@ use std::sync::Arc;
 use glam::DVec3;
 use serde_json::json;
 
+use crate::animate::animate;
 use crate::error::Result;
 use crate::model::motion::TreeMotion;
 use crate::model::tree::{Kind, Tree};
 use crate::reconstruct::forest::{self, ForestCache, ForestPlan};
 use crate::reconstruct::{leaves, mesh, ReconstructSettings};
-use crate::render::outputs::{build_model, Motion, Outputs, Report};
+use crate::render::animation::combined_stretch;
+use crate::render::outputs::{build_model, AnimationReport, Motion, Outputs, Report};
 
 use super::forest_report::source_name;
 pub use super::forest_report::{AmbiguousLine, ForestReport, Member, TreeLine};
@@ -50,29 +52,24 @@ pub fn forest_model(
         .enumerate()
         .map(|(k, (tree, rebuilt))| member(plan, k, tree, rebuilt))
         .collect();
-    let mut meshes = Vec::with_capacity(members.len());
-    for m in &members {
-        let branches = mesh::branches(&m.tree, cfg.sides)?;
-        let leaf = if cfg.leaves {
-            Some(leaves::leaves(&m.tree, cfg, m.seed)?)
-        } else {
-            None
-        };
-        meshes.push((branches, leaf));
-    }
+    let meshes = tree_meshes(&members, cfg)?;
+    let motions = forest_motions(&members, motion)?;
     let glb = super::gltf::forest_glb(
         &members
             .iter()
             .zip(&meshes)
-            .map(|(m, (b, l))| super::gltf::ForestTree {
+            .enumerate()
+            .map(|(k, (m, (b, l)))| super::gltf::ForestTree {
                 name: &m.name,
                 tree: &m.tree,
                 branches: b,
                 leaves: l.as_ref(),
+                motion: motions.get(k),
             })
             .collect::<Vec<_>>(),
     )?;
-    let report = forest_report(plan, &members, &meshes);
+    let mut report = forest_report(plan, &members, &meshes);
+    report.animation = animation_report(&motions, glb.len());
     let tree_json = super::json::forest_json(
         &members
             .iter()
@@ -95,9 +92,58 @@ pub fn forest_model(
         glb,
         tree_json,
         png: Vec::new(),
-        // Several trees are written still (docs/forest.md).
+        // The picture of several trees is still (docs/forest.md); the
+        // motion is in tree.glb and the report.
         motion: None,
         report,
+    })
+}
+
+/// Each tree's branch surface and leaves (when asked for).
+fn tree_meshes(
+    members: &[Member],
+    cfg: &ReconstructSettings,
+) -> Result<Vec<(mesh::Mesh, Option<mesh::Mesh>)>> {
+    members
+        .iter()
+        .map(|m| {
+            let branches = mesh::branches(&m.tree, cfg.sides)?;
+            let leaf = if cfg.leaves {
+                Some(leaves::leaves(&m.tree, cfg, m.seed)?)
+            } else {
+                None
+            };
+            Ok((branches, leaf))
+        })
+        .collect()
+}
+
+/// Every tree's share of the session's motion when `motion` has traces
+/// (each tree animated by its own captured tips, on the same keys), none
+/// otherwise: several trees are skinned only to be animated.
+fn forest_motions(members: &[Member], motion: Motion<'_>) -> Result<Vec<TreeMotion>> {
+    match motion {
+        Motion::Traces(paths, settings) => members
+            .iter()
+            .map(|m| animate(&m.tree, paths, settings))
+            .collect(),
+        Motion::Still | Motion::Rigged => Ok(Vec::new()),
+    }
+}
+
+/// The animation line of the report: the trees' common keys, the largest
+/// and mean branch-length change over all of them.
+fn animation_report(motions: &[TreeMotion], glb_bytes: usize) -> Option<AnimationReport> {
+    let first = motions.first()?;
+    let all: Vec<&TreeMotion> = motions.iter().collect();
+    Some(AnimationReport {
+        keys: first.keys(),
+        duration_s: first.times.last().copied().unwrap_or(0.0),
+        start_s: first.start_s,
+        rate_hz: first.rate_hz,
+        cut: first.cut,
+        stretch: combined_stretch(&all),
+        glb_bytes,
     })
 }
 

@@ -68,13 +68,23 @@ impl Default for Builder {
 }
 
 impl Builder {
-    /// The nodes of one tree: branches, leaves (when any), skeleton.
+    /// The nodes of one tree: branches, leaves (when any), skeleton; with
+    /// `skin`, skinned to it and named after the tree (`tree-1 branches`),
+    /// since they then stand at the scene's root (glTF ignores the
+    /// transforms above a skinned mesh, and the validator warns of one
+    /// that is not a root).
     pub(super) fn tree_nodes(
         &mut self,
         tree: &Tree,
         branches: &Mesh,
         leaves: Option<&Mesh>,
+        skin: Option<(&dyn Skinning, &str)>,
     ) -> Result<Vec<json::Index<json::Node>>> {
+        let skinning = skin.map(|s| s.0);
+        let name = |part: &str| match skin {
+            Some((_, tree_name)) => format!("{tree_name} {part}"),
+            None => part.to_string(),
+        };
         let bark = match self.bark {
             Some(m) => m,
             None => {
@@ -84,8 +94,8 @@ impl Builder {
             }
         };
         let mut nodes = Vec::new();
-        if let Some(mesh) = self.triangle_mesh("branches", branches, bark, None)? {
-            nodes.push(self.node("branches", mesh, None));
+        if let Some(mesh) = self.triangle_mesh("branches", branches, bark, skinning)? {
+            nodes.push(self.node(&name("branches"), mesh, skinning));
         }
         if let Some(leaves) = leaves.filter(|m| !m.indices.is_empty()) {
             let leaf = match self.leaf {
@@ -96,12 +106,12 @@ impl Builder {
                     m
                 }
             };
-            if let Some(mesh) = self.triangle_mesh("leaves", leaves, leaf, None)? {
-                nodes.push(self.node("leaves", mesh, None));
+            if let Some(mesh) = self.triangle_mesh("leaves", leaves, leaf, skinning)? {
+                nodes.push(self.node(&name("leaves"), mesh, skinning));
             }
         }
-        if let Some(mesh) = self.skeleton(tree, None)? {
-            nodes.push(self.node("skeleton", mesh, None));
+        if let Some(mesh) = self.skeleton(tree, skinning)? {
+            nodes.push(self.node(&name("skeleton"), mesh, skinning));
         }
         Ok(nodes)
     }

@@ -9,7 +9,7 @@
 
 use gltf_json as json;
 
-use super::animation::Skin;
+use super::animation::{animate_skins, Skin};
 use super::glb::{Builder, Skinning};
 use crate::error::Result;
 use crate::model::motion::TreeMotion;
@@ -83,21 +83,62 @@ pub struct ForestTree<'a> {
     pub branches: &'a Mesh,
     /// The leaves, when there are any.
     pub leaves: Option<&'a Mesh>,
+    /// Its share of the session's motion, for an animated forest (every
+    /// tree has one, or none does).
+    pub motion: Option<&'a TreeMotion>,
 }
 
 /// Several trees in one .glb (docs/forest.md): one scene node per tree,
 /// named as the tree, holding its branches, leaves and skeleton; the
-/// materials are shared.
+/// materials are shared. When every tree has a motion, the trees are
+/// skinned and animated instead ([`animated_forest_glb`]).
 pub fn forest_glb(trees: &[ForestTree<'_>]) -> Result<Vec<u8>> {
+    if !trees.is_empty() && trees.iter().all(|t| t.motion.is_some()) {
+        return animated_forest_glb(trees);
+    }
     let mut b = Builder::default();
     let mut scene_nodes = Vec::with_capacity(trees.len());
     for t in trees {
-        let children = b.tree_nodes(t.tree, t.branches, t.leaves)?;
+        let children = b.tree_nodes(t.tree, t.branches, t.leaves, None)?;
         scene_nodes.push(b.root.push(json::Node {
             children: (!children.is_empty()).then_some(children),
             name: Some(t.name.into()),
             ..Default::default()
         }));
     }
+    b.finish_scene("forest", scene_nodes)
+}
+
+/// Several trees skinned and animated (docs/animation.md, "Several trees"):
+/// per tree, a scene node named as the tree holding its joints (the trunk
+/// base is the root joint), then its skinned branches, leaves and skeleton
+/// as scene roots (`tree-1 branches`, …); one animation, `capture`, moves
+/// every tree's joints on one clock.
+fn animated_forest_glb(trees: &[ForestTree<'_>]) -> Result<Vec<u8>> {
+    let mut b = Builder::default();
+    let mut scene_nodes = Vec::with_capacity(4 * trees.len());
+    let mut skins = Vec::with_capacity(trees.len());
+    for t in trees {
+        let skin = Skin::named(&mut b, t.tree, t.motion, Some(t.name))?;
+        let meshes = b.tree_nodes(
+            t.tree,
+            t.branches,
+            t.leaves,
+            Some((&skin as &dyn Skinning, t.name)),
+        )?;
+        scene_nodes.push(b.root.push(json::Node {
+            children: Some(vec![skin.root()]),
+            name: Some(t.name.into()),
+            ..Default::default()
+        }));
+        scene_nodes.extend(meshes);
+        skins.push(skin);
+    }
+    let animated: Vec<_> = skins
+        .iter()
+        .zip(trees)
+        .filter_map(|(s, t)| Some((s, t.tree, t.motion?)))
+        .collect();
+    animate_skins(&mut b, &animated)?;
     b.finish_scene("forest", scene_nodes)
 }

@@ -2,7 +2,8 @@
 //! simulator's truth of which tip belongs to which tree: tips given to
 //! their true trees, the number of trees found, one tree exactly as before,
 //! no branch in a neighbour's volume, a validator-clean glb with a node per
-//! tree, `replay` end to end, and the daemon's cache regrowing only the
+//! tree, `replay` end to end (every tree skinned and animated, its tips
+//! where the tracker had them), and the daemon's cache regrowing only the
 //! trees whose tips changed.
 
 use std::path::Path;
@@ -11,6 +12,7 @@ use std::process::Command;
 use glam::DVec3;
 use treemocap::config::Config;
 use treemocap::model::tips::CapturedTip;
+use treemocap::model::trace::SampleKind;
 use treemocap::reconstruct::forest::{
     self, sway, AssignRule, ConfiguredTree, ForestCache, ForestPlan, ForestSettings, SwayLink,
 };
@@ -18,6 +20,8 @@ use treemocap::reconstruct::ReconstructSettings;
 use treemocap::render::forest::forest_outputs;
 use treemocap::render::outputs::{build_outputs, Motion};
 use treemocap::sim::{generate, CrownShape, Layout, SynthOptions, Truth};
+
+use crate::common::gltf::Glb;
 
 /// A forest session without the capture's imperfections (the marker stage
 /// is checked elsewhere; `replay_splits_a_forest_session` runs it too).
@@ -413,23 +417,85 @@ fn replay_splits_the_shipped_forest_replay_into_trees() {
     assert_eq!(all, truth.tips.len(), "every tip in one tree");
     assert!(right as f64 >= 0.98 * all as f64, "{right} of {all}");
 
-    // One scene node per tree, named, each holding its meshes; clean.
-    let glb = std::fs::read(out.join("tree.glb")).unwrap();
-    let len = u32::from_le_bytes(glb[12..16].try_into().unwrap()) as usize;
-    let g: serde_json::Value = serde_json::from_slice(&glb[20..20 + len]).unwrap();
-    let scene = g["scenes"][0]["nodes"].as_array().unwrap();
-    assert_eq!(scene.len(), 3);
-    for (k, n) in scene.iter().enumerate() {
-        let node = &g["nodes"][n.as_u64().unwrap() as usize];
-        assert_eq!(node["name"], format!("tree-{k}"));
-        assert_eq!(
-            node["children"].as_array().unwrap().len(),
-            3,
-            "branches, leaves, skeleton"
-        );
+    // Per tree, a scene node named as the tree holding its joints, and its
+    // skinned branches, leaves and skeleton beside it; one animation; clean.
+    let glb = Glb::parse(&std::fs::read(out.join("tree.glb")).unwrap());
+    let g = &glb.json;
+    let scene: Vec<&serde_json::Value> = g["scenes"][0]["nodes"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|n| &g["nodes"][n.as_u64().unwrap() as usize])
+        .collect();
+    assert_eq!(scene.len(), 3 * 4);
+    assert_eq!(g["skins"].as_array().unwrap().len(), 3);
+    assert_eq!(g["animations"].as_array().unwrap().len(), 1);
+    for k in 0..3 {
+        let holder = scene[4 * k];
+        assert_eq!(holder["name"], format!("tree-{k}"));
+        assert_eq!(holder["children"].as_array().unwrap().len(), 1, "{holder}");
+        for (j, part) in ["branches", "leaves", "skeleton"].iter().enumerate() {
+            let mesh = scene[4 * k + 1 + j];
+            assert_eq!(mesh["name"], format!("tree-{k} {part}"));
+            assert_eq!(mesh["skin"].as_u64(), Some(k as u64), "{mesh}");
+        }
     }
     let (errors, warnings, messages) = crate::common::gltf::validate(&out.join("tree.glb"));
     assert_eq!((errors, warnings), (0, 0), "{messages}");
+    let a = report.tree.animation.expect("an animation report");
+    assert!(a.keys > 100, "{a:?}");
+    // A captured tip of each tree, at a key late in the session, is where
+    // the tracker had it (read back from the file's own data).
+    let times = glb.key_times();
+    let start = g["animations"][0]["extras"]["start_s"].as_f64().unwrap();
+    let key = times.len() * 3 / 4;
+    let t = start + f64::from(times[key]);
+    let timeline = &report.tips.timeline.times;
+    let i = timeline.partition_point(|&x| x < t).min(timeline.len() - 1);
+    let frame = if i > 0 && t - timeline[i - 1] < timeline[i] - t {
+        i - 1
+    } else {
+        i
+    } as i64;
+    for tree in trees {
+        let (mut checked, mut moved) = (0, 0.0f64);
+        for marker in tree["markers"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .filter_map(|m| m.as_u64())
+        {
+            let tip = report
+                .tips
+                .tips
+                .iter()
+                .find(|t| t.marker as u64 == marker)
+                .unwrap();
+            let Some(s) = tip.trace.samples().find(|s| s.frame == frame) else {
+                continue;
+            };
+            if s.kind == SampleKind::Missing {
+                continue;
+            }
+            let joint = glb.node(&format!("tip_{marker:02}")).unwrap();
+            let at = glb.world(joint, Some(key));
+            let off = at.distance(s.position);
+            assert!(
+                off < 0.5e-3,
+                "{}: tip {marker} {:.3} mm off",
+                tree["name"],
+                off * 1e3
+            );
+            moved = moved.max(at.distance(glb.world(joint, None)));
+            checked += 1;
+        }
+        assert!(
+            checked > 0,
+            "no tracked tip of {} at key {key}",
+            tree["name"]
+        );
+        assert!(moved > 1e-3, "{} does not move ({moved} m)", tree["name"]);
+    }
     assert!(std::fs::metadata(out.join("tree.png")).unwrap().len() > 10_000);
 
     // Pinning the trees found gives the same trees.

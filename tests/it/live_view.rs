@@ -3,12 +3,15 @@
 //! fed frame by frame over OSC from `replays/maple-24.csv`, and against
 //! `treemocap view` on the same recording. What is checked is what an
 //! operator sees, read from the page's own state (`window.treemocap`) and
-//! from a screenshot.
+//! from a screenshot. The tree's sway is checked against the pose events a
+//! WebSocket client of the test receives from the same daemon.
 
+use std::collections::HashMap;
 use std::io::{BufRead, BufReader, Write};
 use std::net::{TcpListener, UdpSocket};
 use std::path::{Path, PathBuf};
 use std::process::{Child, ChildStdin, Command, Stdio};
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::{channel, Receiver};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
@@ -336,17 +339,31 @@ fn the_live_page_shows_markers_tips_and_the_tree() {
     assert!(states["measured"].as_u64().unwrap() >= 20, "{st}");
     assert_eq!(st["status"]["still"]["needed_s"], 5.0, "{st}");
 
+    // The tree sways with the live tips, as the daemon's pose events say.
+    // From the wind phase of the replay (maple-24 is still for its first
+    // 20 s): the tracker holds the tips across the jump.
+    let sway_from = next.max(2600);
+    next = sway_from
+        + the_tree_sways_with_the_poses(
+            &mut page,
+            &base,
+            osc_port,
+            &frames[sway_from..sway_from + 700],
+        );
+
     // The rebuild button: a new tree version on /status, then on the page.
+    let before = status(&base)["tree_version"].as_u64().unwrap();
     page.cmd(
         json!({"cmd": "click", "selector": "#rebuild"}),
         Duration::from_secs(5),
     );
     let start = Instant::now();
-    while status(&base)["tree_version"].as_u64() != Some(2) {
+    while status(&base)["tree_version"].as_u64() != Some(before + 1) {
         assert!(start.elapsed() < Duration::from_secs(30), "no rebuild");
         std::thread::sleep(Duration::from_millis(100));
     }
-    assert!(page.wait("treemocap.tree?.version === 2", 20_000).is_some());
+    let expr = format!("treemocap.tree?.version === {}", before + 1);
+    assert!(page.wait(&expr, 20_000).is_some());
 
     // A screenshot with the tree in it (bark-coloured pixels).
     let shot = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("live-view.png");
@@ -371,8 +388,251 @@ fn the_live_page_shows_markers_tips_and_the_tree() {
     assert!(text.contains("source: receiving frames"), "{text}");
     assert!(text.contains("of 5 s needed"), "{text}");
     assert!(text.contains("tree 1: first still phase"), "{text}");
-    assert!(text.contains("tree 2: requested"), "{text}");
+    assert!(
+        text.contains(&format!("tree {}: requested", before + 1)),
+        "{text}"
+    );
     assert!(!text.contains('\u{1b}'), "colour codes on a pipe: {text}");
+}
+
+/// Every `pose` event of `/live`, by frame: (tree version, displacements in µm).
+type Poses = Arc<Mutex<HashMap<i64, (u64, Vec<i64>)>>>;
+
+/// A WebSocket client of `/live` on its own thread, keeping every pose event
+/// until `stop`; returns once it is connected.
+fn listen_to_poses(http_port: u16, stop: Arc<AtomicBool>) -> (Poses, std::thread::JoinHandle<()>) {
+    use futures_util::StreamExt;
+    let poses: Poses = Arc::default();
+    let keep = poses.clone();
+    let (tx, rx) = channel();
+    let thread = std::thread::spawn(move || {
+        let rt = tokio::runtime::Runtime::new().unwrap();
+        rt.block_on(async move {
+            let (mut ws, _) =
+                tokio_tungstenite::connect_async(format!("ws://127.0.0.1:{http_port}/live"))
+                    .await
+                    .unwrap();
+            tx.send(()).unwrap();
+            while !stop.load(Ordering::Relaxed) {
+                let Ok(Some(Ok(msg))) =
+                    tokio::time::timeout(Duration::from_millis(100), ws.next()).await
+                else {
+                    continue;
+                };
+                let Ok(text) = msg.into_text() else { continue };
+                let Ok(v) = serde_json::from_str::<Value>(&text) else {
+                    continue;
+                };
+                if v["type"] != "pose" {
+                    continue;
+                }
+                let d: Vec<i64> = v["d_um"]
+                    .as_array()
+                    .unwrap()
+                    .iter()
+                    .map(|x| x.as_i64().unwrap())
+                    .collect();
+                let entry = (v["tree"].as_u64().unwrap(), d);
+                keep.lock()
+                    .unwrap()
+                    .insert(v["frame"].as_i64().unwrap(), entry);
+            }
+        })
+    });
+    rx.recv_timeout(Duration::from_secs(10))
+        .expect("the test's WebSocket connects");
+    (poses, thread)
+}
+
+/// Every captured tip's rest position by joint name (`tip_07`), from the
+/// daemon's tree.json, and the node of each.
+fn rest_tips(base: &str) -> HashMap<String, (usize, [f64; 3])> {
+    let (code, body) = http_get(&format!("{base}/tree.json"));
+    assert_eq!(code, 200);
+    let t: Value = serde_json::from_slice(&body).unwrap();
+    let nodes = t["nodes"].as_array().unwrap();
+    t["markers"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .enumerate()
+        .filter_map(|(i, m)| {
+            let m = m.as_u64()?;
+            let p = &nodes[i];
+            let xyz = [0, 1, 2].map(|k| p[k].as_f64().unwrap());
+            Some((format!("tip_{m:02}"), (i, xyz)))
+        })
+        .collect()
+}
+
+/// Largest distance (m) between the page's tip joints and `want`.
+fn worst_tip(tips: &Value, want: &HashMap<String, [f64; 3]>) -> f64 {
+    let tips = tips.as_object().unwrap();
+    assert_eq!(tips.len(), want.len(), "tip joints on the page: {tips:?}");
+    want.iter()
+        .map(|(name, w)| {
+            let p = &tips[name];
+            (0..3)
+                .map(|k| (p[k].as_f64().unwrap() - w[k]).powi(2))
+                .sum::<f64>()
+                .sqrt()
+        })
+        .fold(0.0, f64::max)
+}
+
+/// Sends `frames` (100 Hz, in real time: 7 s for 700) from a thread while probing the
+/// page's tip joints: each probe must match the daemon's pose of the frame
+/// it shows within 1 mm; the screenshot shows the swaying tree; the sway
+/// switch and the end of the stream bring back the rest pose. Returns how
+/// many frames it used, for the caller's count.
+fn the_tree_sways_with_the_poses(
+    page: &mut Page,
+    base: &str,
+    osc_port: u16,
+    frames: &[MarkerFrame],
+) -> usize {
+    let http_port: u16 = base.rsplit(':').next().unwrap().parse().unwrap();
+    let stop = Arc::new(AtomicBool::new(false));
+    let (poses, listener) = listen_to_poses(http_port, stop.clone());
+    let rest = rest_tips(base);
+    let rest_xyz: HashMap<String, [f64; 3]> =
+        rest.iter().map(|(k, (_, p))| (k.clone(), *p)).collect();
+    let version = status(base)["tree_version"].as_u64().unwrap();
+    let sending = frames.to_vec();
+    let sender = std::thread::spawn(move || {
+        let osc = UdpSocket::bind("127.0.0.1:0").unwrap();
+        for f in &sending {
+            osc.send_to(&osc_frame(f), ("127.0.0.1", osc_port)).unwrap();
+            std::thread::sleep(Duration::from_millis(10));
+        }
+    });
+    let probe = "treemocap.swayProbe()";
+    let mut probes = Vec::new();
+    let mut shot_taken = false;
+    let started = Instant::now();
+    while !sender.is_finished() {
+        std::thread::sleep(Duration::from_millis(120));
+        let v = page.cmd(
+            json!({"cmd": "eval", "expr": probe}),
+            Duration::from_secs(5),
+        )["value"]
+            .clone();
+        if v["pose"].is_null() {
+            continue;
+        }
+        probes.push(v);
+        let t = started.elapsed();
+        // Midway: a screenshot of the swaying tree, then the switch.
+        if !shot_taken && t > Duration::from_millis(1500) {
+            shot_taken = true;
+            let shot = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("live-sway.png");
+            page.cmd(
+                json!({"cmd": "screenshot", "path": shot}),
+                Duration::from_secs(30),
+            );
+            let (brown, all) = bark_pixels(&shot);
+            assert!(
+                brown * 100 > all,
+                "{brown} bark pixels of {all} in {}",
+                shot.display()
+            );
+            page.cmd(
+                json!({"cmd": "click", "selector": "#sway"}),
+                Duration::from_secs(5),
+            );
+            let off = page.cmd(
+                json!({"cmd": "eval", "expr": probe}),
+                Duration::from_secs(5),
+            )["value"]
+                .clone();
+            assert!(off["pose"].is_null(), "sway off: {off}");
+            assert!(worst_tip(&off["tips"], &rest_xyz) < 1e-5, "sway off: {off}");
+            page.cmd(
+                json!({"cmd": "click", "selector": "#sway"}),
+                Duration::from_secs(5),
+            );
+        }
+    }
+    sender.join().unwrap();
+    assert!(shot_taken, "the replay ended before the screenshot");
+    // The page followed the stream to its end: its last pose is the last
+    // one sent, or (a page starved of CPU on a busy machine can miss the
+    // last events, seen under load 13) one of its last second.
+    let last = *poses
+        .lock()
+        .unwrap()
+        .keys()
+        .max()
+        .expect("pose events on /live");
+    let expr = format!("treemocap.lastPoseFrame === {last}");
+    if page.wait(&expr, 5_000).is_none() {
+        let applied = page.state()["lastPoseFrame"].as_i64().unwrap_or(0);
+        assert!(
+            applied >= last - 100,
+            "last pose sent {last}, applied {applied}"
+        );
+        eprintln!("sway: last pose sent {last}, last applied {applied}");
+    }
+    // Every probe against the pose the test received for its frame.
+    let got = poses.lock().unwrap().clone();
+    let (mut compared, mut swing, mut worst) = (0, 0.0f64, 0.0f64);
+    for p in &probes {
+        let frame = p["pose"]["frame"].as_i64().unwrap();
+        // A tree rebuilt meanwhile (the wind turned) has other rest
+        // positions: only the poses of the tree read above are compared.
+        let Some((tree, d)) = got.get(&frame) else {
+            continue;
+        };
+        assert_eq!(p["pose"]["tree"].as_u64(), Some(*tree), "{p}");
+        if *tree != version {
+            continue;
+        }
+        let want: HashMap<String, [f64; 3]> = rest
+            .iter()
+            .map(|(name, (node, r))| {
+                let w = [0, 1, 2].map(|k| r[k] + d[3 * node + k] as f64 * 1e-6);
+                swing = swing.max((0..3).map(|k| (w[k] - r[k]).powi(2)).sum::<f64>().sqrt());
+                (name.clone(), w)
+            })
+            .collect();
+        worst = worst.max(worst_tip(&p["tips"], &want));
+        compared += 1;
+    }
+    assert!(
+        compared >= 3,
+        "{compared} probes matched a pose of {}",
+        probes.len()
+    );
+    assert!(
+        worst < 1e-3,
+        "a tip joint {:.3} mm from its pose",
+        worst * 1e3
+    );
+    assert!(
+        swing > 2e-3,
+        "the tips hardly moved ({:.2} mm): no sway tested",
+        swing * 1e3
+    );
+    eprintln!(
+        "sway: {compared} probes, tips within {:.4} mm of the poses, largest tip displacement {:.1} mm",
+        worst * 1e3,
+        swing * 1e3
+    );
+    // The stream has stopped: the rest pose is back.
+    assert!(
+        page.wait("treemocap.pose === null", 10_000).is_some(),
+        "{}",
+        page.state()
+    );
+    let v = page.cmd(
+        json!({"cmd": "eval", "expr": probe}),
+        Duration::from_secs(5),
+    )["value"]
+        .clone();
+    assert!(worst_tip(&v["tips"], &rest_xyz) < 1e-5, "{v}");
+    stop.store(true, Ordering::Relaxed);
+    listener.join().unwrap();
+    frames.len()
 }
 
 #[test]

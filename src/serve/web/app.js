@@ -5,7 +5,7 @@
 //
 // The page keeps its own state in `window.treemocap`, so that a person (or a
 // test) can ask what it shows: frames received, points drawn, tree version
-// and triangle count, the last status.
+// and triangle count, the pose the tree sways with, the last status.
 
 import * as THREE from 'three';
 import { GLTFLoader } from 'three/addons/loaders/GLTFLoader.js';
@@ -171,6 +171,9 @@ const tm = {
   errors: [],
   session: null,        // view mode: session.json
   viewFrame: null,      // view mode: index of the frame shown
+  pose: null,           // the live pose on the tree: { tree, frame, time }; null = rest pose
+  poses: 0,             // pose events applied
+  lastPoseFrame: null,  // frame of the last pose applied (kept after the rest pose returns)
   decodeFrame,
 };
 window.treemocap = tm;
@@ -294,6 +297,7 @@ async function loadTree() {
     }
     tree = gltf.scene;
     layers.tree.add(tree);
+    rigTree(tree);
     treeBounds = new THREE.Box3().setFromObject(tree);
     tm.treeLoads++;
     tm.tree = { version: Number.isNaN(version) ? null : version, triangles: triangles(tree),
@@ -308,6 +312,93 @@ async function loadTree() {
     if (treeWanted) { treeWanted = false; loadTree(); }
   }
 }
+
+// ---------------------------------------------------------------- the sway
+
+/**
+ * The live sway (README, "The live view"): the daemon's `pose` events carry
+ * every node's displacement from its rest position (µm, node order), and
+ * /tree.glb has one joint per node in the same order, nested as the
+ * skeleton, each translated from its parent by its rest offset. A pose sets
+ * each joint's translation to rest offset + own displacement − parent's
+ * displacement, so every joint lands at rest + displacement and the skinned
+ * branches follow. Only the latest pose is kept; it is applied on the next
+ * animation frame, before drawing (at most one frame behind).
+ */
+const sway = {
+  on: true,
+  bones: null,     // the joint of each tree node
+  parent: null,    // Int32Array: each joint's parent joint, −1 for the root
+  rest: null,      // Float64Array: each joint's rest translation, x y z
+  pending: null,   // the latest pose event not yet applied
+  lastAt: 0,       // performance.now() when the last pose was applied
+};
+/** Without a pose for this long the stream has stopped: back to the rest pose. */
+const POSE_STALE_MS = 1000;
+
+/** Finds the joints of a freshly loaded tree (none: a still or forest tree). */
+function rigTree(scene) {
+  let skeleton = null;
+  scene.traverse((o) => { if (!skeleton && o.isSkinnedMesh) skeleton = o.skeleton; });
+  sway.pending = null;
+  tm.pose = null;
+  if (!skeleton) { sway.bones = null; return; }
+  const bones = skeleton.bones;
+  const index = new Map(bones.map((b, i) => [b, i]));
+  sway.bones = bones;
+  sway.parent = Int32Array.from(bones, (b) => index.get(b.parent) ?? -1);
+  sway.rest = new Float64Array(3 * bones.length);
+  bones.forEach((b, i) => b.position.toArray(sway.rest, 3 * i));
+}
+
+/** Puts every joint back at its rest translation. */
+function restPose() {
+  const { bones, rest } = sway;
+  if (bones) bones.forEach((b, i) => b.position.fromArray(rest, 3 * i));
+  tm.pose = null;
+}
+
+/** Applies a pose event to the tree shown, if it belongs to it. */
+function applyPose(p) {
+  const { bones, parent, rest } = sway;
+  const d = p.d_um;
+  if (!sway.on || !bones || p.tree !== tm.tree?.version || d?.length !== 3 * bones.length) return;
+  for (let i = 0; i < bones.length; i++) {
+    const j = parent[i], k = 3 * i;
+    const px = j < 0 ? 0 : d[3 * j], py = j < 0 ? 0 : d[3 * j + 1], pz = j < 0 ? 0 : d[3 * j + 2];
+    bones[i].position.set(rest[k] + (d[k] - px) * 1e-6, rest[k + 1] + (d[k + 1] - py) * 1e-6,
+      rest[k + 2] + (d[k + 2] - pz) * 1e-6);
+  }
+  sway.lastAt = performance.now();
+  tm.pose = { tree: p.tree, frame: p.frame, time: p.time_s };
+  tm.poses++;
+  tm.lastPoseFrame = p.frame;
+}
+
+/** Once per animation frame: the latest pose, or the rest pose when the stream stopped. */
+function stepSway(now) {
+  if (sway.pending) { applyPose(sway.pending); sway.pending = null; }
+  if (tm.pose && now - sway.lastAt > POSE_STALE_MS) restPose();
+}
+
+/**
+ * What the tree shows now: the pose and the world position (m) of every
+ * captured tip's joint (`tip_07`), read in one go so they belong together.
+ */
+tm.swayProbe = () => {
+  const tips = {};
+  if (tree && sway.bones) {
+    tree.updateMatrixWorld(true);
+    const w = new THREE.Vector3();
+    for (const b of sway.bones) if (b.name.startsWith('tip_')) tips[b.name] = b.getWorldPosition(w).toArray();
+  }
+  return { pose: tm.pose, tree: tm.tree?.version ?? null, tips };
+};
+
+document.getElementById('sway').addEventListener('change', (ev) => {
+  sway.on = ev.currentTarget.checked;
+  if (!sway.on) restPose();
+});
 
 // ---------------------------------------------------------------- camera
 
@@ -419,6 +510,10 @@ function renderStatus() {
     rows.push(['this frame', `#${tm.last.frame}: ${tm.last.markers} markers, ${st.measured} measured, ${st.filled} filled, ${st.unseen} not seen, ${tm.last.noise} noise`]);
   }
   if (tm.tree) rows.push(['tree shown', `version ${tm.tree.version ?? '?'}, ${fmt.n(tm.tree.triangles)} triangles`]);
+  if (tm.mode === 'live' && tm.tree) {
+    rows.push(['sway', !sway.on ? 'off (rest pose)' : tm.pose ? `live tips of frame #${tm.pose.frame}`
+      : sway.bones ? 'rest pose (no live pose)' : 'none (tree without joints)']);
+  }
   const dl = document.getElementById('status');
   dl.replaceChildren(...rows.flatMap(([k, v, bad]) => {
     const dt = document.createElement('dt'); dt.textContent = k;
@@ -450,6 +545,8 @@ function connect() {
   ws.onopen = () => { tm.connected = true; setConn('connected', ''); };
   ws.onclose = () => {
     tm.connected = false;
+    sway.pending = null;
+    restPose();
     setConn('disconnected: retrying', 'off');
     setTimeout(connect, 1000);
   };
@@ -459,7 +556,8 @@ function connect() {
       return;
     }
     const msg = JSON.parse(ev.data);
-    if (msg.type === 'status') setStatus(msg.status);
+    if (msg.type === 'pose') sway.pending = msg;
+    else if (msg.type === 'status') setStatus(msg.status);
     else if (msg.type === 'tree') wantTree(msg.version);
   };
 }
@@ -578,6 +676,7 @@ let lastPanel = 0;
 function loop(now) {
   requestAnimationFrame(loop);
   if (pending) { showFrame(pending, lastFrameNo !== null && pending.frame > lastFrameNo); pending = null; }
+  stepSway(now);
   stepPlay(now);
   if (now - lastPanel > 250) { lastPanel = now; if (tm.mode === 'live') renderStatus(); }
   controls.update();
