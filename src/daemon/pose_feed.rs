@@ -118,7 +118,7 @@ fn work(
             continue;
         };
         if shared.hub.has_viewers() {
-            shared.hub.publish_event(pose_message(&p));
+            shared.hub.publish_pose(pose_message(&p));
         }
         if let Some(o) = osc.as_mut() {
             for d in pose_datagrams(&p) {

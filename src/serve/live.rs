@@ -49,6 +49,11 @@ impl Published {
 pub struct LiveHub {
     /// The latest frame; `None` before the first.
     frame: watch::Sender<Option<Arc<Published>>>,
+    /// The latest pose of the swaying tree (a JSON `pose` message): stream
+    /// data like the frames, so latest-wins and thinned per viewer, not
+    /// queued (a replay fed faster than real time made hundreds a second,
+    /// and a slow page fell seconds behind).
+    pose: watch::Sender<Option<Arc<str>>>,
     /// New-tree notices and other rare JSON messages.
     events: broadcast::Sender<Arc<str>>,
 }
@@ -57,6 +62,7 @@ impl Default for LiveHub {
     fn default() -> Self {
         LiveHub {
             frame: watch::Sender::new(None),
+            pose: watch::Sender::new(None),
             events: broadcast::Sender::new(64),
         }
     }
@@ -74,6 +80,11 @@ impl LiveHub {
             frame,
             bytes: OnceLock::new(),
         })));
+    }
+
+    /// Replaces the latest pose. Never waits for a viewer.
+    pub fn publish_pose(&self, text: Arc<str>) {
+        self.pose.send_replace(Some(text));
     }
 
     /// Sends a JSON message to every connected viewer (dropped when none).
@@ -128,21 +139,18 @@ pub fn frame_json(f: &LiveFrame) -> String {
 pub async fn session(mut socket: WebSocket, s: HttpState, format: FrameFormat) {
     let mut frames = s.hub.frame.subscribe();
     frames.mark_changed(); // the frame of now, at once, if there is one
+                           // Not marked changed: a pose from before the viewer came may belong to
+                           // a tree it has not loaded; the next comes within 1/60 s of capture.
+    let mut poses = s.hub.pose.subscribe();
     let mut events = s.hub.events.subscribe();
     let shutdown = until_true(s.shutdown.clone());
     tokio::pin!(shutdown);
-    let hello = serde_json::json!({"type": "hello", "protocol": 1}).to_string();
-    if send_text(&mut socket, &hello).await.is_err() {
+    if greet(&mut socket, &s).await.is_err() {
         return;
-    }
-    let current = s.tree.borrow().clone();
-    if let Some(t) = current {
-        if send_text(&mut socket, &tree_notice(&t)).await.is_err() {
-            return;
-        }
     }
     let gap = Duration::from_secs_f64(1.0 / MAX_FRAMES_PER_S);
     let mut next_frame = Instant::now();
+    let mut next_pose = Instant::now();
     let mut status_tick = tokio::time::interval(STATUS_EVERY);
     status_tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Skip);
     let mut last_status = String::new();
@@ -158,6 +166,18 @@ pub async fn session(mut socket: WebSocket, s: HttpState, format: FrameFormat) {
                 let latest = frames.borrow_and_update().clone();
                 match latest {
                     Some(p) => send_frame(&mut socket, &p, format).await,
+                    None => Ok(()),
+                }
+            }
+            changed = poses.changed() => {
+                if changed.is_err() {
+                    break;
+                }
+                tokio::time::sleep_until(next_pose).await;
+                next_pose = Instant::now() + gap;
+                let latest = poses.borrow_and_update().clone();
+                match latest {
+                    Some(text) => send_text(&mut socket, &text).await,
                     None => Ok(()),
                 }
             }
@@ -189,6 +209,17 @@ pub async fn session(mut socket: WebSocket, s: HttpState, format: FrameFormat) {
         }
     }
     let _ = socket.send(Message::Close(None)).await;
+}
+
+/// The session's first messages: hello, and the current tree if there is one.
+async fn greet(socket: &mut WebSocket, s: &HttpState) -> Result<(), axum::Error> {
+    let hello = serde_json::json!({"type": "hello", "protocol": 1}).to_string();
+    send_text(socket, &hello).await?;
+    let current = s.tree.borrow().clone();
+    if let Some(t) = current {
+        send_text(socket, &tree_notice(&t)).await?;
+    }
+    Ok(())
 }
 
 async fn send_text(socket: &mut WebSocket, text: &str) -> Result<(), axum::Error> {

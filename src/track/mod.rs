@@ -219,15 +219,7 @@ pub fn clean(
     let joined_on_line = stats.joined as usize;
     let (mut traces, ghosts) = assemble(traces, &identities);
     let frames = stats.frames;
-    let mut warnings = Vec::new();
-    if let Some(d) = stats.closest_spacing_m {
-        warnings.push(format!(
-            "two markers came within {:.1} mm of each other: more than half of that is less than \
-             the gate ({:.1} mm), so their paths may have swapped; consider a smaller tracking.gate_mm",
-            d * 1000.0,
-            cfg.gate_mm
-        ));
-    }
+    let mut warnings: Vec<String> = spacing_warning(&stats, cfg).into_iter().collect();
 
     let total = timeline.len() as i64;
     // The still phase is judged on the markers as the tracker followed
@@ -250,15 +242,11 @@ pub fn clean(
     let tips = tips_of(kept, window, total, frames, &mut warnings);
 
     let rest_window_s = [timeline.time(window.start), timeline.time(window.end - 1)];
-    let duration_s = match (timeline.times.first(), timeline.times.last()) {
-        (Some(a), Some(b)) => b - a + timeline.frame_interval().unwrap_or(0.0),
-        _ => 0.0,
-    };
     let summary = Summary {
         source: source.to_string(),
         frame_rate,
         frames,
-        duration_s,
+        duration_s: duration_of(&timeline),
         tracking: stats,
         traces: n_traces,
         ghosts,
@@ -284,6 +272,25 @@ pub fn clean(
         timeline,
     };
     (tips, summary)
+}
+
+/// Two markers that came closer than twice the gate may have swapped.
+fn spacing_warning(stats: &TrackStats, cfg: &TrackingSettings) -> Option<String> {
+    let d = stats.closest_spacing_m?;
+    Some(format!(
+        "two markers came within {:.1} mm of each other: more than half of that is less than \
+         the gate ({:.1} mm), so their paths may have swapped; consider a smaller tracking.gate_mm",
+        d * 1000.0,
+        cfg.gate_mm
+    ))
+}
+
+/// The recording's length: first to last frame plus one frame interval.
+fn duration_of(timeline: &Timeline) -> f64 {
+    match (timeline.times.first(), timeline.times.last()) {
+        (Some(a), Some(b)) => b - a + timeline.frame_interval().unwrap_or(0.0),
+        _ => 0.0,
+    }
 }
 
 /// The still phase: `tracking.rest_window_s` when set (and inside the
