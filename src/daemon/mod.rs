@@ -29,7 +29,6 @@ mod osc_control;
 mod pipeline;
 mod pose;
 mod pose_feed;
-mod priority;
 pub mod progress;
 pub mod rest_estimate;
 mod shared;
@@ -130,12 +129,10 @@ fn run_with(
     let (tips_tx, tips_rx) = bounded(4);
     let (s, h) = (shared.clone(), handoff.clone());
     threads.push(spawn("treemocap-analysis", move || {
-        priority::background();
         analysis::Analysis::new(s).run(&h)
     }));
     let s = shared.clone();
     threads.push(spawn("treemocap-builder", move || {
-        priority::background();
         builder::run(&s, tips_tx)
     }));
     let result =

@@ -52,11 +52,7 @@ impl PoseFeed {
         let s = shared.clone();
         let mut pose = LivePose::new(&c.animate);
         let has_osc = osc.is_some();
-        let worker = super::spawn("treemocap-pose", move || {
-            // A pose is for the eye: it may wait, the live tips may not.
-            super::priority::background();
-            work(&s, &mut pose, osc, &rx)
-        });
+        let worker = super::spawn("treemocap-pose", move || work(&s, &mut pose, osc, &rx));
         Ok(PoseFeed {
             shared,
             tx: Some(tx),
