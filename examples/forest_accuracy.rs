@@ -9,7 +9,6 @@
 //! are the true ones for the accuracy, and found for the count.
 
 use glam::DVec3;
-use treemocap::model::tips::CapturedTip;
 use treemocap::reconstruct::forest::{self, sway, AssignRule, ConfiguredTree, ForestSettings};
 use treemocap::reconstruct::ReconstructSettings;
 use treemocap::sim::{generate, Layout, SynthOptions, Truth};
@@ -37,17 +36,9 @@ fn session(seed: u64, trees: usize, overlap: f64) -> Truth {
 
 /// Sway links from the truth's motion over the wind phase at 50 Hz.
 fn links(t: &Truth, threshold: f64) -> Vec<sway::SwayLink> {
-    let frames = ((t.wind.1 - t.wind.0) * 50.0) as usize;
-    let series: Vec<Vec<Option<DVec3>>> = (0..t.tips.len())
-        .map(|i| {
-            (0..frames)
-                .map(|f| Some(t.position(i, t.wind.0 + f as f64 / 50.0) - t.tips[i].rest))
-                .collect()
-        })
-        .collect();
     let rests: Vec<DVec3> = t.tips.iter().map(|x| x.rest).collect();
     let markers: Vec<usize> = (0..t.tips.len()).collect();
-    sway::links_of_series(&series, &rests, &markers, 100, threshold)
+    sway::links_of_series(&t.wind_sway(50.0), &rests, &markers, 100, threshold)
 }
 
 fn main() {
@@ -88,15 +79,7 @@ fn main() {
             let trees = 2 + (seed % 4) as usize;
             let t = session(1000 + seed, trees, overlap);
             let f = t.forest.as_ref().expect("forest");
-            let tips: Vec<CapturedTip> = t
-                .tips
-                .iter()
-                .enumerate()
-                .map(|(i, x)| CapturedTip {
-                    marker: i,
-                    position: x.rest,
-                })
-                .collect();
+            let tips = t.rest_tips();
             tips_total += tips.len();
             let bases: Vec<ConfiguredTree> = f
                 .trees

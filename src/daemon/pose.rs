@@ -1,22 +1,18 @@
 //! The live sway (docs/animation.md, "Live"): the current tree deformed
-//! with the live tips, at most `animate.live_rate_hz` times a second of
-//! capture time, by the very code that animates tree.glb.
+//! with the live tips by the very code that animates tree.glb. When a pose
+//! is due (`animate.live_rate_hz`) is `pose_feed`'s decision.
 
 use std::sync::Arc;
 
 use glam::DVec3;
 
-use crate::animate::{AnimateSettings, Deformer, Rig, TipInput};
+use crate::animate::{Deformer, Rig, TipInput};
 use crate::model::motion::TipSource;
 use crate::serve::pose::Pose;
 use crate::serve::snapshot::TreeSnapshot;
 
-/// The pipeline thread's state for the live sway.
+/// The pose worker's state for the live sway.
 pub(crate) struct LivePose {
-    /// Seconds between poses; `None` = off.
-    period_s: Option<f64>,
-    /// Capture time of the next pose.
-    next_s: f64,
     /// Version of the tree the rig belongs to (0 = none yet).
     tree: u64,
     rig: Option<Arc<Rig>>,
@@ -33,10 +29,8 @@ pub(crate) struct LivePose {
 }
 
 impl LivePose {
-    pub(crate) fn new(settings: &AnimateSettings) -> Self {
+    pub(crate) fn new() -> Self {
         LivePose {
-            period_s: (settings.live_rate_hz > 0.0).then(|| 1.0 / settings.live_rate_hz),
-            next_s: f64::NEG_INFINITY,
             tree: 0,
             rig: None,
             captured_of_marker: Vec::new(),
@@ -50,7 +44,7 @@ impl LivePose {
         }
     }
 
-    /// The pose of this frame when one is due: `tree` is the current tree,
+    /// The pose of this frame: `tree` is the current tree,
     /// `seen` the live tips `(marker, position)`. Tips not seen borrow.
     pub(crate) fn update(
         &mut self,
@@ -59,17 +53,11 @@ impl LivePose {
         time_s: f64,
         seen: &[(usize, DVec3)],
     ) -> Option<Pose<'_>> {
-        let period = self.period_s?;
-        // A clock that jumped back (a looped replay) restarts the schedule.
-        if time_s < self.next_s && time_s >= self.next_s - 2.0 * period {
-            return None;
-        }
         let tree = tree?;
         if tree.version != self.tree {
             self.set_rig(tree);
         }
         let rig = self.rig.as_ref()?;
-        self.next_s = time_s + period;
         self.inputs.clear();
         self.inputs
             .resize(self.captured_nodes.len(), TipInput::Missing);

@@ -50,7 +50,7 @@ impl PoseFeed {
         let osc = super::osc_sender(&c.daemon.osc_targets)?;
         let (tx, rx) = bounded(1);
         let s = shared.clone();
-        let mut pose = LivePose::new(&c.animate);
+        let mut pose = LivePose::new();
         let has_osc = osc.is_some();
         let worker = super::spawn("treemocap-pose", move || work(&s, &mut pose, osc, &rx));
         Ok(PoseFeed {

@@ -160,11 +160,7 @@ pub async fn session(mut socket: WebSocket, s: HttpState, format: FrameFormat) {
                 if changed.is_err() {
                     break;
                 }
-                // Thinning: wait out the gap, then send whatever is latest.
-                tokio::time::sleep_until(next_frame).await;
-                next_frame = Instant::now() + gap;
-                let latest = frames.borrow_and_update().clone();
-                match latest {
+                match latest_after_gap(&mut frames, &mut next_frame, gap).await {
                     Some(p) => send_frame(&mut socket, &p, format).await,
                     None => Ok(()),
                 }
@@ -173,10 +169,7 @@ pub async fn session(mut socket: WebSocket, s: HttpState, format: FrameFormat) {
                 if changed.is_err() {
                     break;
                 }
-                tokio::time::sleep_until(next_pose).await;
-                next_pose = Instant::now() + gap;
-                let latest = poses.borrow_and_update().clone();
-                match latest {
+                match latest_after_gap(&mut poses, &mut next_pose, gap).await {
                     Some(text) => send_text(&mut socket, &text).await,
                     None => Ok(()),
                 }
@@ -209,6 +202,19 @@ pub async fn session(mut socket: WebSocket, s: HttpState, format: FrameFormat) {
         }
     }
     let _ = socket.send(Message::Close(None)).await;
+}
+
+/// Thinning, for frames and poses alike: waits out the gap since the last
+/// one sent, then takes whatever is latest (the ones in between are never
+/// sent: a viewer gets at most one per gap).
+async fn latest_after_gap<T: Clone>(
+    rx: &mut watch::Receiver<Option<T>>,
+    next: &mut Instant,
+    gap: Duration,
+) -> Option<T> {
+    tokio::time::sleep_until(*next).await;
+    *next = Instant::now() + gap;
+    rx.borrow_and_update().clone()
 }
 
 /// The session's first messages: hello, and the current tree if there is one.

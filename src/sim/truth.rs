@@ -11,6 +11,7 @@ use serde::{Deserialize, Serialize};
 
 use super::tree::TreeTruth;
 use super::SynthOptions;
+use crate::model::tips::CapturedTip;
 
 /// Version of the truth file's layout; bumped when fields change meaning.
 pub const TRUTH_VERSION: u32 = 1;
@@ -214,6 +215,36 @@ impl Truth {
             p.y -= (d.x * d.x + d.z * d.z) / (2.0 * t.lever.max(0.1));
         }
         p
+    }
+
+    /// The tips at their true rest positions, marker = tip index: what a
+    /// perfect marker stage would hand to the reconstruction.
+    pub fn rest_tips(&self) -> Vec<CapturedTip> {
+        self.tips
+            .iter()
+            .enumerate()
+            .map(|(i, x)| CapturedTip {
+                marker: i,
+                position: x.rest,
+            })
+            .collect()
+    }
+
+    /// Every tip's true displacement from rest over the wind phase, sampled
+    /// at `rate_hz` (tip, then sample): the series the sway links of
+    /// `reconstruct::forest::sway` are computed from.
+    pub fn wind_sway(&self, rate_hz: f64) -> Vec<Vec<Option<DVec3>>> {
+        let samples = ((self.wind.1 - self.wind.0) * rate_hz) as usize;
+        (0..self.tips.len())
+            .map(|i| {
+                (0..samples)
+                    .map(|f| {
+                        let t = self.wind.0 + f as f64 / rate_hz;
+                        Some(self.position(i, t) - self.tips[i].rest)
+                    })
+                    .collect()
+            })
+            .collect()
     }
 
     /// Frame number → seconds.

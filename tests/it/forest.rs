@@ -11,7 +11,6 @@ use std::process::Command;
 
 use glam::DVec3;
 use treemocap::config::Config;
-use treemocap::model::tips::CapturedTip;
 use treemocap::model::trace::SampleKind;
 use treemocap::reconstruct::forest::{
     self, sway, AssignRule, ConfiguredTree, ForestCache, ForestPlan, ForestSettings, SwayLink,
@@ -47,18 +46,6 @@ fn forest(seed: u64, trees: usize, overlap: f64) -> Truth {
     generate(&opts).expect("session").truth
 }
 
-/// The tips at rest, marker = tip index.
-fn captured(t: &Truth) -> Vec<CapturedTip> {
-    t.tips
-        .iter()
-        .enumerate()
-        .map(|(i, x)| CapturedTip {
-            marker: i,
-            position: x.rest,
-        })
-        .collect()
-}
-
 /// The true trunk bases as `[[trees]]`.
 fn true_bases(t: &Truth) -> Vec<ConfiguredTree> {
     let f = t.forest.as_ref().expect("a forest session");
@@ -73,18 +60,10 @@ fn true_bases(t: &Truth) -> Vec<ConfiguredTree> {
 
 /// Sway links from the truth's motion over the wind phase (25 Hz).
 fn links(t: &Truth) -> Vec<SwayLink> {
-    let frames = ((t.wind.1 - t.wind.0) * 25.0) as usize;
-    let series: Vec<Vec<Option<DVec3>>> = (0..t.tips.len())
-        .map(|i| {
-            (0..frames)
-                .map(|f| Some(t.position(i, t.wind.0 + f as f64 / 25.0) - t.tips[i].rest))
-                .collect()
-        })
-        .collect();
     let rests: Vec<DVec3> = t.tips.iter().map(|x| x.rest).collect();
     let markers: Vec<usize> = (0..t.tips.len()).collect();
     let threshold = ForestSettings::default().sway_correlation;
-    sway::links_of_series(&series, &rests, &markers, 50, threshold)
+    sway::links_of_series(&t.wind_sway(25.0), &rests, &markers, 50, threshold)
 }
 
 /// Tips of `plan` on their true tree (tree ids = true tree indices when the
@@ -114,7 +93,7 @@ fn every_tip_goes_to_its_true_tree() {
     for seed in 0..8 {
         let t = forest(100 + seed, 2 + (seed % 4) as usize, -0.1);
         let plan =
-            forest::plan(&captured(&t), &links(&t), &true_bases(&t), &crown, &recon).unwrap();
+            forest::plan(&t.rest_tips(), &links(&t), &true_bases(&t), &crown, &recon).unwrap();
         assert_eq!(correct(&plan, &t), t.tips.len(), "seed {}", 100 + seed);
     }
     // Overlapping by up to a third of the narrower crown: ≥ 98 % overall,
@@ -124,7 +103,7 @@ fn every_tip_goes_to_its_true_tree() {
         for seed in 0..8 {
             let s = 200 + 10 * k as u64 + seed;
             let t = forest(s, 2 + (seed % 4) as usize, overlap);
-            let tips = captured(&t);
+            let tips = t.rest_tips();
             let plan = forest::plan(&tips, &links(&t), &true_bases(&t), &crown, &recon).unwrap();
             let by_paths = forest::plan(&tips, &[], &true_bases(&t), &livny, &recon).unwrap();
             good += correct(&plan, &t);
@@ -161,7 +140,7 @@ fn the_number_of_trees_is_found_when_trunks_stand_a_metre_apart() {
             continue;
         }
         sessions += 1;
-        let plan = forest::plan(&captured(&t), &links(&t), &[], &s, &recon).unwrap();
+        let plan = forest::plan(&t.rest_tips(), &links(&t), &[], &s, &recon).unwrap();
         if plan.trees.len() != trees {
             eprintln!(
                 "seed {}: {} trees found of {trees}; fits {:?}",
@@ -209,7 +188,7 @@ fn the_number_of_trees_is_found_when_trunks_stand_a_metre_apart() {
             ..SynthOptions::default()
         };
         let t = generate(&opts).unwrap().truth;
-        let plan = forest::plan(&captured(&t), &[], &[], &s, &recon).unwrap();
+        let plan = forest::plan(&t.rest_tips(), &[], &[], &s, &recon).unwrap();
         assert!(
             plan.is_single(),
             "seed {}: {} trees, fits {:?}",
@@ -230,7 +209,7 @@ fn one_tree_gives_the_same_bytes_as_before() {
     })
     .unwrap()
     .truth;
-    let tips = captured(&t);
+    let tips = t.rest_tips();
     let cfg = ReconstructSettings::default();
     let plan = forest::plan(&tips, &[], &[], &ForestSettings::default(), &cfg).unwrap();
     assert!(plan.is_single());
@@ -263,7 +242,7 @@ fn no_branch_grows_into_another_trees_volume() {
     for (seed, overlap) in [(500, 1.0 / 3.0), (501, 0.25)] {
         let t = forest(seed, 3, overlap);
         let plan = forest::plan(
-            &captured(&t),
+            &t.rest_tips(),
             &links(&t),
             &true_bases(&t),
             &ForestSettings::default(),
@@ -529,7 +508,7 @@ fn the_cache_regrows_only_the_trees_whose_tips_changed() {
     let s = ForestSettings::default();
     let t = forest(600, 3, 0.0);
     let bases = true_bases(&t);
-    let mut tips = captured(&t);
+    let mut tips = t.rest_tips();
     let wind = DVec3::new(0.0, 0.0, 1.0);
     let mut cache = ForestCache::default();
     let plan = forest::plan(&tips, &[], &bases, &s, &cfg).unwrap();

@@ -131,6 +131,19 @@ impl Page {
         (v["ok"] == true).then(|| v["ms"].as_u64().unwrap())
     }
 
+    /// The value of a JS expression on the page.
+    fn eval(&mut self, expr: &str) -> Value {
+        self.cmd(json!({"cmd": "eval", "expr": expr}), Duration::from_secs(5))["value"].clone()
+    }
+
+    /// Clicks the element `selector` names, as a person does.
+    fn click(&mut self, selector: &str) {
+        self.cmd(
+            json!({"cmd": "click", "selector": selector}),
+            Duration::from_secs(5),
+        );
+    }
+
     fn state(&mut self) -> Value {
         self.cmd(json!({"cmd": "state"}), Duration::from_secs(5))["state"].clone()
     }
@@ -359,10 +372,7 @@ fn the_live_page_shows_markers_tips_and_the_tree() {
 
     // The rebuild button: a new tree version on /status, then on the page.
     let before = status(&base)["tree_version"].as_u64().unwrap();
-    page.cmd(
-        json!({"cmd": "click", "selector": "#rebuild"}),
-        Duration::from_secs(5),
-    );
+    page.click("#rebuild");
     let start = Instant::now();
     while status(&base)["tree_version"].as_u64() != Some(before + 1) {
         assert!(start.elapsed() < Duration::from_secs(30), "no rebuild");
@@ -562,11 +572,7 @@ fn the_tree_sways_with_the_poses(
     let started = Instant::now();
     while !sender.is_finished() {
         std::thread::sleep(Duration::from_millis(120));
-        let v = page.cmd(
-            json!({"cmd": "eval", "expr": probe}),
-            Duration::from_secs(5),
-        )["value"]
-            .clone();
+        let v = page.eval(probe);
         note_rest(base, &mut rests);
         if v["pose"].is_null() {
             continue;
@@ -577,15 +583,8 @@ fn the_tree_sways_with_the_poses(
         if !shot_taken && t > Duration::from_millis(1500) {
             shot_taken = true;
             screenshot_shows_the_tree(page, "live-sway.png");
-            page.cmd(
-                json!({"cmd": "click", "selector": "#sway"}),
-                Duration::from_secs(5),
-            );
-            let off = page.cmd(
-                json!({"cmd": "eval", "expr": probe}),
-                Duration::from_secs(5),
-            )["value"]
-                .clone();
+            page.click("#sway");
+            let off = page.eval(probe);
             assert!(off["pose"].is_null(), "sway off: {off}");
             if let Some(rest) = off["tree"].as_u64().and_then(|t| rests.get(&t)) {
                 assert!(
@@ -593,10 +592,7 @@ fn the_tree_sways_with_the_poses(
                     "sway off: {off}"
                 );
             }
-            page.cmd(
-                json!({"cmd": "click", "selector": "#sway"}),
-                Duration::from_secs(5),
-            );
+            page.click("#sway");
         }
     }
     sender.join().unwrap();
@@ -606,11 +602,7 @@ fn the_tree_sways_with_the_poses(
     // not loaded yet are rightly ignored), or (a page starved of CPU on a
     // busy machine can miss the last events, seen under load 13) one of
     // its last second.
-    let shown_tree = page.cmd(
-        json!({"cmd": "eval", "expr": "treemocap.tree?.version"}),
-        Duration::from_secs(5),
-    )["value"]
-        .as_u64();
+    let shown_tree = page.eval("treemocap.tree?.version").as_u64();
     let last = *poses
         .lock()
         .unwrap()
@@ -687,11 +679,7 @@ fn the_tree_sways_with_the_poses(
         "{}",
         page.state()
     );
-    let v = page.cmd(
-        json!({"cmd": "eval", "expr": probe}),
-        Duration::from_secs(5),
-    )["value"]
-        .clone();
+    let v = page.eval(probe);
     note_rest(base, &mut rests);
     let rest = &rests[&v["tree"].as_u64().unwrap()];
     assert!(worst_tip(&v["tips"], &xyz(rest)) < 1e-5, "{v}");
@@ -756,13 +744,10 @@ fn view_scrubs_a_recording_frame_by_frame() {
     let mut page = Page::open(&url);
     assert!(page.wait("treemocap.viewFrame === 0", 10_000).is_some());
     // Scrub as a person does: move the slider.
-    page.cmd(
-        json!({"cmd": "eval", "expr": format!(
-            "(() => {{ const s = document.getElementById('scrub'); s.value = '{t}'; \
-             s.dispatchEvent(new Event('input')); }})()"
-        )}),
-        Duration::from_secs(5),
-    );
+    page.eval(&format!(
+        "(() => {{ const s = document.getElementById('scrub'); s.value = '{t}'; \
+         s.dispatchEvent(new Event('input')); }})()"
+    ));
     assert!(
         page.wait(&format!("treemocap.viewFrame === {t}"), 10_000)
             .is_some(),
