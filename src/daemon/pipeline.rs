@@ -21,7 +21,7 @@ use crate::model::frame::MarkerFrame;
 use crate::serve::live::MAX_FRAMES_PER_S;
 use crate::serve::osc::{tips_datagram, wind_datagram, OscSender};
 use crate::source::channel::{FrameReceiver, FrameSink};
-use crate::track::live::LiveTips;
+use crate::track::live::{LiveTips, Seen};
 use crate::wind::pca::SwayPca;
 
 /// How often the pipeline wakes with no frame: the recording's flush and a
@@ -36,10 +36,8 @@ pub(crate) struct Pipeline {
     follower: LiveTips,
     /// The tips' states for the live page (measured, filled, not seen).
     live_tips: ViewerTips,
-    /// Per marker of the current frame: a tip's (reused buffer).
+    /// Per marker of the frame shown: a tip's (reused buffer).
     claimed: Vec<bool>,
-    /// The frame's markers by the bits of x (reused buffer of `mark_claimed`).
-    by_x: Vec<(u64, usize)>,
     pca: SwayPca,
     next_pca: f64,
     next_analysis: f64,
@@ -51,7 +49,7 @@ pub(crate) struct Pipeline {
     /// When the viewers' frame was last built, and whether a later frame
     /// is still to be shown (see `show`).
     shown_at: Option<Instant>,
-    unshown: Option<(MarkerFrame, Vec<(usize, DVec3)>)>,
+    unshown: Option<(MarkerFrame, Seen)>,
     /// The recording (`daemon.record`), which survives a full disk.
     recorder: Option<crate::app::recording::Recorder>,
     /// Where the window goes for analysis: a snapshot (shared chunks, no
@@ -114,7 +112,6 @@ impl Pipeline {
             follower: LiveTips::new(&c.tracking, None, d.follow_gate_mm / 1000.0),
             live_tips: ViewerTips::new(c.tracking.max_fill_s),
             claimed: Vec::new(),
-            by_x: Vec::new(),
             pose: PoseFeed::start(shared.clone())?,
             shown_at: None,
             unshown: None,
@@ -201,7 +198,7 @@ impl Pipeline {
         let now = frame.time_s;
         let seen = self.follower.update(&frame);
         if !self.follower.is_empty() {
-            self.follow(&frame, &seen);
+            self.follow(&frame, &seen.tips);
         }
         self.window.push(&frame);
         self.maybe_analyse(now);
@@ -218,7 +215,7 @@ impl Pipeline {
     /// of a 360 Hz rig was work on the latency path for nothing. A frame
     /// not shown is kept (it is owned here anyway, no copy) so that the last
     /// frame before the source goes quiet still reaches the page.
-    fn show(&mut self, frame: MarkerFrame, seen: Vec<(usize, DVec3)>) {
+    fn show(&mut self, frame: MarkerFrame, seen: Seen) {
         if !self.shared.hub.has_viewers() {
             self.unshown = None;
             return;
@@ -234,9 +231,13 @@ impl Pipeline {
 
     /// Builds the viewers' frame and puts it in the latest-wins slot (never
     /// a wait on a viewer).
-    fn publish(&mut self, frame: &MarkerFrame, seen: &[(usize, DVec3)]) {
+    fn publish(&mut self, frame: &MarkerFrame, seen: &Seen) {
         self.shown_at = Some(Instant::now());
-        mark_claimed(frame, seen, &mut self.claimed, &mut self.by_x);
+        self.claimed.clear();
+        self.claimed.resize(frame.markers.len(), false);
+        for &i in &seen.frame_markers {
+            self.claimed[i] = true;
+        }
         let live = self.live_tips.frame(frame, &self.claimed);
         self.shared.hub.publish_frame(live);
     }
@@ -309,38 +310,5 @@ impl Pipeline {
             frame_rate: self.rate.hz.round().max(1.0),
         });
         true
-    }
-}
-
-/// Which markers of `frame` are the tips `seen`: the tracker reports a tip
-/// measured in this frame at exactly its marker's position, so the markers
-/// are found by equal coordinates (sorted by x, not a search per tip over
-/// all markers: 1 000 tips among 1 000 markers stay cheap).
-fn mark_claimed(
-    frame: &MarkerFrame,
-    seen: &[(usize, DVec3)],
-    claimed: &mut Vec<bool>,
-    by_x: &mut Vec<(u64, usize)>,
-) {
-    claimed.clear();
-    claimed.resize(frame.markers.len(), false);
-    by_x.clear();
-    by_x.extend(
-        frame
-            .markers
-            .iter()
-            .enumerate()
-            .map(|(i, m)| (m.position.x.to_bits(), i)),
-    );
-    by_x.sort_unstable();
-    for (_, p) in seen {
-        let x = p.x.to_bits();
-        let start = by_x.partition_point(|e| e.0 < x);
-        for &(_, i) in by_x[start..].iter().take_while(|e| e.0 == x) {
-            if frame.markers[i].position == *p && !claimed[i] {
-                claimed[i] = true;
-                break;
-            }
-        }
     }
 }

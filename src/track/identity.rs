@@ -294,6 +294,12 @@ impl Identities {
         self.idents.get(i).map(|id| id.first)
     }
 
+    /// The identities measured in this frame, where, and by which trace.
+    pub(crate) fn current_traces(&self) -> impl Iterator<Item = (usize, DVec3, usize)> + '_ {
+        self.current()
+            .filter_map(|(i, p)| self.idents[i].trace.map(|t| (i, p, t)))
+    }
+
     /// Identities measured in this frame, with their position.
     pub(crate) fn current(&self) -> impl Iterator<Item = (usize, DVec3)> + '_ {
         self.cur

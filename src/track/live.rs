@@ -18,6 +18,17 @@ use super::tracker::Tracker;
 use super::TrackingSettings;
 use crate::model::frame::MarkerFrame;
 
+/// The tree's tips measured in one frame.
+#[derive(Debug, Clone, Default)]
+pub struct Seen {
+    /// `(marker index, position)`, by marker index.
+    pub tips: Vec<(usize, DVec3)>,
+    /// Which of the frame's markers they are (indices into its `markers`,
+    /// not in the order of `tips`), for the live page, which colours tips
+    /// and noise apart.
+    pub frame_markers: Vec<usize>,
+}
+
 /// The live tracker and its labels.
 pub struct LiveTips {
     tracker: Tracker,
@@ -62,22 +73,25 @@ impl LiveTips {
         self.tips.is_empty()
     }
 
-    /// Tracks one frame; returns `(marker index, position)` of the tree's
-    /// tips measured in it, by marker index.
-    pub fn update(&mut self, frame: &MarkerFrame) -> Vec<(usize, DVec3)> {
+    /// Tracks one frame; returns the tree's tips measured in it.
+    pub fn update(&mut self, frame: &MarkerFrame) -> Seen {
         self.tracker.push(frame);
-        let current: Vec<(usize, DVec3)> = self.tracker.current().collect();
-        let mut seen = Vec::with_capacity(current.len());
-        for (identity, p) in current {
+        let current: Vec<(usize, DVec3, usize)> = self.tracker.current_markers().collect();
+        let mut seen = Seen {
+            tips: Vec::with_capacity(current.len()),
+            frame_markers: Vec::with_capacity(current.len()),
+        };
+        for (identity, p, index) in current {
             let k = match self.label.get(&identity) {
                 Some(k) => Some(*k),
                 None => self.match_identity(identity),
             };
             if let Some(&(marker, _)) = k.and_then(|k| self.tips.get(k)) {
-                seen.push((marker, p));
+                seen.tips.push((marker, p));
+                seen.frame_markers.push(index);
             }
         }
-        seen.sort_by_key(|s| s.0);
+        seen.tips.sort_by_key(|s| s.0);
         seen
     }
 

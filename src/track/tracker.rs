@@ -141,6 +141,12 @@ pub struct Tracker {
     // Per-frame scratch, kept to avoid allocating on every frame.
     points: Vec<[f64; 3]>,
     ids: Vec<Option<i64>>,
+    /// Each point's index among the frame's markers (points drop the
+    /// non-finite and duplicate ones).
+    src: Vec<usize>,
+    /// (trace, index among the frame's markers) of every trace measured in
+    /// the latest frame, by trace: which marker each identity took.
+    measured_at: Vec<(usize, usize)>,
     order: Vec<usize>,
     keep: Vec<bool>,
     edges: Vec<Edge>,
@@ -180,6 +186,8 @@ impl Tracker {
             assigner: Assigner::default(),
             points: Vec::new(),
             ids: Vec::new(),
+            src: Vec::new(),
+            measured_at: Vec::new(),
             order: Vec::new(),
             keep: Vec::new(),
             edges: Vec::new(),
@@ -211,6 +219,21 @@ impl Tracker {
     /// were confirmed. This is what the daemon shows live.
     pub fn current(&self) -> impl Iterator<Item = (usize, DVec3)> + '_ {
         self.identities.current()
+    }
+
+    /// Like [`Tracker::current`], with the index among the latest frame's
+    /// markers of the marker each identity took: the daemon shows which
+    /// markers are tips without searching the frame for their positions.
+    pub fn current_markers(&self) -> impl Iterator<Item = (usize, DVec3, usize)> + '_ {
+        self.identities
+            .current_traces()
+            .filter_map(|(i, p, trace)| {
+                let k = self
+                    .measured_at
+                    .binary_search_by_key(&trace, |m| m.0)
+                    .ok()?;
+                Some((i, p, self.measured_at[k].1))
+            })
     }
 
     /// Mean and spread (m) of the first second of identity `i`: where it
@@ -261,6 +284,7 @@ impl Tracker {
 
         self.taken.clear();
         self.taken.resize(self.points.len(), false);
+        self.measured_at.clear();
         for (row, col) in self.out.iter().enumerate() {
             let (Some(col), Some(l)) = (*col, self.live.get_mut(row)) else {
                 continue;
@@ -269,6 +293,7 @@ impl Tracker {
                 continue;
             };
             self.taken[col] = true;
+            self.measured_at.push((l.trace, self.src[col]));
             l.motion.update(p, t, &self.params);
             l.measured += 1;
             if self.record {
@@ -284,6 +309,7 @@ impl Tracker {
             }
             let id = self.next_trace;
             self.next_trace += 1;
+            self.measured_at.push((id, self.src[col]));
             let p = DVec3::from_array(*p);
             if self.record {
                 self.traces
@@ -300,6 +326,9 @@ impl Tracker {
             });
             self.identities.started(id, p);
         }
+        // Rows keep the traces' order of birth (`retain` keeps order, new
+        // traces have the next ids): sorted by trace, as the lookup needs.
+        debug_assert!(self.measured_at.is_sorted());
         self.identities.end();
     }
 
@@ -451,10 +480,12 @@ impl Tracker {
     fn clean_markers(&mut self, frame: &MarkerFrame) {
         self.points.clear();
         self.ids.clear();
-        for m in &frame.markers {
+        self.src.clear();
+        for (k, m) in frame.markers.iter().enumerate() {
             if m.position.is_finite() {
                 self.points.push(m.position.to_array());
                 self.ids.push(m.id);
+                self.src.push(k);
             } else {
                 self.stats.nonfinite_markers += 1;
             }
@@ -498,11 +529,13 @@ impl Tracker {
                 if self.keep[i] {
                     self.points[n] = self.points[i];
                     self.ids[n] = self.ids[i];
+                    self.src[n] = self.src[i];
                     n += 1;
                 }
             }
             self.points.truncate(n);
             self.ids.truncate(n);
+            self.src.truncate(n);
         }
     }
 
@@ -580,6 +613,30 @@ mod tests {
             n as f64 / 100.0,
             pts.iter().map(|p| Marker::new(*p)).collect(),
         )
+    }
+
+    #[test]
+    fn each_identity_names_the_frame_marker_it_took() {
+        // A non-finite marker and a duplicate come first in the frame, so
+        // the tracker's own point numbers differ from the frame's.
+        let mut tr = Tracker::live(&cfg(), Some(100.0));
+        let a = DVec3::new(0.0, 1.0, 0.0);
+        let b = DVec3::new(0.3, 1.0, 0.0);
+        for n in 0..300 {
+            let d = DVec3::X * 0.0002 * n as f64;
+            let mut f = frame(n, &[DVec3::NAN, a + d, a + d, b - d]);
+            // Source order alternates, so order carries no identity.
+            if n % 2 == 1 {
+                f.markers.swap(1, 3);
+            }
+            tr.push(&f);
+            for (_, p, index) in tr.current_markers() {
+                assert_eq!(f.markers[index].position, p, "frame {n}");
+            }
+            // Every identity measured in the frame has its marker.
+            assert_eq!(tr.current_markers().count(), tr.current().count());
+        }
+        assert_eq!(tr.current().count(), 2, "both markers confirmed");
     }
 
     #[test]
