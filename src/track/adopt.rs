@@ -1,4 +1,4 @@
-//! Ghost pieces that are pieces of a marker (ours): after the identity
+//! Ghost pieces that are pieces of a marker: after the identity
 //! layer, traces it never confirmed are ghosts. Some of them are the
 //! marker itself, in two cases the frame-to-frame tracker cannot follow:
 //!
@@ -52,7 +52,7 @@ pub fn adopt_ghosts(marks: &mut [Trace], ghosts: Vec<Trace>, gate_m: f64) -> (Ve
                     m.first_frame() <= ghost.last_frame() + HANDOVER_FRAMES
                         && ghost.first_frame() <= m.last_frame() + HANDOVER_FRAMES
                 })
-                .filter(|(_, (m, seen))| handover_cost(m, seen, &runs, gate_m).is_some())
+                .filter(|(_, (m, seen))| hands_over(m, seen, &runs, gate_m))
                 .map(|(k, _)| k);
             // Only a ghost that one marker alone could have handed over to:
             // where two hidden markers pass close, it stays a ghost.
@@ -90,24 +90,24 @@ fn runs(t: &Trace) -> Vec<(i64, DVec3, i64, DVec3)> {
     out
 }
 
-/// The largest hand-over distance (m) between `mark` (its measurements
-/// `seen`) and a ghost with these runs, or `None` when they share a frame
-/// or a run does not hand over within `HANDOVER_FRAMES` and `gate_m` on
-/// each side where the mark has data.
-fn handover_cost(
+/// Whether `mark` (its measurements `seen`) and a ghost with these runs
+/// hand over to each other: they share no frame, and every run hands over
+/// within `HANDOVER_FRAMES` and `gate_m` on each side where the mark has
+/// data (and the mark has data beside at least one run).
+fn hands_over(
     mark: &Trace,
     seen: &[(i64, DVec3)],
     runs: &[(i64, DVec3, i64, DVec3)],
     gate_m: f64,
-) -> Option<f64> {
+) -> bool {
     // Cheap first: most marks are measured in the ghost's frames.
     if runs
         .iter()
         .any(|r| (r.0..=r.2).any(|f| mark.is_measured(f)))
     {
-        return None;
+        return false;
     }
-    let mut worst: Option<f64> = None;
+    let mut beside = false;
     for &(a, pa, b, pb) in runs {
         // Measurements of the mark before `a` and after `b`.
         let before = seen.partition_point(|s| s.0 < a);
@@ -120,14 +120,13 @@ fn handover_cost(
             let Some(&(g, q)) = near else {
                 continue;
             };
-            let d = q.distance(p);
-            if (g - f).abs() > HANDOVER_FRAMES || d > gate_m {
-                return None;
+            if (g - f).abs() > HANDOVER_FRAMES || q.distance(p) > gate_m {
+                return false;
             }
-            worst = Some(worst.map_or(d, |w: f64| w.max(d)));
+            beside = true;
         }
     }
-    worst
+    beside
 }
 
 #[cfg(test)]
