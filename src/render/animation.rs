@@ -19,8 +19,8 @@
 //! armature in Blender, and the still tree is the bind pose.
 
 use gltf_json as json;
-use json::accessor::{ComponentType, GenericComponentType, Type};
-use json::validation::{Checked::Valid, USize64};
+use json::accessor::{ComponentType, Type};
+use json::validation::Checked::Valid;
 use serde_json::value::RawValue;
 
 use super::error::RenderError;
@@ -99,7 +99,7 @@ impl Skin {
             ibm.extend(m.iter().flat_map(|v| v.to_le_bytes()));
         }
         let view = b.view(ibm, None);
-        let ibm = accessor(b, view, 0, n, ComponentType::F32, Type::Mat4, None);
+        let ibm = b.accessor(view, 0, n, ComponentType::F32, Type::Mat4, None);
         let joints: Vec<_> = (0..n).map(joint).collect();
         let index = b.root.push(json::Skin {
             extensions: None,
@@ -204,25 +204,9 @@ impl Skinning for Skin {
             }
         }
         let view = b.view(joints, Some(json::buffer::Target::ArrayBuffer));
-        let j = accessor(
-            b,
-            view,
-            0,
-            binds.len(),
-            ComponentType::U16,
-            Type::Vec4,
-            None,
-        );
+        let j = b.accessor(view, 0, binds.len(), ComponentType::U16, Type::Vec4, None);
         let view = b.view(weights, Some(json::buffer::Target::ArrayBuffer));
-        let w = accessor(
-            b,
-            view,
-            0,
-            binds.len(),
-            ComponentType::F32,
-            Type::Vec4,
-            None,
-        );
+        let w = b.accessor(view, 0, binds.len(), ComponentType::F32, Type::Vec4, None);
         attributes.insert(Valid(json::mesh::Semantic::Joints(0)), j);
         attributes.insert(Valid(json::mesh::Semantic::Weights(0)), w);
         Ok(())
@@ -267,7 +251,7 @@ pub(super) fn animate_skins(b: &mut Builder, skins: &[(&Skin, &Tree, &TreeMotion
         }
         let view = b.view(translations, None);
         for &(i, offset) in &moving {
-            let output = accessor(b, view, offset, keys, ComponentType::F32, Type::Vec3, None);
+            let output = b.accessor(view, offset, keys, ComponentType::F32, Type::Vec3, None);
             channels.push(skin.translation_channel(samplers.len(), i));
             samplers.push(linear_sampler(input, output));
         }
@@ -295,8 +279,7 @@ fn key_times(b: &mut Builder, motion: &TreeMotion) -> json::Index<json::Accessor
     let bytes: Vec<u8> = times.iter().flat_map(|t| t.to_le_bytes()).collect();
     let view = b.view(bytes, None);
     let (lo, hi) = (times[0], times[keys - 1]);
-    accessor(
-        b,
+    b.accessor(
         view,
         0,
         keys,
@@ -394,37 +377,6 @@ fn runs(sources: &[TipSource], kind: TipSource) -> Vec<[usize; 2]> {
 
 fn raw(v: &serde_json::Value) -> Result<Box<RawValue>> {
     Ok(serde_json::value::to_raw_value(v).map_err(RenderError::Json)?)
-}
-
-/// An accessor of `count` elements at `offset` in `view`; `bounds` adds
-/// min/max (required for animation inputs).
-fn accessor(
-    b: &mut Builder,
-    view: json::Index<json::buffer::View>,
-    offset: usize,
-    count: usize,
-    component: ComponentType,
-    type_: Type,
-    bounds: Option<(Vec<f32>, Vec<f32>)>,
-) -> json::Index<json::Accessor> {
-    let (min, max) = match bounds {
-        Some((lo, hi)) => (Some(json::Value::from(lo)), Some(json::Value::from(hi))),
-        None => (None, None),
-    };
-    b.root.push(json::Accessor {
-        buffer_view: Some(view),
-        byte_offset: (offset > 0).then(|| USize64::from(offset)),
-        count: USize64::from(count),
-        component_type: Valid(GenericComponentType(component)),
-        extensions: None,
-        extras: Default::default(),
-        type_: Valid(type_),
-        min,
-        max,
-        name: None,
-        normalized: false,
-        sparse: None,
-    })
 }
 
 #[cfg(test)]

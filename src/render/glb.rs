@@ -5,6 +5,7 @@
 //! through [`Skinning`], so neither file needs the other's internals.
 
 use gltf_json as json;
+use json::accessor::{ComponentType, GenericComponentType, Type};
 use json::validation::{Checked::Valid, USize64};
 
 use crate::error::Result;
@@ -175,40 +176,29 @@ impl Builder {
         })
     }
 
-    /// A VEC3 float accessor; `bounds` adds min/max (required for POSITION).
-    fn vec3(&mut self, data: &[[f32; 3]], bounds: bool) -> json::Index<json::Accessor> {
-        let bytes: Vec<u8> = data
-            .iter()
-            .flatten()
-            .flat_map(|v| v.to_le_bytes())
-            .collect();
-        let view = self.view(bytes, Some(json::buffer::Target::ArrayBuffer));
-        let (min, max) = if bounds {
-            let mut lo = [f32::INFINITY; 3];
-            let mut hi = [f32::NEG_INFINITY; 3];
-            for p in data {
-                for k in 0..3 {
-                    lo[k] = lo[k].min(p[k]);
-                    hi[k] = hi[k].max(p[k]);
-                }
-            }
-            (
-                Some(json::Value::from(lo.to_vec())),
-                Some(json::Value::from(hi.to_vec())),
-            )
-        } else {
-            (None, None)
+    /// An accessor of `count` elements at `offset` in `view`; `bounds` adds
+    /// min/max (required for POSITION and animation inputs).
+    pub(super) fn accessor(
+        &mut self,
+        view: json::Index<json::buffer::View>,
+        offset: usize,
+        count: usize,
+        component: ComponentType,
+        type_: Type,
+        bounds: Option<(Vec<f32>, Vec<f32>)>,
+    ) -> json::Index<json::Accessor> {
+        let (min, max) = match bounds {
+            Some((lo, hi)) => (Some(json::Value::from(lo)), Some(json::Value::from(hi))),
+            None => (None, None),
         };
         self.root.push(json::Accessor {
             buffer_view: Some(view),
-            byte_offset: None,
-            count: USize64::from(data.len()),
-            component_type: Valid(json::accessor::GenericComponentType(
-                json::accessor::ComponentType::F32,
-            )),
+            byte_offset: (offset > 0).then(|| USize64::from(offset)),
+            count: USize64::from(count),
+            component_type: Valid(GenericComponentType(component)),
             extensions: None,
             extras: Default::default(),
-            type_: Valid(json::accessor::Type::Vec3),
+            type_: Valid(type_),
             min,
             max,
             name: None,
@@ -217,25 +207,32 @@ impl Builder {
         })
     }
 
+    /// A VEC3 float accessor; `bounds` adds min/max (required for POSITION).
+    fn vec3(&mut self, data: &[[f32; 3]], bounds: bool) -> json::Index<json::Accessor> {
+        let bytes: Vec<u8> = data
+            .iter()
+            .flatten()
+            .flat_map(|v| v.to_le_bytes())
+            .collect();
+        let view = self.view(bytes, Some(json::buffer::Target::ArrayBuffer));
+        let bounds = bounds.then(|| {
+            let mut lo = [f32::INFINITY; 3];
+            let mut hi = [f32::NEG_INFINITY; 3];
+            for p in data {
+                for k in 0..3 {
+                    lo[k] = lo[k].min(p[k]);
+                    hi[k] = hi[k].max(p[k]);
+                }
+            }
+            (lo.to_vec(), hi.to_vec())
+        });
+        self.accessor(view, 0, data.len(), ComponentType::F32, Type::Vec3, bounds)
+    }
+
     pub(super) fn indices(&mut self, data: &[u32]) -> json::Index<json::Accessor> {
         let bytes: Vec<u8> = data.iter().flat_map(|v| v.to_le_bytes()).collect();
         let view = self.view(bytes, Some(json::buffer::Target::ElementArrayBuffer));
-        self.root.push(json::Accessor {
-            buffer_view: Some(view),
-            byte_offset: None,
-            count: USize64::from(data.len()),
-            component_type: Valid(json::accessor::GenericComponentType(
-                json::accessor::ComponentType::U32,
-            )),
-            extensions: None,
-            extras: Default::default(),
-            type_: Valid(json::accessor::Type::Scalar),
-            min: None,
-            max: None,
-            name: None,
-            normalized: false,
-            sparse: None,
-        })
+        self.accessor(view, 0, data.len(), ComponentType::U32, Type::Scalar, None)
     }
 
     pub(super) fn triangle_mesh(
