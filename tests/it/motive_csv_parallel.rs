@@ -30,8 +30,18 @@ fn read_with(path: &Path, workers: usize, block_bytes: usize) -> Outcome {
         workers,
         block_bytes,
     };
-    let mut r = MotiveCsvReader::from_file_with(file, path, 0.002, options)
-        .unwrap_or_else(|e| panic!("{e}"));
+    let mut r = match MotiveCsvReader::from_file_with(file, path, 0.002, options) {
+        Ok(r) => r,
+        // A header refused: nothing of it depends on the data rows' reading.
+        Err(e) => {
+            return Outcome {
+                frames: Vec::new(),
+                error: Some(e.to_string()),
+                channels: Vec::new(),
+                warnings: Vec::new(),
+            }
+        }
+    };
     let mut frames = Vec::new();
     let mut error = None;
     while let Some(f) = r.next() {
