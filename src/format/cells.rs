@@ -85,7 +85,10 @@ pub(crate) fn find_newline(buf: &[u8], from: usize) -> Option<usize> {
         }
         p += 8;
     }
-    buf[p.min(n)..].iter().position(|&b| b == b'\n').map(|k| p + k)
+    buf[p.min(n)..]
+        .iter()
+        .position(|&b| b == b'\n')
+        .map(|k| p + k)
 }
 
 /// Little-endian word of eight bytes at `at` (the caller checked the length).

@@ -498,7 +498,11 @@ impl MotiveCsvReader {
             pose_slot,
             poses,
             pose_width: offset,
-            channels: self.channels.iter().map(|c| (c.name.clone(), c.kind)).collect(),
+            channels: self
+                .channels
+                .iter()
+                .map(|c| (c.name.clone(), c.kind))
+                .collect(),
             scale: self.scale,
             limits: RowLimits::default(),
         }

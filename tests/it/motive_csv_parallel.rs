@@ -129,7 +129,9 @@ fn shipped_replays_and_fixtures_read_the_same_in_parallel() {
         assert_same_everywhere(p, &[64, 1000]);
     }
     // The fixture with a rigid body: its poses follow every frame.
-    let rb = reference(&repo("tests/fixtures/motive/cmuphyscomp_sample_take_v1.21.csv"));
+    let rb = reference(&repo(
+        "tests/fixtures/motive/cmuphyscomp_sample_take_v1.21.csv",
+    ));
     assert!(rb.frames.iter().any(|f| !f.3.is_empty()));
 }
 
@@ -255,9 +257,14 @@ fn errors_deep_in_a_later_chunk_name_their_line() {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("bad.csv");
     let bad = 17_000; // line number; data starts at line 8
-    // (what, field spoiled, what it becomes; None drops it, the last one)
+                      // (what, field spoiled, what it becomes; None drops it, the last one)
     let cases = [
-        ("not a number", 2, Some("abc"), format!("line {bad}, column 3: \"abc")),
+        (
+            "not a number",
+            2,
+            Some("abc"),
+            format!("line {bad}, column 3: \"abc"),
+        ),
         (
             "open quote",
             3,
@@ -320,7 +327,10 @@ fn rows_past_8_mib_are_refused_at_their_line_deep_in_the_file() {
             assert!(e.contains(&too_long), "{content} {eol}: {e}");
         } else {
             // Read, then refused for what it holds: one field.
-            assert!(e.contains(&format!("line {bad}, column 2: row has 1 fields")), "{content} {eol}: {e}");
+            assert!(
+                e.contains(&format!("line {bad}, column 2: row has 1 fields")),
+                "{content} {eol}: {e}"
+            );
         }
         assert_eq!(reference(&path).error.as_deref(), Some(e.as_str()));
     }
@@ -345,11 +355,17 @@ fn a_truncated_last_row_is_read_as_it_always_was() {
         match &want.error {
             None => assert_eq!(fields, 11, "cut at {cut}"),
             Some(e) if fields < 11 => assert!(
-                e.contains(&format!("line {last}, column {}: row has {fields} fields", fields + 1)),
+                e.contains(&format!(
+                    "line {last}, column {}: row has {fields} fields",
+                    fields + 1
+                )),
                 "cut at {cut}: {e}"
             ),
             // A cell cut to `-` is not a number: refused at its line too.
-            Some(e) => assert!(e.contains(&format!("line {last}, column")), "cut at {cut}: {e}"),
+            Some(e) => assert!(
+                e.contains(&format!("line {last}, column")),
+                "cut at {cut}: {e}"
+            ),
         }
         let frames = want.frames.len() + usize::from(want.error.is_some());
         assert_eq!(frames, last - 7, "cut at {cut}");

@@ -130,8 +130,14 @@ pub(super) struct Chunks {
 
 impl Chunks {
     /// Data rows from `source`, which is positioned just after the header.
-    pub(super) fn new(source: Box<dyn Read + Send>, layout: Arc<Layout>, options: ReadOptions) -> Self {
-        let block_bytes = options.block_bytes.clamp(64, layout.limits.max_bytes.max(64));
+    pub(super) fn new(
+        source: Box<dyn Read + Send>,
+        layout: Arc<Layout>,
+        options: ReadOptions,
+    ) -> Self {
+        let block_bytes = options
+            .block_bytes
+            .clamp(64, layout.limits.max_bytes.max(64));
         Chunks {
             source,
             local: RowParser::new(Arc::clone(&layout)),
@@ -236,7 +242,8 @@ impl Chunks {
     fn dispatch(&mut self, bytes: Vec<u8>, last: bool) {
         let alone = last && self.queue.is_empty() && self.pool.is_none();
         if self.options.workers == 0 || alone {
-            self.queue.push_back(Pending::Ready(self.local.parse(&bytes)));
+            self.queue
+                .push_back(Pending::Ready(self.local.parse(&bytes)));
             return;
         }
         if self.pool.is_none() {
@@ -245,7 +252,8 @@ impl Chunks {
                 Err(_) => {
                     // No thread to be had: read on alone.
                     self.options.workers = 0;
-                    self.queue.push_back(Pending::Ready(self.local.parse(&bytes)));
+                    self.queue
+                        .push_back(Pending::Ready(self.local.parse(&bytes)));
                     return;
                 }
             }
@@ -261,7 +269,9 @@ impl Chunks {
             Some(Ok(())) => self.queue.push_back(Pending::Working(result)),
             // Every worker is gone (they only stop when the pool is
             // dropped, or by a bug): parse here rather than lose rows.
-            Some(Err(e)) => self.queue.push_back(Pending::Ready(self.local.parse(&e.0.bytes))),
+            Some(Err(e)) => self
+                .queue
+                .push_back(Pending::Ready(self.local.parse(&e.0.bytes))),
             None => {}
         }
     }

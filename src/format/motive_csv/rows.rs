@@ -186,13 +186,7 @@ impl RowParser {
 
     /// Parses the row at the start of `rest` (`len` bytes with its line
     /// end) into `out`; a blank row gives nothing.
-    fn row(
-        &mut self,
-        rest: &[u8],
-        len: usize,
-        line: u64,
-        out: &mut Parsed,
-    ) -> Result<(), RowFail> {
+    fn row(&mut self, rest: &[u8], len: usize, line: u64, out: &mut Parsed) -> Result<(), RowFail> {
         let content = trim_eol(&rest[..len]);
         let Some((n, in_place)) = self.find_cells(&rest[..content], line)? else {
             return Ok(());
@@ -231,7 +225,11 @@ impl RowParser {
     /// Finds the non-empty cells of `line_bytes` (a row without its line
     /// end); `None` for a blank line, else the number of fields and whether
     /// the cells point into the row itself (unquoted) or into `quoted`.
-    fn find_cells(&mut self, line_bytes: &[u8], line: u64) -> Result<Option<(usize, bool)>, RowFail> {
+    fn find_cells(
+        &mut self,
+        line_bytes: &[u8],
+        line: u64,
+    ) -> Result<Option<(usize, bool)>, RowFail> {
         self.cells.clear();
         let cells = &mut self.cells;
         // Cells past the header's width are kept only as far as the first
@@ -342,7 +340,12 @@ impl RowParser {
     /// Reads the row's channel cells: markers with X, Y and Z become the
     /// frame's markers, other channels' values go to `poses` (this row's
     /// slice of pose values); counts non-empty cells and present channels.
-    fn read_channel_cells(&mut self, buf: &[u8], line: u64, poses: &mut [f64]) -> Result<Vec<Marker>, Error> {
+    fn read_channel_cells(
+        &mut self,
+        buf: &[u8],
+        line: u64,
+        poses: &mut [f64],
+    ) -> Result<Vec<Marker>, Error> {
         self.pose_filled.fill(0);
         let layout = std::sync::Arc::clone(&self.layout);
         let mut markers = Vec::with_capacity(self.last_markers);
@@ -446,7 +449,14 @@ pub(super) fn shifted(e: Error, by: u64) -> Error {
 
 /// The error for a channel cell that is not a number, naming the channel
 /// (`slot` is `u32::MAX` for marker channels, whose kind goes unsaid).
-fn not_a_number(layout: &Layout, line: u64, column: usize, cell: &[u8], ci: usize, slot: u32) -> Error {
+fn not_a_number(
+    layout: &Layout,
+    line: u64,
+    column: usize,
+    cell: &[u8],
+    ci: usize,
+    slot: u32,
+) -> Error {
     let (name, kind) = &layout.channels[ci];
     let what = if slot == u32::MAX {
         format!("marker \"{}\"", excerpt(name))
