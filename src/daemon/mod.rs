@@ -28,6 +28,7 @@ mod live_tips;
 mod osc_control;
 mod pipeline;
 mod pose;
+mod pose_feed;
 pub mod progress;
 pub mod rest_estimate;
 mod shared;

@@ -12,14 +12,14 @@ use glam::DVec3;
 
 use super::handoff::{AnalysisHandoff, Job};
 use super::live_tips::LiveTips as ViewerTips;
-use super::pose::LivePose;
+use super::pose_feed::PoseFeed;
 use super::shared::{lock, Shared};
 use super::window::FrameWindow;
 use crate::error::Result;
 use crate::format::log::LogHeader;
 use crate::model::frame::MarkerFrame;
+use crate::serve::live::MAX_FRAMES_PER_S;
 use crate::serve::osc::{tips_datagram, wind_datagram, OscSender};
-use crate::serve::pose::{pose_datagrams, pose_message};
 use crate::source::channel::{FrameReceiver, FrameSink};
 use crate::track::live::LiveTips;
 use crate::wind::pca::SwayPca;
@@ -45,8 +45,13 @@ pub(crate) struct Pipeline {
     next_analysis: f64,
     rate: RateEstimate,
     osc: Option<OscSender>,
-    /// The current tree swayed by the live tips (issue 13).
-    pose: LivePose,
+    /// The current tree swayed by the live tips (issue 13), on its own
+    /// thread.
+    pose: PoseFeed,
+    /// When the viewers' frame was last built, and whether a later frame
+    /// is still to be shown (see `show`).
+    shown_at: Option<Instant>,
+    unshown: Option<(MarkerFrame, Vec<(usize, DVec3)>)>,
     /// The recording (`daemon.record`), which survives a full disk.
     recorder: Option<crate::app::recording::Recorder>,
     /// Where the window goes for analysis: a snapshot (shared chunks, no
@@ -110,7 +115,9 @@ impl Pipeline {
             live_tips: ViewerTips::new(c.tracking.max_fill_s),
             claimed: Vec::new(),
             by_x: Vec::new(),
-            pose: LivePose::new(&c.animate),
+            pose: PoseFeed::start(shared.clone())?,
+            shown_at: None,
+            unshown: None,
             pca: SwayPca::new(c.wind.pca_window_s, c.wind.pca_min_sway_mm / 1000.0),
             next_pca: f64::NEG_INFINITY,
             next_analysis: f64::NEG_INFINITY,
@@ -169,6 +176,9 @@ impl Pipeline {
     /// A quiet source (a finished replay, a paused rig) must not leave a
     /// requested rebuild waiting for the next frame.
     fn on_quiet(&mut self) {
+        if let Some((frame, seen)) = self.unshown.take() {
+            self.publish(&frame, &seen);
+        }
         if self.shared.rebuild.load(Ordering::Relaxed) && !self.window.is_empty() {
             self.offer_window();
         }
@@ -193,21 +203,42 @@ impl Pipeline {
         if !self.follower.is_empty() {
             self.follow(&frame, &seen);
         }
-        // The viewers' frame: built only while someone watches, published
-        // into a latest-wins slot (never a wait on a viewer).
-        if self.shared.hub.has_viewers() {
-            mark_claimed(&frame, &seen, &mut self.claimed, &mut self.by_x);
-            let live = self.live_tips.frame(&frame, &self.claimed);
-            self.shared.hub.publish_frame(live);
-        }
         self.window.push(&frame);
-        drop(frame);
         self.maybe_analyse(now);
+        self.show(frame, seen);
         let us = arrived.elapsed().as_micros() as u64;
         let status = &self.shared.status;
         status.latency_us_last.store(us, Ordering::Relaxed);
         status.latency_us_max.fetch_max(us, Ordering::Relaxed);
         status.latency_hist.record(us);
+    }
+
+    /// The viewers' frame, built at most `MAX_FRAMES_PER_S` times a second
+    /// of wall time: no viewer takes more, and building it for every frame
+    /// of a 360 Hz rig was work on the latency path for nothing. A frame
+    /// not shown is kept (it is owned here anyway, no copy) so that the last
+    /// frame before the source goes quiet still reaches the page.
+    fn show(&mut self, frame: MarkerFrame, seen: Vec<(usize, DVec3)>) {
+        if !self.shared.hub.has_viewers() {
+            self.unshown = None;
+            return;
+        }
+        let gap = Duration::from_secs_f64(1.0 / MAX_FRAMES_PER_S);
+        if self.shown_at.is_some_and(|t| t.elapsed() < gap) {
+            self.unshown = Some((frame, seen));
+            return;
+        }
+        self.unshown = None;
+        self.publish(&frame, &seen);
+    }
+
+    /// Builds the viewers' frame and puts it in the latest-wins slot (never
+    /// a wait on a viewer).
+    fn publish(&mut self, frame: &MarkerFrame, seen: &[(usize, DVec3)]) {
+        self.shown_at = Some(Instant::now());
+        mark_claimed(frame, seen, &mut self.claimed, &mut self.by_x);
+        let live = self.live_tips.frame(frame, &self.claimed);
+        self.shared.hub.publish_frame(live);
     }
 
     fn count(&mut self, frame: &MarkerFrame, sink: &FrameSink) {
@@ -242,7 +273,7 @@ impl Pipeline {
         if let Some(o) = self.osc.as_mut() {
             o.send(&tips_datagram(frame.frame, now, seen));
         }
-        self.send_pose(frame.frame, now, seen);
+        self.pose.offer(frame.frame, now, seen);
         let shared = &self.shared;
         if now >= self.next_pca {
             self.next_pca = now + shared.config.wind.pca_window_s;
@@ -251,28 +282,6 @@ impl Pipeline {
                 if let Some(o) = self.osc.as_mut() {
                     o.send(&wind_datagram(&e));
                 }
-            }
-        }
-    }
-
-    /// The current tree swayed by this frame's live tips, to the `/live`
-    /// viewers (a JSON `pose` event) and OSC, when someone listens and a
-    /// pose is due.
-    fn send_pose(&mut self, frame: i64, now: f64, seen: &[(usize, DVec3)]) {
-        let viewers = self.shared.hub.has_viewers();
-        if !viewers && self.osc.is_none() {
-            return;
-        }
-        let tree = self.shared.tree_tx.borrow().clone();
-        let Some(p) = self.pose.update(tree.as_deref(), frame, now, seen) else {
-            return;
-        };
-        if viewers {
-            self.shared.hub.publish_event(pose_message(&p));
-        }
-        if let Some(o) = self.osc.as_mut() {
-            for d in pose_datagrams(&p) {
-                o.send(&d);
             }
         }
     }

@@ -124,7 +124,7 @@ fn natnet_in_tree_out_over_osc_http_and_websocket() {
 
     // A WebSocket client gets the tree notice and then live tips.
     let rt = tokio::runtime::Runtime::new().unwrap();
-    rt.block_on(async {
+    let pose_values = rt.block_on(async {
         let (mut ws, _) = tokio_tungstenite::connect_async(format!(
             "ws://127.0.0.1:{http_port}/live?format=json"
         ))
@@ -132,7 +132,8 @@ fn natnet_in_tree_out_over_osc_http_and_websocket() {
         .unwrap();
         let mut tips_frames = 0;
         let mut saw_tree = false;
-        while tips_frames < 20 {
+        let mut pose_values = Vec::new();
+        while tips_frames < 20 || pose_values.is_empty() {
             let msg = tokio::time::timeout(Duration::from_secs(10), ws.next())
                 .await
                 .expect("a live message")
@@ -147,10 +148,13 @@ fn natnet_in_tree_out_over_osc_http_and_websocket() {
                     assert_eq!(v["tips"].as_array().unwrap().len(), 24, "{v}");
                     assert!(!v["markers"].as_array().unwrap().is_empty());
                 }
+                // The tree swayed by the live tips: every node's displacement.
+                Some("pose") => pose_values.push(v["d_um"].as_array().unwrap().len()),
                 _ => {}
             }
         }
         assert!(saw_tree, "the current tree is announced on connect");
+        pose_values
     });
 
     // python-osc got the whole tree and tip frames.
@@ -166,6 +170,13 @@ fn natnet_in_tree_out_over_osc_http_and_websocket() {
         serde_json::from_str(&std::fs::read_to_string(out_dir.path().join("tree.json")).unwrap())
             .unwrap();
     assert_eq!(tree_json["nodes"].as_array().unwrap().len() as u64, count);
+    // The live sway reached both the page and OSC, every node of the tree.
+    assert!(
+        pose_values.iter().all(|&n| n as u64 == 3 * count),
+        "{pose_values:?}"
+    );
+    assert!(s["pose_datagrams"].as_u64().unwrap() >= 1, "{s}");
+    assert_eq!(s["pose_nodes_max"].as_u64(), Some(count), "{s}");
 
     // /metrics agrees with /status, and the glb it serves is the file, validator-clean.
     let (_, metrics) = http_get(&format!("http://127.0.0.1:{http_port}/metrics"));

@@ -8,7 +8,8 @@ import time
 from pythonosc import dispatcher, osc_server
 
 port, min_tips, timeout = int(sys.argv[1]), int(sys.argv[2]), float(sys.argv[3])
-state = {"begin": None, "end": None, "nodes": {}, "tip_frames": 0, "tips_per_frame": [], "wind": 0}
+state = {"begin": None, "end": None, "nodes": {}, "tip_frames": 0, "tips_per_frame": [], "wind": 0,
+         "pose_datagrams": 0, "pose_nodes_max": 0}
 
 
 def begin(_addr, version, count):
@@ -32,6 +33,13 @@ def tips(_addr, frame, t, *rest):
     state["tips_per_frame"].append(len(rest) // 4)
 
 
+def pose(_addr, version, frame, t, first, count, *d):
+    # A run of datagrams per pose, each naming its first node and count.
+    if len(d) == 3 * count:
+        state["pose_datagrams"] += 1
+        state["pose_nodes_max"] = max(state["pose_nodes_max"], first + count)
+
+
 def wind(_addr, *args):
     state["wind"] += 1
 
@@ -42,6 +50,7 @@ d.map("/treemocap/tree/node", node)
 d.map("/treemocap/tree/end", end)
 d.map("/treemocap/tips", tips)
 d.map("/treemocap/wind", wind)
+d.map("/treemocap/pose", pose)
 server = osc_server.BlockingOSCUDPServer(("127.0.0.1", port), d)
 server.timeout = 0.2
 print("ready", flush=True)
@@ -58,5 +67,7 @@ print(json.dumps({
     "parents_ok": all(p == -1 or (0 <= p < len(nodes)) for p, *_ in nodes.values()),
     "tip_frames": state["tip_frames"],
     "max_tips_per_frame": max(state["tips_per_frame"] or [0]),
+    "pose_datagrams": state["pose_datagrams"],
+    "pose_nodes_max": state["pose_nodes_max"],
     "wind": state["wind"],
 }), flush=True)
