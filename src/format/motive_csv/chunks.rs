@@ -34,13 +34,13 @@ pub struct ReadOptions {
 }
 
 impl Default for ReadOptions {
-    /// Two workers at most: the reading thread and the frames' consumer
-    /// need a core too, and on the 2–4-core machines that run treemocap a
-    /// third worker only competes with them.
+    /// As many workers as cores, two at most: parsing is nearly all of the
+    /// work (the reading thread only reads, cuts and merges, and waits
+    /// meanwhile), and the frames' consumer needs a core too.
     fn default() -> Self {
         let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
         ReadOptions {
-            workers: if cores > 1 { cores.min(3) - 1 } else { 0 },
+            workers: if cores > 1 { cores.min(2) } else { 0 },
             block_bytes: 256 << 10,
         }
     }
