@@ -68,6 +68,29 @@ pub(crate) fn scan(line: &[u8], mut cell: impl FnMut(usize, usize, usize)) -> Sc
     Scan::Fields(col + 1)
 }
 
+/// Eight line feeds, for finding a row's end a word at a time.
+const NEWLINES: u64 = u64::from_ne_bytes([b'\n'; 8]);
+
+/// The index of the first line feed in `buf` at or after `from`.
+///
+/// Word at a time: rows of a dense export are a few KB, and this runs once
+/// over every byte of the file, so it must cost far less than the scan.
+#[inline]
+pub(crate) fn find_newline(buf: &[u8], from: usize) -> Option<usize> {
+    let n = buf.len();
+    let mut p = from;
+    while p + 8 <= n {
+        if let Some(k) = first_zero_byte(load(buf, p) ^ NEWLINES) {
+            return Some(p + k);
+        }
+        p += 8;
+    }
+    buf[p.min(n)..]
+        .iter()
+        .position(|&b| b == b'\n')
+        .map(|k| p + k)
+}
+
 /// Little-endian word of eight bytes at `at` (the caller checked the length).
 #[inline]
 fn load(buf: &[u8], at: usize) -> u64 {

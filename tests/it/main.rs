@@ -18,6 +18,7 @@ mod http_limits;
 mod live_view;
 mod log_format;
 mod motive_csv;
+mod motive_csv_parallel;
 mod natnet_bad_input;
 mod natnet_loopback;
 mod natnet_packet;
