@@ -14,7 +14,7 @@
 //! so that f32 keeps them to a fraction of a micrometre), which halves the
 //! memory a frame streams.
 
-use glam::{DVec3, DVec4, Vec3, Vec4};
+use glam::{DVec3, DVec4, Vec3A, Vec4};
 
 use super::rig::{Rig, NOT_CAPTURED};
 use crate::model::motion::TipSource;
@@ -41,6 +41,9 @@ pub struct Deformer {
     table: Vec<Vec4>,
     /// Per slot: (sum of bends below, count) for the blend.
     acc: Vec<DVec4>,
+    /// Per slot: the sum of its leaves' bends (f32, added to `acc` before
+    /// the sums over the subtrees; the leaves' count is the rig's).
+    leaf_acc: Vec<Vec3A>,
     /// Per slot: the same for the residuals of the tracked tips; zero off
     /// the rig's spine (no tracked tip below), always.
     residual: Vec<DVec4>,
@@ -50,9 +53,9 @@ pub struct Deformer {
     pos: Vec<DVec3>,
     /// Per slot: its displacement after the rotation, before the
     /// correction (what its leaves aim from).
-    moved: Vec<Vec3>,
+    moved: Vec<Vec3A>,
     /// Per leaf: its target displacement (bend × profile).
-    leaf_u: Vec<Vec3>,
+    leaf_u: Vec<Vec3A>,
 }
 
 impl Deformer {
@@ -65,11 +68,12 @@ impl Deformer {
             has_bend: vec![false; c],
             table: vec![Vec4::ZERO; c],
             acc: vec![DVec4::ZERO; n],
+            leaf_acc: vec![Vec3A::ZERO; n],
             residual: vec![DVec4::ZERO; n],
             field: vec![DVec3::ZERO; n],
             pos: vec![DVec3::ZERO; n],
-            moved: vec![Vec3::ZERO; n],
-            leaf_u: vec![Vec3::ZERO; rig.leaf_bend.len()],
+            moved: vec![Vec3A::ZERO; n],
+            leaf_u: vec![Vec3A::ZERO; rig.leaf_bend.len()],
         }
     }
 
@@ -137,30 +141,33 @@ impl Deformer {
 
     /// Step 2 for the leaves: each one's borrowed bend (the weighted mean
     /// over its neighbours that have one), its target displacement, and
-    /// its bend with a count of 1 added to its parent's sum.
+    /// its bend added to its parent's sum (with its count, the rig's).
     fn leaf_bends(&mut self, rig: &Rig) {
+        self.leaf_acc.fill(Vec3A::ZERO);
         let k = rig.leaf_k;
         if k == 0 {
             // No captured tip: no leaf bends.
-            self.leaf_u.fill(Vec3::ZERO);
-            for l in &rig.leaf_bend {
-                self.acc[l.parent as usize].w += 1.0;
+            self.leaf_u.fill(Vec3A::ZERO);
+        } else {
+            let from = rig.leaf_from.chunks_exact(k);
+            for ((l, u), from) in rig.leaf_bend.iter().zip(&mut self.leaf_u).zip(from) {
+                let mut sum = Vec4::ZERO;
+                for &(c, w) in from {
+                    sum += self.table[c as usize] * w;
+                }
+                // (Σ w bend, Σ w) over the neighbours with a bend.
+                let bend = if sum.w > 0.0 {
+                    Vec3A::from_vec4(sum) * sum.w.recip()
+                } else {
+                    Vec3A::ZERO
+                };
+                *u = bend * l.profile;
+                self.leaf_acc[l.parent as usize] += bend;
             }
-            return;
         }
-        let from = rig.leaf_from.chunks_exact(k);
-        for ((l, u), from) in rig.leaf_bend.iter().zip(&mut self.leaf_u).zip(from) {
-            let mut sum = Vec4::ZERO;
-            for &(c, w) in from {
-                sum += self.table[c as usize] * w;
-            }
-            let bend = if sum.w > 0.0 {
-                sum.truncate() / sum.w
-            } else {
-                Vec3::ZERO
-            };
-            *u = bend * l.profile;
-            self.acc[l.parent as usize] += bend.as_dvec3().extend(1.0);
+        for ((acc, leaves), &count) in self.acc.iter_mut().zip(&self.leaf_acc).zip(&rig.leaf_count)
+        {
+            *acc += leaves.as_dvec3().extend(count);
         }
     }
 
@@ -170,7 +177,7 @@ impl Deformer {
     /// distance from its parent's new one, pointing at the target.
     fn blend_and_rotate(&mut self, rig: &Rig, tips: &[TipInput]) {
         self.pos[0] = rig.rest[0];
-        self.moved[0] = Vec3::ZERO;
+        self.moved[0] = Vec3A::ZERO;
         let a = self.acc[0];
         self.field[0] = if a.w > 0.0 {
             a.truncate() / a.w
@@ -197,7 +204,7 @@ impl Deformer {
             let aim = target - from;
             let dir = aim.try_normalize().unwrap_or(rig.rest_dir[slot]);
             self.pos[slot] = from + dir * rig.length[slot];
-            self.moved[slot] = (self.pos[slot] - rig.rest[slot]).as_vec3();
+            self.moved[slot] = (self.pos[slot] - rig.rest[slot]).as_vec3().into();
         }
     }
 

@@ -4,7 +4,7 @@
 //! ends apart (the leaves: most of a big tree's nodes, deformed in one
 //! compact f32 pass), and who borrows motion from whom.
 
-use glam::{DVec3, Vec3};
+use glam::{DVec3, Vec3A};
 
 use super::AnimateSettings;
 use crate::error::{Error, Result};
@@ -50,12 +50,13 @@ pub(crate) struct LeafBend {
 /// to its parent (small numbers: f32 keeps them to well under a micrometre).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(crate) struct LeafSegment {
+    /// Rest offset from its parent (m; a SIMD vector, as the pass reads
+    /// it).
+    pub(crate) rel: Vec3A,
     /// Inner slot of its parent.
     pub(crate) parent: u32,
     /// Its node (where its position goes in the output).
     pub(crate) node: u32,
-    /// Rest offset from its parent (m).
-    pub(crate) rel: Vec3,
     /// Rest length of its segment (m).
     pub(crate) length: f32,
 }
@@ -114,6 +115,9 @@ pub struct Rig {
     pub(crate) leaf_from: Vec<(u32, f32)>,
     /// Neighbours per leaf in `leaf_from`.
     pub(crate) leaf_k: usize,
+    /// Per slot: how many leaves hang on it (their count in the blend's
+    /// sums, the same every frame).
+    pub(crate) leaf_count: Vec<f64>,
     /// The leaves' rest positions in f64 (never read by a frame: for
     /// [`Rig::rest_positions`], exact).
     pub(crate) leaf_rest: Vec<DVec3>,
@@ -187,6 +191,7 @@ impl Rig {
             leaf_segment: leaves.segment,
             leaf_from: leaves.from,
             leaf_k: leaves.k,
+            leaf_count: leaves.count,
             leaf_rest: leaves.rest,
         })
     }
@@ -234,6 +239,8 @@ struct Leaves {
     k: usize,
     /// Rest positions.
     rest: Vec<DVec3>,
+    /// Per slot: leaves on it.
+    count: Vec<f64>,
 }
 
 impl Leaves {
@@ -255,12 +262,14 @@ impl Leaves {
             from: Vec::new(),
             k,
             rest: Vec::new(),
+            count: vec![0.0; path.len()],
         };
         for (node, nd) in tree.nodes.iter().enumerate() {
             let Some(p) = nd.parent.filter(|_| leaf[node]) else {
                 continue;
             };
             let parent = slot_of[p];
+            l.count[parent] += 1.0;
             let rel = nd.position - tree.nodes[p].position;
             let profile = profile_at(path[parent] + rel.length(), power);
             // Both fit: the tree has fewer than 2^32 nodes (Rig::new).
@@ -272,7 +281,7 @@ impl Leaves {
             l.segment.push(LeafSegment {
                 parent,
                 node: node as u32,
-                rel: rel.as_vec3(),
+                rel: rel.as_vec3().into(),
                 length: rel.length() as f32,
             });
             l.rest.push(nd.position);
