@@ -272,21 +272,26 @@ fn every_tree_of_a_forest_sways_live_with_its_own_tips() {
     rests.insert(version, trees);
     let loaded = format!("treemocap.tree?.version >= {version}");
     assert!(page.wait(&loaded, 30_000).is_some(), "{}", page.state());
-    // The wind phase at 2× speed while the page is probed.
+    // The wind phase in real time (20 ms a frame) while the page is probed.
     let sending = frames[next..].to_vec();
     let sender = std::thread::spawn(move || {
         let s = UdpSocket::bind("127.0.0.1:0").unwrap();
         for f in &sending {
             s.send_to(&osc_frame(f), ("127.0.0.1", osc_in)).unwrap();
-            std::thread::sleep(Duration::from_millis(10));
+            std::thread::sleep(Duration::from_millis(20));
         }
     });
     let mut probes = Vec::new();
     while !sender.is_finished() {
         std::thread::sleep(Duration::from_millis(150));
         let v = page.eval("treemocap.swayProbe()");
-        let (version, trees) = forest_tips(&base);
-        rests.entry(version).or_insert(trees);
+        // The wind may rebuild the forest: each version's tips are read
+        // while it is current.
+        let current = status(&base)["tree_version"].as_u64().unwrap();
+        if !rests.contains_key(&current) {
+            let (version, trees) = forest_tips(&base);
+            rests.entry(version).or_insert(trees);
+        }
         if !v["pose"].is_null() {
             probes.push(v);
         }
@@ -317,6 +322,7 @@ fn check_poses(rests: &Rests, poses: &HashMap<(u64, u64, i64), (String, Vec<i64>
                 continue;
             }
             let (mut worst, mut compared, mut moved) = (0.0f64, 0, 0.0f64);
+            let mut osc_whole = 0;
             for ((_, _, frame), (n, d)) in &mine {
                 assert_eq!(n, name);
                 let Some(live) = osc.tips.get(frame) else {
@@ -329,10 +335,12 @@ fn check_poses(rests: &Rests, poses: &HashMap<(u64, u64, i64), (String, Vec<i64>
                 for (_, node, _) in tips {
                     moved = moved.max(um(*node).iter().map(|x| x * x).sum::<f64>().sqrt());
                 }
-                // The OSC pose of the same frame and tree says the same.
+                // The OSC pose of the same frame and tree says the same (UDP
+                // under load may lose a datagram of it: what came is checked).
                 if let Some(o) = osc.poses.get(&(*frame, id as i32)) {
-                    assert_eq!(o.len() * 3, d.len(), "OSC pose of tree {id}");
+                    osc_whole += usize::from(o.len() * 3 == d.len());
                     for (node, x) in o {
+                        assert!(3 * node < d.len(), "tree {id}: OSC node {node}");
                         for k in 0..3 {
                             let ws = d[3 * node + k] as f64 * 1e-6;
                             assert!((x[k] - ws).abs() < 2e-6, "tree {id} node {node}: {x:?}");
@@ -341,7 +349,7 @@ fn check_poses(rests: &Rests, poses: &HashMap<(u64, u64, i64), (String, Vec<i64>
                 }
             }
             eprintln!(
-                "forest sway: tree {id} ({name}) v{version}: {} poses, {compared} tips compared, worst {:.4} mm, largest tip displacement {:.1} mm",
+                "forest sway: tree {id} ({name}) v{version}: {} poses ({osc_whole} whole over OSC), {compared} tips compared, worst {:.4} mm, largest tip displacement {:.1} mm",
                 mine.len(),
                 worst * 1e3,
                 moved * 1e3
@@ -352,6 +360,7 @@ fn check_poses(rests: &Rests, poses: &HashMap<(u64, u64, i64), (String, Vec<i64>
                 worst * 1e3
             );
             assert!(compared > 0, "tree {id}: no tip compared");
+            assert!(osc_whole > 0, "tree {id}: no whole pose over OSC");
             checked += 1;
         }
     }
@@ -396,5 +405,16 @@ fn check_page(
         }
     }
     eprintln!("forest sway on the page: probes matched per tree {shown:?}");
-    assert_eq!(shown.len(), 3, "every tree swayed on the page: {shown:?}");
+    assert_eq!(
+        shown.len(),
+        3,
+        "every tree swayed on the page: {shown:?}; {} probes, the last {:?}",
+        probes.len(),
+        probes.last().map(|p| (
+            &p["pose"],
+            &p["frames"],
+            &p["tree"],
+            p["tips"].as_object().map(|t| t.len())
+        ))
+    );
 }
