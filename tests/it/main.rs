@@ -15,6 +15,7 @@ mod export;
 mod forest;
 mod hostile_input;
 mod http_limits;
+mod live_forest;
 mod live_view;
 mod log_format;
 mod motive_csv;
