@@ -147,7 +147,10 @@ impl Model {
     /// displacement.
     fn residuals(&self, rows: &[Option<Row>], c: DVec3) -> Vec<Option<DVec3>> {
         rows.iter()
-            .map(|r| r.as_ref().map(|r| r.host - c - self.explained(&r.neighbours)))
+            .map(|r| {
+                r.as_ref()
+                    .map(|r| r.host - c - self.explained(&r.neighbours))
+            })
             .collect()
     }
 
@@ -166,7 +169,9 @@ impl Model {
         let (Some(Some(ra)), Some(Some(rb))) = (self.before.last(), self.after.first()) else {
             return true;
         };
-        let lag = (h.max(1) as usize).min(self.before.len().saturating_sub(1)).max(1);
+        let lag = (h.max(1) as usize)
+            .min(self.before.len().saturating_sub(1))
+            .max(1);
         let (s1, n1) = drift(&self.before, lag);
         let (s2, n2) = drift(&self.after, lag);
         if n1 + n2 == 0 {
