@@ -274,9 +274,17 @@ fn fill_one(
     };
     let choice = choose(model.as_ref(), b - a, duration, settings);
     let end_span = ((END_FIT_S / dt).round() as i64).max(4);
+    let pchip_ok = duration <= settings.max_pchip_s + 1e-9;
+    // Where the model cannot be evaluated (a neighbour's hole, too few
+    // residuals at an end), a gap PCHIP may fill is filled from the
+    // marker's own samples.
+    let own = || own_fill(ctx, end_span).or_else(|| Some(pchip_between(ctx, a, b)));
     let fill = match (choice, &model) {
-        (Choice::Model, Some(m)) => neighbour_fill(ctx, m, end_span, duration),
-        (Choice::Own, _) => own_fill(ctx, end_span).or_else(|| Some(pchip_between(ctx, a, b))),
+        (Choice::Model, Some(m)) => {
+            neighbour_fill(ctx, m, end_span, duration)
+                .or_else(|| if pchip_ok { own() } else { None })
+        }
+        (Choice::Own, _) => own(),
         (Choice::Pchip, _) => Some(pchip_between(ctx, a, b)),
         _ => None,
     };
@@ -335,9 +343,14 @@ fn neighbour_fill(ctx: &Context<'_, '_>, m: &Model, span: i64, duration: f64) ->
     let left = (m.before.iter().rev().take(n).enumerate())
         .filter_map(|(i, r)| r.map(|r| (-(i as f64), r)));
     let right = (m.after.iter().take(n).enumerate()).filter_map(|(i, r)| r.map(|r| (i as f64, r)));
-    let (p0, s0) = quad_end(left)?;
-    let (p1, s1) = quad_end(right)?;
+    // The residual at the gap's ends (the host and every neighbour are
+    // measured there); an end with too few residuals near it for a fit
+    // keeps that value and the secant's slope.
+    let (ra, rb) = ((*m.before.last()?)?, (*m.after.first()?)?);
     let h = (b - a) as f64;
+    let raw = (rb - ra) / h;
+    let (p0, s0) = quad_end(left).unwrap_or((ra, raw));
+    let (p1, s1) = quad_end(right).unwrap_or((rb, raw));
     let t = duration / SLOPE_FADE_S;
     let keep = 1.0 / (1.0 + t * t * t * t);
     let secant = (p1 - p0) / h;
@@ -624,7 +637,7 @@ mod tests {
         // 4 missing frames at 100 Hz (0.04 s): PCHIP, exactly as the
         // baseline fills it.
         let f = |n: i64| DVec3::new(0.03 * (n as f64 / 7.0).sin(), 1.0, 0.0);
-        let frames = || (0..50).chain(55..100);
+        let frames = || (0..50).chain(54..100);
         let mut ours = [trace_of(0, f, frames())];
         let mut base = [trace_of(0, f, frames())];
         fill_gaps(&mut ours, &timeline(100), settings());
