@@ -1,28 +1,25 @@
 //! Gap filling (paper §4, spec §3): from the neighbours' motion where they
 //! predict it, by PCHIP where they do not.
 //!
-//! A tip hidden for a while keeps swinging with its limb. The frames of the
-//! gap are predicted from the markers nearby that were measured through it
-//! (a local linear model of the neighbours' trajectories, after Federolf
-//! 2013 and Gløersen & Federolf 2016 for human markers):
-//!
-//! `p̂(t) = p(a) + Σ wⱼ (qⱼ(t) − qⱼ(a))`, with the weights fitted by least
-//! squares (ridge) to the marker's own motion against theirs in the second
-//! before and after the gap; the remaining mismatch at the far end `b` is
-//! spread linearly over the gap, so the fill meets both measured ends.
-//!
-//! Whether to trust it is decided by the same model, on the marker's own
-//! data: gaps of the same length are cut out of its measured stretches next
-//! to the real gap, filled by the model and compared with what was measured.
-//! - Gaps up to `max_pchip_s` are filled by PCHIP (the cubic Hermite with
-//!   Fritsch–Carlson slopes, which never overshoots): on the stress sweep
-//!   the neighbours' model did not beat it there. Longer gaps, up to
-//!   `max_fill_s`, are filled from the neighbours.
-//! - A gap whose far end misses the neighbours' prediction by far more than
-//!   the model misses on those test gaps (`PLAUSIBLE` × their RMS end error,
-//!   at least `MIN_MISMATCH_M`) is left open: its two ends are most likely
-//!   different markers, and no fill may bridge two markers.
-//! - Without usable neighbours, PCHIP fills gaps up to `max_pchip_s`.
+//! By the gap's length (missing time):
+//! - under `MIN_OWN_S` (10 frames at 240 Hz): PCHIP (the cubic Hermite with
+//!   Fritsch–Carlson slopes, which never overshoots);
+//! - up to `MAX_OWN_S` (50 frames at 240 Hz): a cubic Hermite between the
+//!   ends of least-squares quadratics fitted to the marker's own samples
+//!   over `END_FIT_S` each side (noise averaged out of the end values and
+//!   slopes; PCHIP's three-sample slopes are noisy and its limiter flattens
+//!   a twig's swing);
+//! - longer, up to `max_fill_s`: the neighbours' local linear model (see
+//!   [`model`], after Federolf 2013 and Gløersen & Federolf 2016) plus a
+//!   Hermite of its residual between the residual's fitted ends, so the
+//!   fill meets the measured ends and in between follows the neighbours'
+//!   coherent sway; the end slopes fade towards the secant on long gaps.
+//! - A gap whose residual changes across it by far more than it does over
+//!   the same span beside it (`PLAUSIBLE` ×, at least 8 mm) is left open,
+//!   whatever its length: its ends are most likely different markers, and
+//!   no fill may bridge two markers.
+//! - Without usable neighbours, gaps up to `max_pchip_s` are filled from
+//!   the marker's own samples; longer ones stay open.
 //!
 //! Traces are read in one streaming pass with a window of a few seconds,
 //! so memory does not grow with the session.
