@@ -13,6 +13,7 @@ mod daemon_first_minutes;
 mod disk_full;
 mod export;
 mod forest;
+mod gaps_fill;
 mod hostile_input;
 mod http_limits;
 mod live_forest;
