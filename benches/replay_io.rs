@@ -10,6 +10,7 @@ use std::time::Duration;
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use glam::DVec3;
 use treemocap::format::log::{LogHeader, LogWriter};
+use treemocap::format::motive_csv::{MotiveCsvReader, ReadOptions, DEFAULT_TIME_TOLERANCE_S};
 use treemocap::{Marker, MarkerFrame};
 
 const MARKERS: usize = 35;
@@ -123,6 +124,16 @@ fn write_wide_export(path: &std::path::Path, channels: usize) -> usize {
     samples
 }
 
+/// The export at `path`, its rows parsed by `workers` threads (`None`: the default).
+fn open_with(path: &std::path::Path, workers: Option<usize>) -> MotiveCsvReader {
+    let mut options = ReadOptions::default();
+    if let Some(w) = workers {
+        options.workers = w;
+    }
+    let file = std::fs::File::open(path).unwrap();
+    MotiveCsvReader::from_file_with(file, path, DEFAULT_TIME_TOLERANCE_S, options).unwrap()
+}
+
 fn read_wide_motive_csv(c: &mut Criterion) {
     let dir = tempfile::tempdir().unwrap();
     let mut g = c.benchmark_group("motive_csv_bytes");
@@ -141,13 +152,18 @@ fn read_wide_motive_csv(c: &mut Criterion) {
             write_wide_export(&path, 3000)
         };
         g.throughput(Throughput::Bytes(std::fs::metadata(&path).unwrap().len()));
-        g.bench_function(name, |b| {
-            b.iter(|| {
-                let reader = treemocap::app::open::motive_csv(&path).unwrap();
-                let n: usize = reader.map(|f| f.unwrap().markers.len()).sum();
-                assert_eq!(n, samples);
-            })
-        });
+        // The default reader (rows parsed on worker threads) and the
+        // single-threaded path, on the same file.
+        for (suffix, workers) in [("", None), ("_1_thread", Some(0))] {
+            g.bench_function(format!("{name}{suffix}"), |b| {
+                b.iter(|| {
+                    let n: usize = open_with(&path, workers)
+                        .map(|f| f.unwrap().markers.len())
+                        .sum();
+                    assert_eq!(n, samples);
+                })
+            });
+        }
     }
     g.finish();
 }

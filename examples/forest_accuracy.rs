@@ -48,7 +48,7 @@ fn main() {
         .unwrap_or(40);
     let recon = ReconstructSettings::default();
     // Settings to try, from the environment: SWAY_WEIGHT, SWAY_CORRELATION,
-    // FIT_TOLERANCE; OVERLAPS (comma separated) limits the sweep.
+    // FIT_TOLERANCE, MIN_SPACING; SEED_BASE picks the seeds; OVERLAPS (comma separated) limits the sweep.
     let env = |k: &str| std::env::var(k).ok().and_then(|v| v.parse::<f64>().ok());
     let d = ForestSettings::default();
     let crown = ForestSettings {
@@ -58,6 +58,12 @@ fn main() {
         min_spacing_m: env("MIN_SPACING").unwrap_or(d.min_spacing_m),
         ..d
     };
+    // The seeds: 1000.. for the README's figures; SEED_BASE picks another
+    // range to choose settings on (5000.. was used).
+    let first_seed = std::env::var("SEED_BASE")
+        .ok()
+        .and_then(|v| v.parse::<u64>().ok())
+        .unwrap_or(1000);
     let overlaps: Vec<f64> = std::env::var("OVERLAPS")
         .ok()
         .map(|v| v.split(',').filter_map(|x| x.parse().ok()).collect())
@@ -77,7 +83,7 @@ fn main() {
         let mut tips_total = 0;
         for seed in 0..n {
             let trees = 2 + (seed % 4) as usize;
-            let t = session(1000 + seed, trees, overlap);
+            let t = session(first_seed + seed, trees, overlap);
             let f = t.forest.as_ref().expect("forest");
             let tips = t.rest_tips();
             tips_total += tips.len();
@@ -119,7 +125,7 @@ fn main() {
                                     .map(|a| a.costs);
                                 eprintln!(
                                     "seed {} tip {} ({:?} tree {truth_tree}) -> tree {} ({:?}); links {nl}; ambiguous {amb:?}; h from true base {:.2}, from given {:.2}",
-                                    1000 + seed, c.marker, f.trees[truth_tree].tree.shape, tree.id, f.trees[tree.id].tree.shape,
+                                    first_seed + seed, c.marker, f.trees[truth_tree].tree.shape, tree.id, f.trees[tree.id].tree.shape,
                                     ((c.position - f.trees[truth_tree].base) * glam::DVec3::new(1.0, 0.0, 1.0)).length(),
                                     ((c.position - f.trees[tree.id].base) * glam::DVec3::new(1.0, 0.0, 1.0)).length(),
                                 );
@@ -143,7 +149,7 @@ fn main() {
                 } else {
                     eprintln!(
                         "seed {}: {} trees found of {trees} (fits {:?})",
-                        1000 + seed,
+                        first_seed + seed,
                         plan.trees.len(),
                         plan.fits
                     );

@@ -6,7 +6,7 @@ use std::io::Write;
 use std::path::Path;
 
 use treemocap::app::synth::write_session;
-use treemocap::format::motive_csv::MotiveCsvReader;
+use treemocap::format::motive_csv::{MotiveCsvReader, ReadOptions};
 use treemocap::sim::{CrownShape, SynthOptions};
 
 use crate::util::{cat_seconds, mb_s, or_dash, peer_seconds, timed, Row, Scale};
@@ -57,11 +57,11 @@ fn write_dense(path: &Path, frames: usize, markers: usize, rate: f64) {
     }
 }
 
-/// Reads the whole export; (seconds, marker samples, columns).
-fn read_all(path: &Path) -> (f64, u64, usize) {
+/// Reads the whole export with `options`; (seconds, marker samples, columns).
+fn read_all(path: &Path, options: ReadOptions) -> (f64, u64, usize) {
     let ((samples, columns), s) = timed(|| {
         let file = std::fs::File::open(path).expect("open");
-        let r = MotiveCsvReader::from_file(file, path, 0.002).expect("open");
+        let r = MotiveCsvReader::from_file_with(file, path, 0.002, options).expect("open");
         let columns = treemocap::format::Recording::channels(&r).len() * 3;
         let mut n = 0u64;
         for f in r {
@@ -76,14 +76,24 @@ fn read_all(path: &Path) -> (f64, u64, usize) {
 fn measure(name: &str, path: &Path) -> Row {
     let bytes = std::fs::metadata(path).map_or(0, |m| m.len());
     let cat = cat_seconds(path);
-    let (ours, samples, columns) = (0..3)
-        .map(|_| read_all(path))
-        .min_by(|a, b| a.0.total_cmp(&b.0))
-        .expect("three runs");
+    let best = |options: ReadOptions| {
+        (0..3)
+            .map(|_| read_all(path, options))
+            .min_by(|a, b| a.0.total_cmp(&b.0))
+            .expect("three runs")
+    };
+    let parallel = ReadOptions::default();
+    let (ours, samples, columns) = best(parallel);
+    let (one_thread, ..) = best(ReadOptions {
+        workers: 0,
+        ..parallel
+    });
     let pandas = peer_seconds(&["pandas-motive", &path.to_string_lossy()]);
     println!(
-        "csv {name}: {:.0} MB, {columns} columns, {samples} samples: treemocap {ours:.2} s, cat {cat:.3} s, pandas {}",
+        "csv {name}: {:.0} MB, {columns} columns, {samples} samples: treemocap {ours:.2} s \
+         ({} workers; {one_thread:.2} s on one thread), cat {cat:.3} s, pandas {}",
         bytes as f64 / 1e6,
+        parallel.workers,
         or_dash(pandas, |p| format!("{p:.2} s"))
     );
     Row::new(
@@ -93,11 +103,14 @@ fn measure(name: &str, path: &Path) -> Row {
         ),
         "≥ 1/10 of `cat`",
         format!(
-            "{:.0} MB/s = 1/{:.1} of cat ({:.0} MB/s); {:.1} M samples/s",
+            "{:.0} MB/s = 1/{:.1} of cat ({:.0} MB/s); {:.1} M samples/s; \
+             one thread: {:.0} MB/s = 1/{:.1} of cat",
             mb_s(bytes, ours),
             ours / cat,
             mb_s(bytes, cat),
-            samples as f64 / ours / 1e6
+            samples as f64 / ours / 1e6,
+            mb_s(bytes, one_thread),
+            one_thread / cat
         ),
         or_dash(pandas, |p| {
             format!(

@@ -5,7 +5,7 @@
 //! ```text
 //! cargo build --release && cargo run --release --example scale -- [--quick] [PARTS]
 //! ```
-//! PARTS: any of `csv daemon replay picture peers` (default: all). `--quick`
+//! PARTS: any of `csv daemon replay picture history peers` (default: all). `--quick`
 //! shortens everything (30 s daemon runs, a 10-minute replay) for a smoke
 //! run; the README's figures come from the full run. Python peers are
 //! skipped with a note when not installed (`pip install -r
@@ -14,6 +14,7 @@
 
 mod csv;
 mod daemon;
+mod history;
 mod peers;
 mod picture;
 mod replay;
@@ -43,6 +44,9 @@ fn main() {
     }
     if want("picture") {
         rows.extend(picture::share(&scale));
+    }
+    if want("history") {
+        rows.extend(history::growth(&scale));
     }
     if want("peers") {
         rows.extend(peers::c3d_and_natnet(&scale));

@@ -16,8 +16,9 @@
 //! - [`animate`]: a session's traces → [`TreeMotion`] at the keys of the
 //!   animation (`keys`).
 //!
-//! Pure: no I/O, no clock, no threads; f64 arithmetic in a fixed order, so
-//! the same inputs give the same positions.
+//! Pure: no I/O, no clock, no threads; arithmetic in a fixed order (f64,
+//! and f32 for the random tips at branch ends, relative to their parents),
+//! so the same inputs give the same positions.
 //!
 //! [`TreeMotion`]: crate::model::motion::TreeMotion
 

@@ -44,8 +44,8 @@ pub(crate) fn run(shared: &Arc<Shared>, tips_tx: Sender<Vec<(usize, DVec3)>>) {
                 continue;
             }
         };
-        // How the tree sways with the live tips (daemon::pose); a tree
-        // alone only: several trees are published still (docs/forest.md).
+        // How the tree sways with the live tips (daemon::pose); several
+        // trees each have their own rig (snapshot_trees).
         let rig = if outputs.report.forest.is_none() {
             Rig::new(&outputs.tree, &animate).ok().map(Arc::new)
         } else {
@@ -94,7 +94,10 @@ fn snapshot_trees(shared: &Shared, outputs: &Outputs) -> Vec<SnapshotTree> {
     let Some(report) = &outputs.report.forest else {
         return Vec::new();
     };
-    let settings = lock(&shared.recon_config).reconstruct.clone();
+    let (settings, animate) = {
+        let c = lock(&shared.recon_config);
+        (c.reconstruct.clone(), c.animate.clone())
+    };
     outputs
         .trees
         .iter()
@@ -108,6 +111,7 @@ fn snapshot_trees(shared: &Shared, outputs: &Outputs) -> Vec<SnapshotTree> {
             nodes: SnapshotNode::of_tree(&m.tree),
             tree_json: crate::render::json::to_json_seeded(&m.tree, &settings, m.seed)
                 .unwrap_or_default(),
+            rig: Rig::new(&m.tree, &animate).ok().map(Arc::new),
         })
         .collect()
 }

@@ -100,26 +100,37 @@ impl Drop for PoseFeed {
     }
 }
 
-/// The worker: one pose per input, to the viewers (a JSON `pose` event)
-/// and OSC; ends when the pipeline drops its feed.
+/// The worker: per input one pose per tree that sways, to the viewers
+/// (JSON `pose` events, all of one frame published together) and OSC; ends
+/// when the pipeline drops its feed.
 fn work(
     shared: &Shared,
     pose: &mut LivePose,
     mut osc: Option<OscSender>,
     rx: &Receiver<PoseInput>,
 ) {
+    let mut messages = Vec::new();
     for input in rx.iter() {
         let tree = shared.tree_tx.borrow().clone();
-        let Some(p) = pose.update(tree.as_deref(), input.frame, input.time_s, &input.seen) else {
-            continue;
-        };
-        if shared.hub.has_viewers() {
-            shared.hub.publish_pose(pose_message(&p));
-        }
-        if let Some(o) = osc.as_mut() {
-            for d in pose_datagrams(&p) {
-                o.send(&d);
-            }
+        let viewers = shared.hub.has_viewers();
+        messages.clear();
+        pose.update(
+            tree.as_deref(),
+            (input.frame, input.time_s),
+            &input.seen,
+            &mut |p| {
+                if viewers {
+                    messages.push(pose_message(p));
+                }
+                if let Some(o) = osc.as_mut() {
+                    for d in pose_datagrams(p) {
+                        o.send(&d);
+                    }
+                }
+            },
+        );
+        if !messages.is_empty() {
+            shared.hub.publish_pose(messages.as_slice().into());
         }
     }
 }

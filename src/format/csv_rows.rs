@@ -129,11 +129,9 @@ impl<R: BufRead> RowReader<R> {
         Ok(true)
     }
 
-    /// Reads the next line without splitting it into fields (see
-    /// [`Self::line_bytes`]); `Ok(false)` at the end of the input. Data rows
-    /// are read this way and scanned in place; [`Self::split`] makes fields
-    /// of the line when needed.
-    pub(crate) fn read_line(&mut self) -> Result<bool, RowError> {
+    /// Reads the next line without splitting it into fields; `Ok(false)`
+    /// at the end of the input. [`Self::split`] makes fields of it.
+    fn read_line(&mut self) -> Result<bool, RowError> {
         self.data.clear();
         self.ends.clear();
         self.row_line = self.lines_read + 1;
@@ -147,20 +145,9 @@ impl<R: BufRead> RowReader<R> {
         Ok(true)
     }
 
-    /// The line just read by [`Self::read_line`], without its line end.
-    pub(crate) fn line_bytes(&self) -> &[u8] {
-        &self.raw[..trim_eol(&self.raw)]
-    }
-
-    /// The line just read with its line end: word-at-a-time readers may look
-    /// a few bytes past a field's end.
-    pub(crate) fn line_buffer(&self) -> &[u8] {
-        &self.raw
-    }
-
     /// Splits the line just read into fields; a quoted field running over
     /// the line end pulls in the following lines (while `multiline`).
-    pub(crate) fn split(&mut self) -> Result<(), RowError> {
+    fn split(&mut self) -> Result<(), RowError> {
         self.data.clear();
         self.ends.clear();
         let mut budget = self.budget_left;
@@ -237,6 +224,12 @@ impl<R: BufRead> RowReader<R> {
         self.end_field()?;
         self.budget_left = budget;
         Ok(())
+    }
+
+    /// The reader, positioned after the last line read (data rows are
+    /// read in blocks once the header is known).
+    pub(crate) fn into_inner(self) -> R {
+        self.reader
     }
 
     /// The line the current row starts on.
@@ -317,7 +310,8 @@ impl Row {
     }
 }
 
-fn trim_eol(raw: &[u8]) -> usize {
+/// Length of `raw` without its line end (`\n` or `\r\n`).
+pub(crate) fn trim_eol(raw: &[u8]) -> usize {
     let mut n = raw.len();
     if n > 0 && raw[n - 1] == b'\n' {
         n -= 1;

@@ -19,15 +19,20 @@
 use std::fs::File;
 use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
-use glam::DVec3;
-
-use super::cells::{self, Scan};
-use super::csv_rows::{Row, RowError, RowLimits, RowReader};
+use super::csv_rows::{Row, RowLimits, RowReader};
 
 use super::{Channel, ChannelKind, Format, Recording, RecordingInfo};
 use crate::error::{excerpt, excerpt_bytes, Error, Result};
-use crate::model::frame::{Marker, MarkerFrame};
+use crate::model::frame::MarkerFrame;
+
+mod chunks;
+mod rows;
+
+pub use chunks::ReadOptions;
+use chunks::{Chunks, Pending};
+use rows::{row_error, shifted, Layout, Parsed, PoseColumns, RowFrame, NO_CHANNEL};
 
 /// Default allowed disagreement of the Time column (s); see `config.replay`.
 /// How far the Time column may disagree with frame / rate by default (s):
@@ -53,7 +58,15 @@ struct ChannelColumns {
 /// Streaming reader of a Motive CSV export.
 pub struct MotiveCsvReader {
     path: PathBuf,
-    rows: RowReader<BufReader<File>>,
+    /// The header's rows; once the header is read, an empty stand-in (the
+    /// data rows are read in blocks by `data`).
+    rows: RowReader<Box<dyn BufRead + Send>>,
+    /// The data rows, read and parsed in chunks (on worker threads).
+    data: Option<Chunks>,
+    /// Threads and block size for `data`.
+    options: ReadOptions,
+    /// The chunk whose frames are being handed out.
+    current: Current,
     info: RecordingInfo,
     /// Row 1 as read, in order, for `inspect` and for users who want the take's
     /// notes or start time.
@@ -74,23 +87,11 @@ pub struct MotiveCsvReader {
     /// Latest values of non-marker channels (rigid bodies, bones), kept apart
     /// from the tip candidates: (channel index, values in file order; NaN = empty).
     poses: Vec<(usize, Vec<f64>)>,
-    /// What each column of a data row is: `channel << 2 | role` with role
-    /// 0–2 the X, Y, Z of a marker's position and 3 any other column of a
-    /// channel; [`NO_CHANNEL`] for Frame, Time, TimeCode and unnamed columns.
-    /// Rows are read cell by cell through this map, so a row costs what its
-    /// non-empty cells cost, however many columns the take has.
-    column_roles: Vec<u32>,
     /// Per channel: cells that held something, so empty cells are counted
     /// without visiting them (empty = rows × width − non-empty).
     nonempty: Vec<u64>,
     /// Data rows read (blank lines aside).
     rows_read: u64,
-    /// Per channel: its slot in `poses` (non-marker channels), else `u32::MAX`.
-    pose_slot: Vec<u32>,
-    /// Per pose slot: cells filled in the current row.
-    pose_filled: Vec<u32>,
-    /// The non-empty cells of the current row: (column, start, end).
-    cells: Vec<(usize, usize, usize)>,
     warnings: Vec<String>,
     done: bool,
 }
@@ -118,6 +119,17 @@ impl MotiveCsvReader {
     /// data rows are read by iterating. `time_tolerance_s` is how far the
     /// Time column may disagree with frame / rate before a warning.
     pub fn from_file(file: File, path: &Path, time_tolerance_s: f64) -> Result<Self> {
+        Self::from_file_with(file, path, time_tolerance_s, ReadOptions::default())
+    }
+
+    /// [`Self::from_file`] with the data rows read as `options` say
+    /// (`workers: 0` for the single-threaded path).
+    pub fn from_file_with(
+        file: File,
+        path: &Path,
+        time_tolerance_s: f64,
+        options: ReadOptions,
+    ) -> Result<Self> {
         let mut buf = BufReader::with_capacity(1 << 16, file);
         // Skip a UTF-8 BOM ourselves: the CSV parser would keep it in the
         // first key and `Format Version` would not be found.
@@ -127,7 +139,10 @@ impl MotiveCsvReader {
         }
         let mut r = MotiveCsvReader {
             path: path.to_path_buf(),
-            rows: RowReader::new(buf, RowLimits::default()),
+            rows: RowReader::new(Box::new(buf), RowLimits::default()),
+            data: None,
+            options,
+            current: Current::default(),
             info: RecordingInfo {
                 format: Format::MotiveCsv,
                 version: String::new(),
@@ -146,12 +161,8 @@ impl MotiveCsvReader {
             time_origin: None,
             time_mismatches: 0,
             poses: Vec::new(),
-            column_roles: Vec::new(),
             nonempty: Vec::new(),
             rows_read: 0,
-            pose_slot: Vec::new(),
-            pose_filled: Vec::new(),
-            cells: Vec::new(),
             warnings: Vec::new(),
             done: false,
         };
@@ -164,32 +175,7 @@ impl MotiveCsvReader {
     }
 
     fn read_row(&mut self) -> Result<bool> {
-        self.rows.read().map_err(|e| self.row_error(e))
-    }
-
-    /// A row the reader refused, as an error at its line.
-    fn row_error(&self, e: RowError) -> Error {
-        match e {
-            RowError::Io(e) => Error::io(&self.path, e),
-            RowError::TooLong { line, limit } => self.err(
-                line,
-                None,
-                format!(
-                    "row is longer than {} MiB: not a Motive CSV row (a quote left open?)",
-                    limit >> 20
-                ),
-            ),
-            RowError::TooManyFields { line, limit } => self.err(
-                line,
-                Some(limit as u64 + 1),
-                format!("row has more than {limit} fields, more than any Motive export"),
-            ),
-            RowError::UnterminatedQuote { line, column } => self.err(
-                line,
-                Some(column),
-                "a quote opened here is not closed on this line (data rows hold no quotes)",
-            ),
-        }
+        self.rows.read().map_err(|e| row_error(&self.path, e))
     }
 
     /// Reads the whole header: row 1's key/value map, then the descriptor
@@ -221,7 +207,8 @@ impl MotiveCsvReader {
             axis: &rows.axis,
         };
         self.group_channels(&descriptors, axis_line)?;
-        self.map_columns();
+        let layout = self.map_columns();
+        self.start_data(layout);
         Ok(())
     }
 
@@ -473,28 +460,62 @@ impl MotiveCsvReader {
     }
 
     /// Builds the column map and the per-channel counters once the channels
-    /// are known.
-    fn map_columns(&mut self) {
-        self.column_roles = vec![NO_CHANNEL; self.width];
+    /// are known: the layout every thread parsing rows reads.
+    fn map_columns(&mut self) -> Layout {
+        let mut roles = vec![NO_CHANNEL; self.width];
         for (ci, cols) in self.columns.iter().enumerate() {
-            for c in cols.first..cols.end {
-                let role = cols
+            for (c, role) in roles.iter_mut().enumerate().take(cols.end).skip(cols.first) {
+                let axis = cols
                     .position
                     .and_then(|xyz| xyz.iter().position(|&p| p == c))
                     .unwrap_or(3);
-                self.column_roles[c] = (ci as u32) << 2 | role as u32;
+                *role = (ci as u32) << 2 | axis as u32;
             }
         }
         self.nonempty = vec![0; self.channels.len()];
-        self.pose_slot = vec![u32::MAX; self.channels.len()];
+        let mut pose_slot = vec![u32::MAX; self.channels.len()];
+        let mut poses = Vec::new();
+        let mut offset = 0;
         for (ci, ch) in self.channels.iter().enumerate() {
             if !ch.kind.is_marker() {
-                self.pose_slot[ci] = self.poses.len() as u32;
-                let width = self.columns[ci].end - self.columns[ci].first;
+                pose_slot[ci] = poses.len() as u32;
+                let cols = &self.columns[ci];
+                let width = cols.end - cols.first;
+                poses.push(PoseColumns {
+                    channel: ci,
+                    first: cols.first,
+                    width,
+                    offset,
+                });
+                offset += width;
                 self.poses.push((ci, vec![f64::NAN; width]));
             }
         }
-        self.pose_filled = vec![0; self.poses.len()];
+        Layout {
+            path: self.path.clone(),
+            width: self.width,
+            roles,
+            pose_slot,
+            poses,
+            pose_width: offset,
+            channels: self
+                .channels
+                .iter()
+                .map(|c| (c.name.clone(), c.kind))
+                .collect(),
+            scale: self.scale,
+            limits: RowLimits::default(),
+        }
+    }
+
+    /// Hands the rest of the file to the block reader: the header reader
+    /// is left with an empty stand-in, the data rows start after its last line.
+    fn start_data(&mut self, layout: Layout) {
+        let empty: Box<dyn BufRead + Send> = Box::new(std::io::empty());
+        let header = std::mem::replace(&mut self.rows, RowReader::new(empty, RowLimits::default()));
+        self.current.base = header.line();
+        let source = Box::new(header.into_inner());
+        self.data = Some(Chunks::new(source, Arc::new(layout), self.options));
     }
 
     /// Brings the channels' empty-cell counts up to date (they are derived
@@ -519,123 +540,6 @@ impl MotiveCsvReader {
         &self.poses
     }
 
-    /// Finds the non-empty cells of the line just read; `None` for a blank
-    /// line. Unquoted rows (every data row Motive writes) are scanned in
-    /// place; a row with a quoted cell goes through the full CSV reader.
-    fn find_cells(&mut self) -> Result<Option<(usize, bool)>> {
-        self.cells.clear();
-        let cells = &mut self.cells;
-        // Cells past the header's width are kept only as far as the first
-        // one (the error names it): a hostile row of millions of fields
-        // costs no memory beyond the row itself.
-        let width = self.width;
-        let keep = |c: usize, a: usize, b: usize| {
-            if cells.last().is_none_or(|l| l.0 < width) {
-                cells.push((c, a, b));
-            }
-        };
-        let fields = match cells::scan(self.rows.line_bytes(), keep) {
-            Scan::Fields(n) => (n, true),
-            Scan::Quoted => {
-                self.rows.split().map_err(|e| self.row_error(e))?;
-                self.cells.clear();
-                for i in 0..self.rows.len() {
-                    let (a, b) = self.rows.field_range(i);
-                    if a < b && self.cells.last().is_none_or(|l| l.0 < self.width) {
-                        self.cells.push((i, a, b));
-                    }
-                }
-                (self.rows.len(), false)
-            }
-        };
-        Ok((!self.cells.is_empty()).then_some(fields))
-    }
-
-    /// Parses the data row just read into a frame; `None` for a blank line.
-    fn parse_row(&mut self) -> Result<Option<MarkerFrame>> {
-        let Some((n, in_place)) = self.find_cells()? else {
-            return Ok(None);
-        };
-        let line = self.rows.line();
-        self.check_field_count(n, line)?;
-        let (frame, time) = self.frame_and_time(in_place, line)?;
-        if let Some(t) = time {
-            self.check_time_column(frame, t, line);
-        }
-        self.rows_read += 1;
-        let markers = self.read_channel_cells(in_place, line)?;
-        Ok(Some(MarkerFrame::new(
-            frame,
-            self.frame_time(frame),
-            markers,
-        )))
-    }
-
-    /// Refuses a row whose field count is not the header's: trailing empty
-    /// cells may be cut by hand-edited files, but a row short of real data,
-    /// or with data past the header, is malformed.
-    fn check_field_count(&self, n: usize, line: u64) -> Result<()> {
-        let error = |column: usize| {
-            self.err(
-                line,
-                Some(column as u64 + 1),
-                format!("row has {n} fields, the header has {}", self.width),
-            )
-        };
-        if n < self.width {
-            return Err(error(n));
-        }
-        if let Some(&(c, _, _)) = self.cells.last().filter(|c| c.0 >= self.width) {
-            return Err(error(c));
-        }
-        Ok(())
-    }
-
-    /// The bytes the current row's cell ranges point into.
-    fn row_bytes(&self, in_place: bool) -> &[u8] {
-        if in_place {
-            self.rows.line_buffer()
-        } else {
-            self.rows.data_buffer()
-        }
-    }
-
-    /// The row's frame number (required) and Time column (optional).
-    fn frame_and_time(&self, in_place: bool, line: u64) -> Result<(i64, Option<f64>)> {
-        let buf = self.row_bytes(in_place);
-        let text = |a: usize, b: usize| excerpt_bytes(&buf[a..b]);
-        let (frame_cell, time_cell) = {
-            let mut it = self.cells.iter().take(2).filter(|c| c.0 < 2);
-            let first = it.next().copied();
-            let second = it.next().copied();
-            match first {
-                Some(c) if c.0 == 0 => (Some(c), second),
-                other => (None, other),
-            }
-        };
-        let frame: i64 = frame_cell
-            .and_then(|(_, a, b)| std::str::from_utf8(&buf[a..b]).ok()?.trim().parse().ok())
-            .ok_or_else(|| {
-                let t = frame_cell.map_or(String::new(), |(_, a, b)| text(a, b));
-                self.err(
-                    line,
-                    Some(1),
-                    format!("frame number \"{t}\" is not an integer"),
-                )
-            })?;
-        let time = match time_cell {
-            Some((_, a, b)) => Some(cells::number(buf, a, b).ok_or_else(|| {
-                self.err(
-                    line,
-                    Some(2),
-                    format!("time \"{}\" is not a number", text(a, b)),
-                )
-            })?),
-            None => None,
-        };
-        Ok((frame, time))
-    }
-
     /// Compares the Time column with frame / rate from the first row that
     /// had one; the first disagreement beyond the tolerance is a warning,
     /// later ones are only counted.
@@ -656,59 +560,6 @@ impl MotiveCsvReader {
         }
     }
 
-    /// Reads the row's channel cells: markers with X, Y and Z become the
-    /// frame's markers, other channels' values go to `poses`; counts
-    /// non-empty cells and present channels.
-    fn read_channel_cells(&mut self, in_place: bool, line: u64) -> Result<Vec<Marker>> {
-        for (_, values) in &mut self.poses {
-            values.fill(f64::NAN);
-        }
-        self.pose_filled.fill(0);
-        // Borrows only `rows`, so the counters below can change meanwhile.
-        let buf = if in_place {
-            self.rows.line_buffer()
-        } else {
-            self.rows.data_buffer()
-        };
-        let mut markers = Vec::new();
-        // The marker channel being filled: (channel, X Y Z, axes seen).
-        let mut open: Option<(usize, [f64; 3], u8)> = None;
-        for &(c, a, b) in &self.cells {
-            let role = self.column_roles[c];
-            if role == NO_CHANNEL {
-                continue;
-            }
-            let (ci, axis) = ((role >> 2) as usize, (role & 3) as usize);
-            self.nonempty[ci] += 1;
-            let slot = self.pose_slot[ci];
-            if slot == u32::MAX && axis == 3 {
-                continue; // a marker's other columns (quality…) are not read
-            }
-            if slot == u32::MAX && open.is_some_and(|o| o.0 != ci) {
-                close_marker(open.take(), &mut markers, &mut self.channels, self.scale);
-            }
-            let v = cells::number(buf, a, b).ok_or_else(|| {
-                not_a_number(&self.path, line, c, &buf[a..b], &self.channels[ci], slot)
-            })?;
-            if slot == u32::MAX {
-                let o = open.get_or_insert((ci, [0.0; 3], 0));
-                o.1[axis] = v;
-                o.2 |= 1 << axis;
-            } else {
-                let slot = slot as usize;
-                self.poses[slot].1[c - self.columns[ci].first] = v;
-                self.pose_filled[slot] += 1;
-            }
-        }
-        close_marker(open, &mut markers, &mut self.channels, self.scale);
-        for (slot, (ci, values)) in self.poses.iter().enumerate() {
-            if self.pose_filled[slot] as usize == values.len() {
-                self.channels[*ci].present += 1;
-            }
-        }
-        Ok(markers)
-    }
-
     /// The Time column's clock, anchored on the first row that has one
     /// (a take whose first frame is not 0 keeps its own Time), advanced
     /// by frame / rate so that a 1 ms quantized column adds no jitter.
@@ -719,29 +570,6 @@ impl MotiveCsvReader {
             None => frame as f64 / rate,
         }
     }
-}
-
-/// The error for a channel cell that is not a number, naming the channel
-/// (`slot` is `u32::MAX` for marker channels, whose kind goes unsaid).
-fn not_a_number(
-    path: &Path,
-    line: u64,
-    column: usize,
-    cell: &[u8],
-    channel: &Channel,
-    slot: u32,
-) -> Error {
-    let what = if slot == u32::MAX {
-        format!("marker \"{}\"", excerpt(&channel.name))
-    } else {
-        format!("{} \"{}\"", kind_name(channel.kind), excerpt(&channel.name))
-    };
-    Error::at_line(
-        path,
-        line,
-        Some(column as u64 + 1),
-        format!("\"{}\" is not a number ({what})", excerpt_bytes(cell)),
-    )
 }
 
 /// Header rows with the label they stand for (`Type`, `Name`, `ID`, `Parent`).
@@ -807,32 +635,102 @@ fn assign_unlabeled_rows(
     Some((labeled, component))
 }
 
-/// Column role of Frame, Time, TimeCode and unnamed columns.
-const NO_CHANNEL: u32 = u32::MAX;
-
-/// Ends a marker channel's cells in a row: a marker if X, Y and Z were all there.
-fn close_marker(
-    open: Option<(usize, [f64; 3], u8)>,
-    markers: &mut Vec<Marker>,
-    channels: &mut [Channel],
-    scale: f64,
-) {
-    if let Some((ci, xyz, 0b111)) = open {
-        channels[ci].present += 1;
-        markers.push(Marker {
-            position: DVec3::from_array(xyz) * scale,
-            id: Some(ci as i64),
-        });
-    }
+/// The chunk of frames being handed out, and where it lies in the file.
+#[derive(Default)]
+struct Current {
+    frames: std::vec::IntoIter<RowFrame>,
+    /// Per frame, its non-marker values, [`Layout::pose_width`] each.
+    poses: Vec<f64>,
+    /// Frames handed out from this chunk.
+    taken: usize,
+    /// Lines before the chunk's first line.
+    base: u64,
+    /// Lines in the chunk: the next chunk's `base` is `base + lines`.
+    lines: u64,
+    failure: Option<rows::Failure>,
 }
 
-fn kind_name(kind: ChannelKind) -> &'static str {
-    match kind {
-        ChannelKind::RigidBody => "rigid body",
-        ChannelKind::RigidBodyMarker => "rigid body marker",
-        ChannelKind::Bone => "bone",
-        ChannelKind::BoneMarker => "bone marker",
-        _ => "column",
+impl MotiveCsvReader {
+    /// Takes the next chunk in file order and merges its counts; an error
+    /// for a chunk that could not be read at all.
+    fn next_chunk(&mut self) -> Option<Result<()>> {
+        let pending = self.data.as_mut()?.next_chunk()?;
+        let base = self.current.base + self.current.lines;
+        let parsed = match pending {
+            Pending::Ready(p) => p,
+            Pending::Working(rx) => match rx.recv() {
+                Ok(p) => p,
+                Err(_) => {
+                    let e = std::io::Error::other("a thread reading the rows stopped");
+                    return Some(Err(Error::io(&self.path, e)));
+                }
+            },
+            Pending::TooLong => {
+                let e = crate::format::csv_rows::RowError::TooLong {
+                    line: base + 1,
+                    limit: RowLimits::default().max_bytes,
+                };
+                return Some(Err(row_error(&self.path, e)));
+            }
+            Pending::Io(e) => return Some(Err(Error::io(&self.path, e))),
+        };
+        self.merge(parsed, base);
+        Some(Ok(()))
+    }
+
+    /// Makes `parsed` the chunk being handed out, its counts the channels'.
+    fn merge(&mut self, parsed: Parsed, base: u64) {
+        for &(ci, nonempty, present) in &parsed.counts {
+            self.nonempty[ci as usize] += nonempty;
+            self.channels[ci as usize].present += present;
+        }
+        self.rows_read += parsed.rows_read;
+        self.current = Current {
+            frames: parsed.frames.into_iter(),
+            poses: parsed.poses,
+            taken: 0,
+            base,
+            lines: parsed.lines,
+            failure: parsed.failure,
+        };
+    }
+
+    /// The next frame of the current chunk in file context: its Time
+    /// checked, its time on the file's clock, its poses the latest.
+    fn next_frame(&mut self) -> Option<Result<MarkerFrame>> {
+        if let Some(row) = self.current.frames.next() {
+            let line = self.current.base + row.line;
+            if let Some(t) = row.time {
+                self.check_time_column(row.frame, t, line);
+            }
+            self.set_poses();
+            self.current.taken += 1;
+            let time = self.frame_time(row.frame);
+            return Some(Ok(MarkerFrame::new(row.frame, time, row.markers)));
+        }
+        let failure = self.current.failure.take()?;
+        if let Some((frame, t)) = failure.time {
+            self.check_time_column(frame, t, self.current.base + failure.line);
+        }
+        Some(Err(shifted(failure.error, self.current.base)))
+    }
+
+    /// Copies the values of the frame being handed out to `poses`.
+    fn set_poses(&mut self) {
+        let mut at = self.current.taken * self.poses.iter().map(|p| p.1.len()).sum::<usize>();
+        for (_, values) in &mut self.poses {
+            let n = values.len();
+            values.copy_from_slice(&self.current.poses[at..at + n]);
+            at += n;
+        }
+    }
+
+    /// Reading has ended (end of file or an error): counts become final,
+    /// the workers stop.
+    fn finish(&mut self) {
+        self.done = true;
+        self.data = None;
+        self.count_empty_cells();
     }
 }
 
@@ -844,12 +742,21 @@ impl Iterator for MotiveCsvReader {
             return None;
         }
         loop {
-            match self.rows.read_line() {
-                Err(e) => {
+            match self.next_frame() {
+                Some(Ok(frame)) => return Some(Ok(frame)),
+                Some(Err(e)) => {
                     self.finish();
-                    return Some(Err(self.row_error(e)));
+                    return Some(Err(e));
                 }
-                Ok(false) => {
+                None => {}
+            }
+            match self.next_chunk() {
+                Some(Ok(())) => {}
+                Some(Err(e)) => {
+                    self.finish();
+                    return Some(Err(e));
+                }
+                None => {
                     self.finish();
                     if self.time_mismatches > 1 {
                         let n = self.time_mismatches;
@@ -860,25 +767,8 @@ impl Iterator for MotiveCsvReader {
                     }
                     return None;
                 }
-                Ok(true) => {}
-            }
-            match self.parse_row() {
-                Ok(None) => continue, // a blank line, e.g. at the end
-                Ok(Some(frame)) => return Some(Ok(frame)),
-                Err(e) => {
-                    self.finish();
-                    return Some(Err(e));
-                }
             }
         }
-    }
-}
-
-impl MotiveCsvReader {
-    /// Reading has ended (end of file or an error): counts become final.
-    fn finish(&mut self) {
-        self.done = true;
-        self.count_empty_cells();
     }
 }
 

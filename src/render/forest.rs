@@ -67,6 +67,7 @@ pub fn forest_model(
                 motion: motions.get(k),
             })
             .collect::<Vec<_>>(),
+        matches!(motion, Motion::Rigged),
     )?;
     let mut report = forest_report(plan, &members, &meshes);
     report.animation = animation_report(&motions, glb.len());
@@ -120,7 +121,7 @@ fn tree_meshes(
 
 /// Every tree's share of the session's motion when `motion` has traces
 /// (each tree animated by its own captured tips, on the same keys), none
-/// otherwise: several trees are skinned only to be animated.
+/// otherwise (rigged trees are skinned without a motion).
 fn forest_motions(members: &[Member], motion: Motion<'_>) -> Result<Vec<TreeMotion>> {
     match motion {
         Motion::Traces(paths, settings) => members

@@ -91,9 +91,11 @@ pub struct ForestTree<'a> {
 /// Several trees in one .glb (docs/forest.md): one scene node per tree,
 /// named as the tree, holding its branches, leaves and skeleton; the
 /// materials are shared. When every tree has a motion, the trees are
-/// skinned and animated instead ([`animated_forest_glb`]).
-pub fn forest_glb(trees: &[ForestTree<'_>]) -> Result<Vec<u8>> {
-    if !trees.is_empty() && trees.iter().all(|t| t.motion.is_some()) {
+/// skinned and animated instead ([`animated_forest_glb`]); `rigged`
+/// skins them without an animation (the daemon: its viewers sway every
+/// tree live).
+pub fn forest_glb(trees: &[ForestTree<'_>], rigged: bool) -> Result<Vec<u8>> {
+    if !trees.is_empty() && (rigged || trees.iter().all(|t| t.motion.is_some())) {
         return animated_forest_glb(trees);
     }
     let mut b = Builder::default();
@@ -113,7 +115,8 @@ pub fn forest_glb(trees: &[ForestTree<'_>]) -> Result<Vec<u8>> {
 /// per tree, a scene node named as the tree holding its joints (the trunk
 /// base is the root joint), then its skinned branches, leaves and skeleton
 /// as scene roots (`tree-1 branches`, …); one animation, `capture`, moves
-/// every tree's joints on one clock.
+/// every tree's joints on one clock (none when no tree has a motion: the
+/// trees are only rigged).
 fn animated_forest_glb(trees: &[ForestTree<'_>]) -> Result<Vec<u8>> {
     let mut b = Builder::default();
     let mut scene_nodes = Vec::with_capacity(4 * trees.len());

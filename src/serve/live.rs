@@ -49,11 +49,11 @@ impl Published {
 pub struct LiveHub {
     /// The latest frame; `None` before the first.
     frame: watch::Sender<Option<Arc<Published>>>,
-    /// The latest pose of the swaying tree (a JSON `pose` message): stream
-    /// data like the frames, so latest-wins and thinned per viewer, not
-    /// queued (a replay fed faster than real time made hundreds a second,
-    /// and a slow page fell seconds behind).
-    pose: watch::Sender<Option<Arc<str>>>,
+    /// The latest poses of the swaying trees (JSON `pose` messages of one
+    /// frame, one per tree): stream data like the frames, so latest-wins
+    /// and thinned per viewer, not queued (a replay fed faster than real
+    /// time made hundreds a second, and a slow page fell seconds behind).
+    pose: watch::Sender<Option<Arc<[Arc<str>]>>>,
     /// New-tree notices and other rare JSON messages.
     events: broadcast::Sender<Arc<str>>,
 }
@@ -82,9 +82,10 @@ impl LiveHub {
         })));
     }
 
-    /// Replaces the latest pose. Never waits for a viewer.
-    pub fn publish_pose(&self, text: Arc<str>) {
-        self.pose.send_replace(Some(text));
+    /// Replaces the latest poses (one message per tree, of one frame).
+    /// Never waits for a viewer.
+    pub fn publish_pose(&self, texts: Arc<[Arc<str>]>) {
+        self.pose.send_replace(Some(texts));
     }
 
     /// Sends a JSON message to every connected viewer (dropped when none).
@@ -170,7 +171,7 @@ pub async fn session(mut socket: WebSocket, s: HttpState, format: FrameFormat) {
                     break;
                 }
                 match latest_after_gap(&mut poses, &mut next_pose, gap).await {
-                    Some(text) => send_text(&mut socket, &text).await,
+                    Some(texts) => send_texts(&mut socket, &texts).await,
                     None => Ok(()),
                 }
             }
@@ -230,6 +231,14 @@ async fn greet(socket: &mut WebSocket, s: &HttpState) -> Result<(), axum::Error>
 
 async fn send_text(socket: &mut WebSocket, text: &str) -> Result<(), axum::Error> {
     socket.send(Message::Text(text.into())).await
+}
+
+/// Several messages in a row (the poses of one frame, a tree each).
+async fn send_texts(socket: &mut WebSocket, texts: &[Arc<str>]) -> Result<(), axum::Error> {
+    for text in texts {
+        send_text(socket, text).await?;
+    }
+    Ok(())
 }
 
 async fn send_frame(

@@ -10,6 +10,11 @@
 //!   first node, `i` node count, then `f dx f dy f dz` (metres) per node;
 //!   at most [`NODES_PER_MESSAGE`] nodes a datagram, so a large tree is a
 //!   run of datagrams, each complete in itself.
+//!
+//! With several trees (docs/forest.md) every tree has its own pose of the
+//! same frame: the JSON gains `"tree_id":ID,"name":"tree-1"` (node ids count
+//! from 0 in every tree) and each OSC datagram ends with one more argument,
+//! `i` tree id, as the other OSC messages of several trees do.
 
 use std::sync::Arc;
 
@@ -26,6 +31,9 @@ pub const NODES_PER_MESSAGE: usize = 160;
 pub struct Pose<'a> {
     /// Version of the tree the displacements belong to.
     pub tree: u64,
+    /// With several trees: the id and name of the one this pose moves
+    /// (`None` for a tree alone, whose messages are as they always were).
+    pub member: Option<(usize, &'a str)>,
     /// The frame of the live tips.
     pub frame: i64,
     /// Its time (s).
@@ -40,6 +48,13 @@ pub fn pose_message(p: &Pose<'_>) -> Arc<str> {
     let mut ints = itoa::Buffer::new();
     s.push_str("{\"type\":\"pose\",\"tree\":");
     s.push_str(ints.format(p.tree));
+    if let Some((id, name)) = p.member {
+        s.push_str(",\"tree_id\":");
+        s.push_str(ints.format(id));
+        s.push_str(",\"name\":");
+        // A name is plain text from the config: escaped as JSON.
+        s.push_str(&serde_json::Value::from(name).to_string());
+    }
     s.push_str(",\"frame\":");
     s.push_str(ints.format(p.frame));
     s.push_str(",\"time_s\":");
@@ -85,6 +100,9 @@ pub fn pose_datagrams(p: &Pose<'_>) -> Vec<Vec<u8>> {
             for d in chunk {
                 args.extend([d.x, d.y, d.z].map(|v| OscType::Float(v as f32)));
             }
+            if let Some((id, _)) = p.member {
+                args.push(OscType::Int(id as i32));
+            }
             let msg = OscPacket::Message(OscMessage {
                 addr: "/treemocap/pose".into(),
                 args,
@@ -110,6 +128,7 @@ mod tests {
         let d = displacements(7);
         let p = Pose {
             tree: 3,
+            member: None,
             frame: 1234,
             time_s: 12.5,
             displacements: &d,
@@ -134,6 +153,36 @@ mod tests {
         }))
         .unwrap();
         assert_eq!(v["d_um"][0], 0);
+        // A tree alone: no tree id, as before several trees swayed.
+        assert!(v.get("tree_id").is_none() && v.get("name").is_none());
+    }
+
+    #[test]
+    fn a_tree_of_several_is_named_in_json_and_osc() {
+        let d = displacements(200);
+        let p = Pose {
+            tree: 4,
+            member: Some((2, "pine \"b\"")),
+            frame: 77,
+            time_s: 1.0,
+            displacements: &d,
+        };
+        let v: serde_json::Value = serde_json::from_str(&pose_message(&p)).unwrap();
+        assert_eq!(
+            (v["tree"].as_u64(), v["tree_id"].as_u64()),
+            (Some(4), Some(2))
+        );
+        assert_eq!(v["name"], "pine \"b\"");
+        assert_eq!(v["d_um"].as_array().unwrap().len(), 600);
+        for g in pose_datagrams(&p) {
+            assert!(g.len() <= 2500, "{} bytes", g.len());
+            let (_, OscPacket::Message(m)) = rosc::decoder::decode_udp(&g).unwrap() else {
+                panic!("not a message")
+            };
+            let count = m.args[4].clone().int().unwrap() as usize;
+            assert_eq!(m.args.len(), 6 + 3 * count);
+            assert_eq!(m.args.last(), Some(&OscType::Int(2)));
+        }
     }
 
     #[test]
@@ -142,6 +191,7 @@ mod tests {
             let d = displacements(n);
             let grams = pose_datagrams(&Pose {
                 tree: 2,
+                member: None,
                 frame: 9,
                 time_s: 0.5,
                 displacements: &d,

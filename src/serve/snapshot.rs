@@ -28,7 +28,8 @@ pub struct TreeSnapshot {
     /// Every tree of a capture of several (docs/forest.md); empty for a
     /// tree alone, whose outputs are as they have always been.
     pub trees: Vec<SnapshotTree>,
-    /// How the tree sways with the live tips (`None` when it cannot).
+    /// How the tree sways with the live tips (`None` when it cannot, and
+    /// for several trees: each [`SnapshotTree`] has its own).
     pub rig: Option<std::sync::Arc<crate::animate::Rig>>,
 }
 
@@ -51,6 +52,9 @@ pub struct SnapshotTree {
     /// The tree alone as a version-1 tree.json (`GET /trees/{id}.json`).
     #[serde(skip)]
     pub tree_json: String,
+    /// How the tree sways with its own live tips (`None` when it cannot).
+    #[serde(skip)]
+    pub rig: Option<std::sync::Arc<crate::animate::Rig>>,
 }
 
 /// One node of the skeleton.

@@ -22,11 +22,11 @@ use treemocap::config::Config;
 use treemocap::model::frame::MarkerFrame;
 use treemocap::model::trace::SampleKind;
 
-fn root() -> PathBuf {
+pub(super) fn root() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
 }
 
-fn free_port(udp: bool) -> u16 {
+pub(super) fn free_port(udp: bool) -> u16 {
     if udp {
         UdpSocket::bind("127.0.0.1:0")
             .unwrap()
@@ -43,7 +43,7 @@ fn free_port(udp: bool) -> u16 {
 }
 
 /// A child process killed when the test ends, however it ends.
-struct Killed(Child);
+pub(super) struct Killed(pub(super) Child);
 impl Drop for Killed {
     fn drop(&mut self) {
         let _ = self.0.kill();
@@ -68,7 +68,7 @@ fn collect_lines(
 }
 
 /// The page in headless Chromium, one JSON command a line.
-struct Page {
+pub(super) struct Page {
     _child: Killed,
     stdin: ChildStdin,
     lines: Receiver<String>,
@@ -76,7 +76,7 @@ struct Page {
 }
 
 impl Page {
-    fn open(url: &str) -> Page {
+    pub(super) fn open(url: &str) -> Page {
         let chromium = std::env::var("CHROMIUM").unwrap_or_else(|_| "/usr/bin/chromium".into());
         assert!(
             Path::new(&chromium).exists(),
@@ -123,7 +123,7 @@ impl Page {
     }
 
     /// Waits until the JS expression is true; the milliseconds it took.
-    fn wait(&mut self, expr: &str, timeout_ms: u64) -> Option<u64> {
+    pub(super) fn wait(&mut self, expr: &str, timeout_ms: u64) -> Option<u64> {
         let v = self.cmd(
             json!({"cmd": "wait", "expr": expr, "timeout_ms": timeout_ms}),
             Duration::from_millis(timeout_ms),
@@ -132,7 +132,7 @@ impl Page {
     }
 
     /// The value of a JS expression on the page.
-    fn eval(&mut self, expr: &str) -> Value {
+    pub(super) fn eval(&mut self, expr: &str) -> Value {
         self.cmd(json!({"cmd": "eval", "expr": expr}), Duration::from_secs(5))["value"].clone()
     }
 
@@ -144,16 +144,16 @@ impl Page {
         );
     }
 
-    fn state(&mut self) -> Value {
+    pub(super) fn state(&mut self) -> Value {
         self.cmd(json!({"cmd": "state"}), Duration::from_secs(5))["state"].clone()
     }
 
-    fn errors(&mut self) -> Value {
+    pub(super) fn errors(&mut self) -> Value {
         self.cmd(json!({"cmd": "errors"}), Duration::from_secs(5))["errors"].clone()
     }
 }
 
-fn http_get(url: &str) -> (u16, Vec<u8>) {
+pub(super) fn http_get(url: &str) -> (u16, Vec<u8>) {
     let script = format!(
         "import sys, urllib.request, urllib.error\n\
          req = urllib.request.Request('{url}')\n\
@@ -174,7 +174,7 @@ fn http_get(url: &str) -> (u16, Vec<u8>) {
     (code, out.stdout[nl + 1..].to_vec())
 }
 
-fn status(base: &str) -> Value {
+pub(super) fn status(base: &str) -> Value {
     serde_json::from_slice(&http_get(&format!("{base}/status")).1).unwrap()
 }
 
@@ -187,7 +187,7 @@ fn maple_frames() -> Vec<MarkerFrame> {
 }
 
 /// One frame as our own OSC message, `/treemocap/markers`.
-fn osc_frame(f: &MarkerFrame) -> Vec<u8> {
+pub(super) fn osc_frame(f: &MarkerFrame) -> Vec<u8> {
     let mut args = vec![OscType::Int(f.frame as i32), OscType::Double(f.time_s)];
     for p in f.positions() {
         args.extend([

