@@ -404,12 +404,15 @@ fn the_live_page_shows_markers_tips_and_the_tree() {
 /// Every `pose` event of `/live`, by frame: (tree version, displacements in µm).
 type Poses = Arc<Mutex<HashMap<i64, (u64, Vec<i64>)>>>;
 
-/// A WebSocket client of `/live` on its own thread, keeping every pose event
-/// until `stop`; returns once it is connected.
-fn listen_to_poses(http_port: u16, stop: Arc<AtomicBool>) -> (Poses, std::thread::JoinHandle<()>) {
+/// A WebSocket client of `/live` on its own thread, handing every pose
+/// event (its JSON and its `d_um` in µm) to `keep` until `stop`; returns once
+/// it is connected. The live view and live forest tests share it.
+pub(super) fn listen_for_poses(
+    http_port: u16,
+    stop: Arc<AtomicBool>,
+    mut keep: impl FnMut(&Value, Vec<i64>) + Send + 'static,
+) -> std::thread::JoinHandle<()> {
     use futures_util::StreamExt;
-    let poses: Poses = Arc::default();
-    let keep = poses.clone();
     let (tx, rx) = channel();
     let thread = std::thread::spawn(move || {
         let rt = tokio::runtime::Runtime::new().unwrap();
@@ -438,15 +441,25 @@ fn listen_to_poses(http_port: u16, stop: Arc<AtomicBool>) -> (Poses, std::thread
                     .iter()
                     .map(|x| x.as_i64().unwrap())
                     .collect();
-                let entry = (v["tree"].as_u64().unwrap(), d);
-                keep.lock()
-                    .unwrap()
-                    .insert(v["frame"].as_i64().unwrap(), entry);
+                keep(&v, d);
             }
         })
     });
     rx.recv_timeout(Duration::from_secs(10))
         .expect("the test's WebSocket connects");
+    thread
+}
+
+/// Every pose event of one tree's live page: frame → (tree version, µm).
+fn listen_to_poses(http_port: u16, stop: Arc<AtomicBool>) -> (Poses, std::thread::JoinHandle<()>) {
+    let poses: Poses = Arc::default();
+    let keep = poses.clone();
+    let thread = listen_for_poses(http_port, stop, move |v, d| {
+        let entry = (v["tree"].as_u64().unwrap(), d);
+        keep.lock()
+            .unwrap()
+            .insert(v["frame"].as_i64().unwrap(), entry);
+    });
     (poses, thread)
 }
 
