@@ -20,7 +20,7 @@ use treemocap::config::Config;
 use treemocap::model::frame::MarkerFrame;
 
 use super::live_view::{
-    free_port, http_get, listen_for_poses, osc_frame, root, status, Killed, Page,
+    free_port, http_get, listen_for_poses, osc_frame, root, status, Killed, Page, REAL_TIME_PAGE,
 };
 
 /// `/live` pose events by (tree version, tree id, frame): (name, d in µm).
@@ -208,6 +208,7 @@ fn start(out: &std::path::Path, osc_in: u16, osc_out: u16, http: u16) -> Killed 
 
 #[test]
 fn every_tree_of_a_forest_sways_live_with_its_own_tips() {
+    let _one_at_a_time = REAL_TIME_PAGE.lock().unwrap_or_else(|e| e.into_inner());
     let out_dir = tempfile::tempdir().unwrap();
     let (osc_in, http_port) = (free_port(true), free_port(false));
     let osc_out = UdpSocket::bind("127.0.0.1:0").unwrap();

@@ -244,8 +244,15 @@ fn bark_pixels(path: &Path) -> (usize, usize) {
     (brown, px.len() / step)
 }
 
+/// Held by each test that streams a session in real time to a daemon and a
+/// headless page (this one and the live forest test): two of them at once on
+/// a 2-core machine starve both pages of CPU, and a starved page falls
+/// seconds behind the stream it is checked against.
+pub(super) static REAL_TIME_PAGE: Mutex<()> = Mutex::new(());
+
 #[test]
 fn the_live_page_shows_markers_tips_and_the_tree() {
+    let _one_at_a_time = REAL_TIME_PAGE.lock().unwrap_or_else(|e| e.into_inner());
     let out_dir = tempfile::tempdir().unwrap();
     let (osc_port, http_port) = (free_port(true), free_port(false));
     let base = format!("http://127.0.0.1:{http_port}");
