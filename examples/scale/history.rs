@@ -9,7 +9,7 @@ use treemocap::rng::Rng;
 use treemocap::track::{clean, Tracker, TrackingSettings};
 use treemocap::{Marker, MarkerFrame};
 
-use crate::util::{timed, Row, Scale};
+use crate::util::{best_of, timed, Row, Scale};
 
 /// Seconds the whole marker stage takes on `frames` frames of `n` random markers.
 fn stage_seconds(frames: usize, n: usize) -> f64 {
@@ -44,12 +44,8 @@ fn stage_seconds(frames: usize, n: usize) -> f64 {
 pub fn growth(scale: &Scale) -> Vec<Row> {
     let n = 2000;
     let long = if scale.quick { 150 } else { 300 };
-    let short_s = (0..2)
-        .map(|_| stage_seconds(50, n))
-        .fold(f64::MAX, f64::min);
-    let long_s = (0..2)
-        .map(|_| stage_seconds(long, n))
-        .fold(f64::MAX, f64::min);
+    let short_s = best_of(2, || stage_seconds(50, n));
+    let long_s = best_of(2, || stage_seconds(long, n));
     let ratio = long_s / short_s;
     let allowed = long as f64 / 50.0;
     println!("tracker history: {n} random markers, 50 frames {short_s:.2} s, {long} frames {long_s:.2} s");

@@ -355,6 +355,11 @@ fn check_page(
     probes: &[Value],
 ) {
     let mut shown: HashMap<String, usize> = HashMap::new();
+    // Each tree version's node count, from any of its WebSocket poses.
+    let nodes: HashMap<(u64, u64), usize> = poses
+        .iter()
+        .map(|(&(version, id, _), (_, d))| ((version, id), d.len() / 3))
+        .collect();
     for p in probes {
         let Some(trees) = p["tree"].as_u64().and_then(|v| rests.get(&v)) else {
             continue;
@@ -368,10 +373,7 @@ fn check_page(
             // its whole OSC pose (sent for every frame due, never thinned)
             // when it has as many nodes as this tree's version.
             let from_osc = || {
-                let n = poses
-                    .iter()
-                    .find(|((v, i, _), _)| (*v, *i) == (version, id))
-                    .map(|(_, (_, d))| d.len() / 3)?;
+                let n = *nodes.get(&(version, id))?;
                 let o = osc.poses.get(&(frame, id as i32))?;
                 (o.len() == n).then(|| {
                     (0..n)
