@@ -21,6 +21,7 @@
 pub mod adopt;
 pub mod assign;
 pub mod gaps;
+mod grid;
 mod identity;
 pub mod live;
 mod motion;

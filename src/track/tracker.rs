@@ -9,7 +9,7 @@
 //! decided for all of them at once ([`assign`]): the cheapest total of
 //! squared normalised distances plus the log of each prediction's variance,
 //! so that where two traces could take one marker, the surer one does.
-//! Candidates come from a kd-tree of the frame's markers (for small frames,
+//! Candidates come from a grid of the frame's markers (for small frames,
 //! a direct scan of all pairs, which is cheaper). A trace that misses its
 //! marker ends once its prediction is too unsure to pick the right one
 //! again (the gate would exceed `gate_mm`), or after `max_gap` frames; a
@@ -37,10 +37,10 @@
 //!   cannot make the time line huge).
 
 use glam::DVec3;
-use kiddo::{ImmutableKdTree, SquaredEuclidean};
 use serde::Serialize;
 
 use super::assign::{Assigner, Edge};
+use super::grid::Grid;
 use super::identity::{Identities, IdentitySettings};
 use super::motion::{Motion, MotionParams};
 use crate::model::frame::MarkerFrame;
@@ -103,8 +103,8 @@ struct Live {
 }
 
 /// Up to this many trace × marker pairs per frame, candidates are found by
-/// comparing every pair; beyond, from a kd-tree of the frame's markers
-/// (O(n log n)). Building the tree costs more than the whole scan for a
+/// comparing every pair; beyond, from a grid of the frame's markers
+/// (src/track/grid.rs). Building the grid costs more than the whole scan for a
 /// typical tree capture of 24–70 markers (see benches/tracking.rs).
 const DIRECT_SCAN_MAX: usize = 4096;
 
@@ -150,6 +150,9 @@ pub struct Tracker {
     order: Vec<usize>,
     keep: Vec<bool>,
     edges: Vec<Edge>,
+    /// The frame's markers bucketed for the gate search (beyond
+    /// `DIRECT_SCAN_MAX` pairs).
+    grid: Grid,
     out: Vec<Option<usize>>,
     taken: Vec<bool>,
 }
@@ -191,6 +194,7 @@ impl Tracker {
             order: Vec::new(),
             keep: Vec::new(),
             edges: Vec::new(),
+            grid: Grid::default(),
             out: Vec::new(),
             taken: Vec::new(),
         }
@@ -387,14 +391,12 @@ impl Tracker {
                 }
             }
         } else if !self.points.is_empty() && !self.live.is_empty() {
-            if let Ok(tree) = ImmutableKdTree::<f64, 3>::new_from_slice(&self.points) {
-                for (row, l) in self.live.iter().enumerate() {
-                    let q = l.prediction.to_array();
-                    let found = tree.query(&q).within::<SquaredEuclidean<f64>>(r2).execute();
-                    for item in found {
-                        if let Some(e) = edge(row, item.item as usize, l, item.distance) {
-                            self.edges.push(e);
-                        }
+            self.grid.build(&self.points, self.gate_m);
+            for (row, l) in self.live.iter().enumerate() {
+                let q = l.prediction.to_array();
+                for &(d2, col) in self.grid.within(&self.points, q, self.gate_m) {
+                    if let Some(e) = edge(row, col as usize, l, d2) {
+                        self.edges.push(e);
                     }
                 }
             }
@@ -757,7 +759,7 @@ mod tests {
 
     #[test]
     fn kd_tree_path_tracks_many_markers() {
-        // 100 markers (10 000 pairs: the kd-tree path), 80 mm apart, each
+        // 100 markers (10 000 pairs: the grid path), 80 mm apart, each
         // moving 3 mm per frame in its own direction, listed in rotating
         // order; every marker must stay one trace.
         let mut tr = Tracker::new(&cfg(), Some(100.0));
