@@ -22,6 +22,7 @@ pub mod adopt;
 pub mod assign;
 pub mod gaps;
 mod identity;
+mod jitter;
 pub mod live;
 mod motion;
 pub mod noise;
