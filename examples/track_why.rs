@@ -32,6 +32,9 @@ fn main() {
     }
     let (tips, _) = track::clean(tracker.finish(), &cfg, "sim", 240.0);
     let truth = &syn.truth;
+    if let Ok(spec) = std::env::var("PAIR") {
+        pair(&spec, &tips, truth);
+    }
     println!(
         "{} tips found, {} placed",
         tips.tips.len(),
@@ -108,4 +111,43 @@ fn owner_runs(
 /// Where true tip `k` is in frame `f` (m).
 fn truth_position(truth: &sim::Truth, k: usize, f: i64) -> glam::DVec3 {
     truth.position(k, truth.time_of(f))
+}
+
+/// `PAIR=a,b,from,to`: frame by frame, how far apart true tips `a` and `b`
+/// are, whether each is hidden, and which output tip holds each.
+fn pair(spec: &str, tips: &treemocap::model::tips::Tips, truth: &sim::Truth) {
+    let v: Vec<i64> = spec.split(',').filter_map(|x| x.parse().ok()).collect();
+    let [a, b, from, to] = v[..] else { return };
+    let hidden = |k: usize, f: i64| {
+        truth
+            .gaps
+            .iter()
+            .any(|g| g.tip == k && g.first_frame <= f && f <= g.last_frame)
+    };
+    let mut holder = std::collections::HashMap::new();
+    for (n, tip) in tips.tips.iter().enumerate() {
+        for r in owner_runs(tip, truth) {
+            if let Some(k) = r.0 {
+                if k as i64 == a || k as i64 == b {
+                    for (f, _) in tip.trace.measurements() {
+                        if f >= r.1 && f <= r.2 {
+                            holder.insert((k, f), n);
+                        }
+                    }
+                }
+            }
+        }
+    }
+    for f in from..=to {
+        let (a, b) = (a as usize, b as usize);
+        let d = truth_position(truth, a, f).distance(truth_position(truth, b, f));
+        println!(
+            "{f}: {:.1} mm  a {} {:?}  b {} {:?}",
+            d * 1000.0,
+            if hidden(a, f) { "hid" } else { "   " },
+            holder.get(&(a, f)),
+            if hidden(b, f) { "hid" } else { "   " },
+            holder.get(&(b, f))
+        );
+    }
 }
