@@ -75,7 +75,7 @@ pub(crate) fn noise_of(traces: &[Trace]) -> f64 {
                 continue;
             }
             k += 1;
-            if k % stride == 0 {
+            if k.is_multiple_of(stride) {
                 let d = third_difference([last[0].1, last[1].1, last[2].1, last[3].1]);
                 values.extend([d.x.abs(), d.y.abs(), d.z.abs()]);
             }
