@@ -23,6 +23,7 @@ pub mod assign;
 pub mod gaps;
 mod grid;
 mod identity;
+mod jitter;
 pub mod live;
 mod motion;
 pub mod noise;

@@ -42,6 +42,7 @@ use serde::Serialize;
 use super::assign::{Assigner, Edge};
 use super::grid::Grid;
 use super::identity::{Identities, IdentitySettings};
+use super::jitter::{third_difference, Jitter};
 use super::motion::{Motion, MotionParams};
 use crate::model::frame::MarkerFrame;
 use crate::model::trace::{Timeline, Trace};
@@ -100,6 +101,11 @@ struct Live {
     /// Prediction for the current frame and its variance per axis.
     prediction: DVec3,
     variance: f64,
+    /// Its last three measurements, oldest first, and how many of the
+    /// latest frames in a row measured it (up to 3): the noise estimate's
+    /// input ([`Jitter`]).
+    recent: [DVec3; 3],
+    run: u8,
 }
 
 /// Up to this many trace × marker pairs per frame, candidates are found by
@@ -117,6 +123,9 @@ pub struct Tracker {
     gate_m: f64,
     gate_sigma: f64,
     noise_m: f64,
+    /// The noise measured on the traces: the filters take the larger of it
+    /// and `noise_m` (a filter told too little breaks its traces).
+    jitter: Jitter,
     params: MotionParams,
     params_set: bool,
     identities: Identities,
@@ -169,6 +178,7 @@ impl Tracker {
             gate_m: cfg.gate_mm / 1000.0,
             gate_sigma: cfg.gate_sigma,
             noise_m,
+            jitter: Jitter::default(),
             params: MotionParams::new(noise_m, dt),
             params_set: known.is_some(),
             identities: Identities::new(identity_settings),
@@ -289,6 +299,7 @@ impl Tracker {
         self.taken.clear();
         self.taken.resize(self.points.len(), false);
         self.measured_at.clear();
+        let mut noise_changed = false;
         for (row, col) in self.out.iter().enumerate() {
             let (Some(col), Some(l)) = (*col, self.live.get_mut(row)) else {
                 continue;
@@ -298,6 +309,7 @@ impl Tracker {
             };
             self.taken[col] = true;
             self.measured_at.push((l.trace, self.src[col]));
+            noise_changed |= note_jitter(l, p, t, &mut self.jitter);
             l.motion.update(p, t, &self.params);
             l.measured += 1;
             if self.record {
@@ -327,6 +339,8 @@ impl Tracker {
                 measured: 1,
                 prediction: p,
                 variance: 0.0,
+                recent: [p; 3],
+                run: 1,
             });
             self.identities.started(id, p);
         }
@@ -334,6 +348,11 @@ impl Tracker {
         // traces have the next ids): sorted by trace, as the lookup needs.
         debug_assert!(self.measured_at.is_sorted());
         self.identities.end();
+        if noise_changed {
+            // Only a capture noisier than `noise_mm` changes the filters:
+            // on a capture within it the tracking is that of `noise_mm`.
+            self.params.r = self.noise_m.max(self.jitter.sigma()).powi(2);
+        }
     }
 
     /// Predicts every live trace for frame `t` and ends those that cannot
@@ -462,7 +481,7 @@ impl Tracker {
             if !self.params_set && self.dt > 0.0 {
                 // The rate was not known: the first frame interval sets the
                 // filters' priors.
-                self.params = MotionParams::new(self.noise_m, self.dt);
+                self.params = MotionParams::new(self.noise_m.max(self.jitter.sigma()), self.dt);
                 self.identities
                     .set_settings(identity_settings(&self.cfg, self.dt));
                 self.params_set = true;
@@ -585,6 +604,20 @@ impl Tracker {
             );
         }
     }
+}
+
+/// Feeds the third difference of `l`'s last measurements and `p` (frame
+/// `t`) to the noise estimate when they are four frames in a row; keeps the
+/// last three. Returns whether the estimate changed.
+fn note_jitter(l: &mut Live, p: DVec3, t: i64, jitter: &mut Jitter) -> bool {
+    let consecutive = l.motion.t() == t - 1;
+    let mut changed = false;
+    if consecutive && l.run >= 3 {
+        changed = jitter.observe(third_difference([l.recent[0], l.recent[1], l.recent[2], p]));
+    }
+    l.run = if consecutive { (l.run + 1).min(3) } else { 1 };
+    l.recent = [l.recent[1], l.recent[2], p];
+    changed
 }
 
 /// The identity layer's settings for a frame interval `dt` (s).
