@@ -4,8 +4,9 @@
 //! another tip or a ghost, fragments, rest error, and the wind-phase fill
 //! error by gap length beside PCHIP with perfect identity.
 //!
-//! `cargo run --release --example track_stress [SEEDS] [WIND_S]`
-//! (defaults: 3 seeds, 20 s of wind after 8 s still).
+//! `cargo run --release --example track_stress [SEEDS] [WIND_S] [STRESS...]`
+//! (defaults: 3 seeds, 20 s of wind after 8 s still, every stress; name
+//! stresses, e.g. `noise occlusion`, to run only those).
 
 use treemocap::sim::{self, score, stress};
 use treemocap::track::{self, Tracker, TrackingSettings};
@@ -14,13 +15,20 @@ fn main() {
     let args: Vec<String> = std::env::args().collect();
     let seeds: u64 = args.get(1).and_then(|s| s.parse().ok()).unwrap_or(3);
     let wind_s: f64 = args.get(2).and_then(|s| s.parse().ok()).unwrap_or(20.0);
+    let only: &[String] = args.get(3..).unwrap_or(&[]);
     let cfg = TrackingSettings::default();
     let bins = score::fill_bins(240.0);
     println!(
         "| stress | tips found/placed | wrong samples | fragments | rest error max (mm) | fills bridging two markers | fill error 1–10 f (mm, ours / PCHIP) | 11–50 f | 51 f–2 s | largest sway (mm) | closest tips (mm) |"
     );
     println!("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |");
-    for k in 0..stress::all(&stress::base(0, 70, 8.0, wind_s)).len() {
+    for (k, st) in stress::all(&stress::base(0, 70, 8.0, wind_s))
+        .iter()
+        .enumerate()
+    {
+        if !only.is_empty() && !only.iter().any(|n| n == st.name) {
+            continue;
+        }
         let mut total = score::Score::default();
         let (mut sway, mut spacing) = (0.0f64, f64::INFINITY);
         let mut name = "";

@@ -362,7 +362,7 @@ fn neighbour_fill(ctx: &Context<'_, '_>, m: &Model, span: i64, duration: f64) ->
         },
     };
     let points = (a + 1..b)
-        .map(|f| Some(m.at(ctx, f)? + residual.at(f)))
+        .map(|f| Some(m.at(f)? + residual.at(f)))
         .collect::<Option<Vec<_>>>()?;
     Some(Fill {
         from: a,
