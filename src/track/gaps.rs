@@ -24,8 +24,6 @@
 //! Traces are read in one streaming pass with a window of a few seconds,
 //! so memory does not grow with the session.
 
-use std::collections::VecDeque;
-
 use glam::DVec3;
 use serde::Serialize;
 
@@ -158,8 +156,12 @@ pub fn fill_gaps(traces: &mut [Trace], timeline: &Timeline, settings: GapSetting
 /// One trace read sequentially into a window of frames.
 struct Stream<'a> {
     it: Box<dyn Iterator<Item = Sample> + 'a>,
+    /// Frame of `buf[start]`.
     base: i64,
-    buf: VecDeque<Option<DVec3>>,
+    /// The window's frames from `start` on (measured positions); a plain
+    /// vector, compacted now and then, so a lookup is one index.
+    buf: Vec<Option<DVec3>>,
+    start: usize,
     /// Next frame to look at for gaps, and the last measured frame seen.
     scanned: i64,
     last_measured: Option<i64>,
@@ -170,27 +172,31 @@ impl<'a> Stream<'a> {
         Stream {
             it: Box::new(t.samples()),
             base: t.first_frame(),
-            buf: VecDeque::new(),
+            buf: Vec::new(),
+            start: 0,
             scanned: t.first_frame(),
             last_measured: None,
         }
     }
 
     fn ensure(&mut self, upto: i64) {
-        while self.base + (self.buf.len() as i64) <= upto {
+        while self.base + ((self.buf.len() - self.start) as i64) <= upto {
             match self.it.next() {
                 Some(s) => self
                     .buf
-                    .push_back((s.kind == SampleKind::Measured).then_some(s.position)),
+                    .push((s.kind == SampleKind::Measured).then_some(s.position)),
                 None => break,
             }
         }
     }
 
     fn trim(&mut self, before: i64) {
-        while self.base < before && !self.buf.is_empty() {
-            self.buf.pop_front();
-            self.base += 1;
+        let drop = (before - self.base).clamp(0, (self.buf.len() - self.start) as i64);
+        self.start += drop as usize;
+        self.base += drop;
+        if self.start >= 4096 && 2 * self.start >= self.buf.len() {
+            self.buf.drain(..self.start);
+            self.start = 0;
         }
     }
 
@@ -199,12 +205,12 @@ impl<'a> Stream<'a> {
         if k < 0 {
             return None;
         }
-        self.buf.get(k as usize).copied().flatten()
+        self.buf.get(self.start + k as usize).copied().flatten()
     }
 
     /// Adds the gaps completed in the newly read frames to `out`.
     fn scan(&mut self, k: usize, out: &mut Vec<(usize, i64, i64)>) {
-        let end = self.base + self.buf.len() as i64;
+        let end = self.base + (self.buf.len() - self.start) as i64;
         while self.scanned < end {
             let f = self.scanned;
             if self.at(f).is_some() {
@@ -264,13 +270,23 @@ fn fill_one(
     let dt = (timeline.time(b) - timeline.time(a)) / (b - a) as f64;
     let duration = missing as f64 * dt;
     let window = one_s.max(b - a).min(ctx.reach - 2);
+    let base_span = ((END_FIT_S / dt).round() as i64).max(4);
+    let noisy = noise_sigma(ctx, base_span).is_some_and(|s| s > knob("TM_NOISY_MM", 1e9) / 1000.0);
+    let smooth = if noisy { knob("TM_SMOOTH", 0.0) as usize } else { 0 };
     let model = if settings.neighbours && duration <= settings.max_fill_s + 1e-9 {
-        Model::fit(ctx, window)
+        Model::fit(ctx, window, smooth)
     } else {
         None
     };
-    let choice = choose(model.as_ref(), b - a, duration, settings);
-    let end_span = ((END_FIT_S / dt).round() as i64).max(4);
+    let mut choice = choose(model.as_ref(), b - a, duration, settings);
+    if noisy && choice == Choice::Own && model.is_some() && knob("TM_MODEL_OWN", 0.0) > 0.5 {
+        choice = Choice::Model;
+    }
+    let end_span = if noisy {
+        ((knob("TM_SPAN_S", END_FIT_S) / dt).round() as i64).max(4)
+    } else {
+        base_span
+    };
     let pchip_ok = duration <= settings.max_pchip_s + 1e-9;
     // Where the model cannot be evaluated (a neighbour's hole, too few
     // residuals at an end), a gap PCHIP may fill is filled from the
@@ -302,6 +318,29 @@ fn fill_one(
         }
     }
     (None, st)
+}
+
+/// TEMP experiment knob.
+fn knob(name: &str, default: f64) -> f64 {
+    std::env::var(name)
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(default)
+}
+
+/// The host's measurement noise (σ per axis, m) from its second
+/// differences over `span` frames at each end of the gap: at 100–240 Hz a
+/// tree's own acceleration adds little to them, white noise adds 6 σ².
+fn noise_sigma(ctx: &Context<'_, '_>, span: i64) -> Option<f64> {
+    let (a, b) = (ctx.a, ctx.b);
+    let (mut sum, mut n) = (0.0, 0usize);
+    for f in (a - span + 1..a).chain(b + 1..b + span) {
+        if let (Some(p0), Some(p1), Some(p2)) = (ctx.host_at(f - 1), ctx.host_at(f), ctx.host_at(f + 1)) {
+            sum += (p0 - 2.0 * p1 + p2).length_squared();
+            n += 1;
+        }
+    }
+    (n >= 4).then(|| (sum / n as f64 / 18.0).sqrt())
 }
 
 /// Decides one gap of `h` frames (`duration` s missing) with the fitted

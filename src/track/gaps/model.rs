@@ -71,6 +71,40 @@ fn column(s: &Stream<'_>, lo: i64, hi: i64) -> Vec<Option<DVec3>> {
         .collect()
 }
 
+/// A column averaged over `2 m + 1` frames where all are present (noisy
+/// neighbours would carry their noise into the fill); `m = 0`: as is.
+fn smoothed(c: Vec<Option<DVec3>>, m: usize) -> Vec<Option<DVec3>> {
+    if m == 0 {
+        return c;
+    }
+    (0..c.len())
+        .map(|i| {
+            let c0 = c[i]?;
+            if i < m || i + m >= c.len() {
+                return Some(c0);
+            }
+            let win = &c[i - m..=i + m];
+            let Some(v) = win.iter().copied().collect::<Option<Vec<_>>>() else {
+                return Some(c0);
+            };
+            let mf = m as f64;
+            let sg = super::knob("TM_SG", 0.0) > 0.5;
+            let norm = (2.0 * mf + 1.0) * (4.0 * mf * mf + 4.0 * mf - 3.0);
+            Some(if sg {
+                v.iter()
+                    .enumerate()
+                    .map(|(k, p)| {
+                        let i = k as f64 - mf;
+                        *p * ((3.0 * (3.0 * mf * mf + 3.0 * mf - 1.0) - 15.0 * i * i) / norm)
+                    })
+                    .sum::<DVec3>()
+            } else {
+                v.iter().sum::<DVec3>() / v.len() as f64
+            })
+        })
+        .collect()
+}
+
 /// The markers measured (up to short holes) from `a` to `b`, nearest to
 /// the host at `a` first.
 fn choose_neighbours(ctx: &Context<'_, '_>, pa: DVec3) -> Vec<(usize, DVec3)> {
@@ -120,7 +154,7 @@ impl Rows {
 impl Model {
     /// Fits the model of the context's gap on `window` frames each side;
     /// `None` without neighbours or with too few samples to fit them.
-    pub(super) fn fit(ctx: &Context<'_, '_>, window: i64) -> Option<Model> {
+    pub(super) fn fit(ctx: &Context<'_, '_>, window: i64, smooth: usize) -> Option<Model> {
         let (a, b) = (ctx.a, ctx.b);
         let pa = ctx.host_at(a)?;
         let chosen = choose_neighbours(ctx, pa);
@@ -129,7 +163,7 @@ impl Model {
         }
         let lo = a - window;
         let columns = (chosen.iter())
-            .map(|&(j, _)| column(&ctx.streams[j], lo, b + window))
+            .map(|&(j, _)| smoothed(column(&ctx.streams[j], lo, b + window), smooth))
             .collect();
         let mut model = Model {
             weights: Vec::new(),
