@@ -92,6 +92,22 @@ const MAX_OWN_S: f64 = 0.21;
 /// away, short against a 3 Hz twig's period (chosen on the stress sweep
 /// among 0.1, 0.125 and 0.15 s).
 const END_FIT_S: f64 = 0.1;
+/// Measurement noise (σ per axis, m, from the host's second differences
+/// beside the gap) above which the gap's ends count as noisy: the stress
+/// sweep's 1 mm, not a real system's 0.1–0.2 mm (whose fills stay as they
+/// were, byte for byte).
+const NOISY_M: f64 = 0.0005;
+/// `END_FIT_S` under noise: with σ 1 mm the ends' noise, not the twig's
+/// curvature, is most of the error (chosen on the stress sweep's noise
+/// row among 0.1, 0.125, 0.15 and 0.2 s: 11–50 frames 0.73, 0.62, 0.57
+/// and 0.65 × PCHIP).
+const NOISY_END_FIT_S: f64 = 0.15;
+/// Half-width (s) of the moving average of the neighbours' positions under
+/// noise, where six noisy neighbours would add their noise to the fill;
+/// the limb's sway they carry is slow (chosen on the stress sweep's noise
+/// row among 0.05, 0.1, 0.15, 0.2 and 0.3 s: 51 f–2 s 0.78, 0.75, 0.72,
+/// 0.69 and 0.65 × PCHIP, three gaps).
+const NOISY_SMOOTH_S: f64 = 0.3;
 /// Gap length (s) at which the residual's end slopes are half faded
 /// towards the secant (to the 4th power): across a long gap the
 /// residual's own swing is unknown, and an extrapolated slope would carry
@@ -271,22 +287,21 @@ fn fill_one(
     let duration = missing as f64 * dt;
     let window = one_s.max(b - a).min(ctx.reach - 2);
     let base_span = ((END_FIT_S / dt).round() as i64).max(4);
-    let noisy = noise_sigma(ctx, base_span).is_some_and(|s| s > knob("TM_NOISY_MM", 1e9) / 1000.0);
-    let smooth = if noisy { knob("TM_SMOOTH", 0.0) as usize } else { 0 };
+    // Under noise of a millimetre the ends are fitted over longer spans and
+    // the neighbours smoothed (their noise would pass into the fill).
+    let noisy = noise_sigma(ctx, base_span).is_some_and(|s| s > NOISY_M);
+    let (end_span, smooth) = if noisy {
+        let span = ((NOISY_END_FIT_S / dt).round() as i64).max(4);
+        (span, (NOISY_SMOOTH_S / dt).round() as usize)
+    } else {
+        (base_span, 0)
+    };
     let model = if settings.neighbours && duration <= settings.max_fill_s + 1e-9 {
         Model::fit(ctx, window, smooth)
     } else {
         None
     };
-    let mut choice = choose(model.as_ref(), b - a, duration, settings);
-    if noisy && choice == Choice::Own && model.is_some() && knob("TM_MODEL_OWN", 0.0) > 0.5 {
-        choice = Choice::Model;
-    }
-    let end_span = if noisy {
-        ((knob("TM_SPAN_S", END_FIT_S) / dt).round() as i64).max(4)
-    } else {
-        base_span
-    };
+    let choice = choose(model.as_ref(), b - a, duration, settings);
     let pchip_ok = duration <= settings.max_pchip_s + 1e-9;
     // Where the model cannot be evaluated (a neighbour's hole, too few
     // residuals at an end), a gap PCHIP may fill is filled from the
@@ -320,27 +335,21 @@ fn fill_one(
     (None, st)
 }
 
-/// TEMP experiment knob.
-fn knob(name: &str, default: f64) -> f64 {
-    std::env::var(name)
-        .ok()
-        .and_then(|v| v.parse().ok())
-        .unwrap_or(default)
-}
-
-/// The host's measurement noise (σ per axis, m) from its second
-/// differences over `span` frames at each end of the gap: at 100–240 Hz a
-/// tree's own acceleration adds little to them, white noise adds 6 σ².
+/// The host's measurement noise (σ per axis, m) from its third
+/// differences over `span` frames at each end of the gap: white noise adds
+/// 20 σ² to them, a tree's sway at 100–240 Hz next to nothing (a second
+/// difference would count a 200 mm sway as noise).
 fn noise_sigma(ctx: &Context<'_, '_>, span: i64) -> Option<f64> {
     let (a, b) = (ctx.a, ctx.b);
     let (mut sum, mut n) = (0.0, 0usize);
-    for f in (a - span + 1..a).chain(b + 1..b + span) {
-        if let (Some(p0), Some(p1), Some(p2)) = (ctx.host_at(f - 1), ctx.host_at(f), ctx.host_at(f + 1)) {
-            sum += (p0 - 2.0 * p1 + p2).length_squared();
+    for f in (a - span..=a - 3).chain(b..=b + span - 3) {
+        let p = |d: i64| ctx.host_at(f + d);
+        if let (Some(p0), Some(p1), Some(p2), Some(p3)) = (p(0), p(1), p(2), p(3)) {
+            sum += (p3 - p0 + 3.0 * (p1 - p2)).length_squared();
             n += 1;
         }
     }
-    (n >= 4).then(|| (sum / n as f64 / 18.0).sqrt())
+    (n >= 4).then(|| (sum / n as f64 / 60.0).sqrt())
 }
 
 /// Decides one gap of `h` frames (`duration` s missing) with the fitted

@@ -83,24 +83,10 @@ fn smoothed(c: Vec<Option<DVec3>>, m: usize) -> Vec<Option<DVec3>> {
             if i < m || i + m >= c.len() {
                 return Some(c0);
             }
-            let win = &c[i - m..=i + m];
-            let Some(v) = win.iter().copied().collect::<Option<Vec<_>>>() else {
-                return Some(c0);
-            };
-            let mf = m as f64;
-            let sg = super::knob("TM_SG", 0.0) > 0.5;
-            let norm = (2.0 * mf + 1.0) * (4.0 * mf * mf + 4.0 * mf - 3.0);
-            Some(if sg {
-                v.iter()
-                    .enumerate()
-                    .map(|(k, p)| {
-                        let i = k as f64 - mf;
-                        *p * ((3.0 * (3.0 * mf * mf + 3.0 * mf - 1.0) - 15.0 * i * i) / norm)
-                    })
-                    .sum::<DVec3>()
-            } else {
-                v.iter().sum::<DVec3>() / v.len() as f64
-            })
+            let sum = c[i - m..=i + m]
+                .iter()
+                .try_fold(DVec3::ZERO, |acc, p| p.map(|p| acc + p));
+            Some(sum.map_or(c0, |s| s / (2 * m + 1) as f64))
         })
         .collect()
 }
