@@ -143,7 +143,11 @@ fn stage_parts(c: &mut Criterion) {
     c.bench_function("pine-35: gap fill", |b| {
         b.iter(|| {
             let mut t = traces.clone();
-            black_box(treemocap::track::gaps::fill_gaps(&mut t, &tips.timeline, settings))
+            black_box(treemocap::track::gaps::fill_gaps(
+                &mut t,
+                &tips.timeline,
+                settings,
+            ))
         })
     });
 }

@@ -182,7 +182,9 @@ impl Model {
     /// The neighbours' positions at `f` (`None` where one is missing).
     fn neighbours_at(&self, f: i64) -> impl Iterator<Item = Option<DVec3>> + '_ {
         let i = (f - self.lo) as usize;
-        self.columns.iter().map(move |c| c.get(i).copied().flatten())
+        self.columns
+            .iter()
+            .map(move |c| c.get(i).copied().flatten())
     }
 
     /// Appends the displacements of the host (from `pa`) and of the
