@@ -104,9 +104,57 @@ fn whole_stage(c: &mut Criterion) {
     });
 }
 
+/// The stage's parts on pine-35, to see where its time goes: reading and
+/// tracking, the clean-up after the tracker (joining, noise, gap fill,
+/// rest), and gap filling alone (on the final traces, whose measured
+/// samples leave the same gaps).
+fn stage_parts(c: &mut Criterion) {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("replays/pine-35.csv");
+    let config = Config::default();
+    let cfg = &config.tracking;
+    let open = || {
+        treemocap::app::open::open_with(
+            &path,
+            &treemocap::app::open::ReplayOptions::from_config(&config),
+        )
+        .unwrap()
+    };
+    let track = || {
+        let mut rec = open();
+        let rate = rec.info().frame_rate;
+        let mut tracker = Tracker::new(cfg, Some(rate));
+        for frame in &mut *rec {
+            tracker.push(&frame.unwrap());
+        }
+        (tracker.finish(), rate)
+    };
+    c.bench_function("pine-35: read + track", |b| b.iter(|| black_box(track())));
+    let (tracked, rate) = track();
+    c.bench_function("pine-35: clean (join, noise, fill, rest)", |b| {
+        b.iter(|| black_box(treemocap::track::clean(tracked.clone(), cfg, "b", rate)))
+    });
+    let (tips, _) = treemocap::track::clean(tracked, cfg, "b", rate);
+    let traces: Vec<_> = tips.tips.iter().map(|t| t.trace.clone()).collect();
+    let settings = treemocap::track::gaps::GapSettings {
+        max_fill_s: cfg.max_fill_s,
+        max_pchip_s: cfg.max_pchip_s,
+        neighbours: true,
+    };
+    c.bench_function("pine-35: gap fill", |b| {
+        b.iter(|| {
+            let mut t = traces.clone();
+            black_box(treemocap::track::gaps::fill_gaps(
+                &mut t,
+                &tips.timeline,
+                settings,
+            ))
+        })
+    });
+}
+
 criterion_group! {
     name = benches;
     config = Criterion::default().sample_size(20);
-    targets = tracking, whole_stage
+    targets = tracking, whole_stage, stage_parts
 }
 criterion_main!(benches);

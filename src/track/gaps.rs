@@ -24,8 +24,6 @@
 //! Traces are read in one streaming pass with a window of a few seconds,
 //! so memory does not grow with the session.
 
-use std::collections::VecDeque;
-
 use glam::DVec3;
 use serde::Serialize;
 
@@ -94,6 +92,22 @@ const MAX_OWN_S: f64 = 0.21;
 /// away, short against a 3 Hz twig's period (chosen on the stress sweep
 /// among 0.1, 0.125 and 0.15 s).
 const END_FIT_S: f64 = 0.1;
+/// Measurement noise (σ per axis, m, from the host's second differences
+/// beside the gap) above which the gap's ends count as noisy: the stress
+/// sweep's 1 mm, not a real system's 0.1–0.2 mm (whose fills stay as they
+/// were, byte for byte).
+const NOISY_M: f64 = 0.0005;
+/// `END_FIT_S` under noise: with σ 1 mm the ends' noise, not the twig's
+/// curvature, is most of the error (chosen on the stress sweep's noise
+/// row among 0.1, 0.125, 0.15 and 0.2 s: 11–50 frames 0.73, 0.62, 0.57
+/// and 0.65 × PCHIP).
+const NOISY_END_FIT_S: f64 = 0.15;
+/// Half-width (s) of the moving average of the neighbours' positions under
+/// noise, where six noisy neighbours would add their noise to the fill;
+/// the limb's sway they carry is slow (chosen on the stress sweep's noise
+/// row among 0.05, 0.1, 0.15, 0.2 and 0.3 s: 51 f–2 s 0.78, 0.75, 0.72,
+/// 0.69 and 0.65 × PCHIP, three gaps).
+const NOISY_SMOOTH_S: f64 = 0.3;
 /// Gap length (s) at which the residual's end slopes are half faded
 /// towards the secant (to the 4th power): across a long gap the
 /// residual's own swing is unknown, and an extrapolated slope would carry
@@ -158,8 +172,12 @@ pub fn fill_gaps(traces: &mut [Trace], timeline: &Timeline, settings: GapSetting
 /// One trace read sequentially into a window of frames.
 struct Stream<'a> {
     it: Box<dyn Iterator<Item = Sample> + 'a>,
+    /// Frame of `buf[start]`.
     base: i64,
-    buf: VecDeque<Option<DVec3>>,
+    /// The window's frames from `start` on (measured positions); a plain
+    /// vector, compacted now and then, so a lookup is one index.
+    buf: Vec<Option<DVec3>>,
+    start: usize,
     /// Next frame to look at for gaps, and the last measured frame seen.
     scanned: i64,
     last_measured: Option<i64>,
@@ -170,27 +188,31 @@ impl<'a> Stream<'a> {
         Stream {
             it: Box::new(t.samples()),
             base: t.first_frame(),
-            buf: VecDeque::new(),
+            buf: Vec::new(),
+            start: 0,
             scanned: t.first_frame(),
             last_measured: None,
         }
     }
 
     fn ensure(&mut self, upto: i64) {
-        while self.base + (self.buf.len() as i64) <= upto {
+        while self.base + ((self.buf.len() - self.start) as i64) <= upto {
             match self.it.next() {
                 Some(s) => self
                     .buf
-                    .push_back((s.kind == SampleKind::Measured).then_some(s.position)),
+                    .push((s.kind == SampleKind::Measured).then_some(s.position)),
                 None => break,
             }
         }
     }
 
     fn trim(&mut self, before: i64) {
-        while self.base < before && !self.buf.is_empty() {
-            self.buf.pop_front();
-            self.base += 1;
+        let drop = (before - self.base).clamp(0, (self.buf.len() - self.start) as i64);
+        self.start += drop as usize;
+        self.base += drop;
+        if self.start >= 4096 && 2 * self.start >= self.buf.len() {
+            self.buf.drain(..self.start);
+            self.start = 0;
         }
     }
 
@@ -199,12 +221,12 @@ impl<'a> Stream<'a> {
         if k < 0 {
             return None;
         }
-        self.buf.get(k as usize).copied().flatten()
+        self.buf.get(self.start + k as usize).copied().flatten()
     }
 
     /// Adds the gaps completed in the newly read frames to `out`.
     fn scan(&mut self, k: usize, out: &mut Vec<(usize, i64, i64)>) {
-        let end = self.base + self.buf.len() as i64;
+        let end = self.base + (self.buf.len() - self.start) as i64;
         while self.scanned < end {
             let f = self.scanned;
             if self.at(f).is_some() {
@@ -264,13 +286,22 @@ fn fill_one(
     let dt = (timeline.time(b) - timeline.time(a)) / (b - a) as f64;
     let duration = missing as f64 * dt;
     let window = one_s.max(b - a).min(ctx.reach - 2);
+    let base_span = ((END_FIT_S / dt).round() as i64).max(4);
+    // Under noise of a millimetre the ends are fitted over longer spans and
+    // the neighbours smoothed (their noise would pass into the fill).
+    let noisy = noise_sigma(ctx, base_span).is_some_and(|s| s > NOISY_M);
+    let (end_span, smooth) = if noisy {
+        let span = ((NOISY_END_FIT_S / dt).round() as i64).max(4);
+        (span, (NOISY_SMOOTH_S / dt).round() as usize)
+    } else {
+        (base_span, 0)
+    };
     let model = if settings.neighbours && duration <= settings.max_fill_s + 1e-9 {
-        Model::fit(ctx, window)
+        Model::fit(ctx, window, smooth)
     } else {
         None
     };
     let choice = choose(model.as_ref(), b - a, duration, settings);
-    let end_span = ((END_FIT_S / dt).round() as i64).max(4);
     let pchip_ok = duration <= settings.max_pchip_s + 1e-9;
     // Where the model cannot be evaluated (a neighbour's hole, too few
     // residuals at an end), a gap PCHIP may fill is filled from the
@@ -302,6 +333,23 @@ fn fill_one(
         }
     }
     (None, st)
+}
+
+/// The host's measurement noise (σ per axis, m) from its third
+/// differences over `span` frames at each end of the gap: white noise adds
+/// 20 σ² to them, a tree's sway at 100–240 Hz next to nothing (a second
+/// difference would count a 200 mm sway as noise).
+fn noise_sigma(ctx: &Context<'_, '_>, span: i64) -> Option<f64> {
+    let (a, b) = (ctx.a, ctx.b);
+    let (mut sum, mut n) = (0.0, 0usize);
+    for f in (a - span..=a - 3).chain(b..=b + span - 3) {
+        let p = |d: i64| ctx.host_at(f + d);
+        if let (Some(p0), Some(p1), Some(p2), Some(p3)) = (p(0), p(1), p(2), p(3)) {
+            sum += (p3 - p0 + 3.0 * (p1 - p2)).length_squared();
+            n += 1;
+        }
+    }
+    (n >= 4).then(|| (sum / n as f64 / 60.0).sqrt())
 }
 
 /// Decides one gap of `h` frames (`duration` s missing) with the fitted
@@ -362,7 +410,7 @@ fn neighbour_fill(ctx: &Context<'_, '_>, m: &Model, span: i64, duration: f64) ->
         },
     };
     let points = (a + 1..b)
-        .map(|f| Some(m.at(ctx, f)? + residual.at(f)))
+        .map(|f| Some(m.at(f)? + residual.at(f)))
         .collect::<Option<Vec<_>>>()?;
     Some(Fill {
         from: a,

@@ -1,25 +1,29 @@
-//! Issue 14's gap-filling targets on a synthetic session with truth: in
+//! Issue 14's gap-filling targets on synthetic sessions with truth: in
 //! the wind phase, the marker stage's fills are compared with PCHIP on the
 //! true marker's own samples (perfect identity, same gaps). Gaps of 11–50
-//! frames: mean error at most 0.7 × PCHIP's (issue 14's target); 51
-//! frames–2 s: better than PCHIP (the 0.7 × target is not met there yet:
-//! 0.87 × on this session, 0.69 × on the README's sweep); 1–10 frames:
-//! never worse. No fill bridges two markers, and every filled
-//! sample is flagged as filled.
+//! frames: mean error at most 0.7 × PCHIP's (issue 14's target), with the
+//! base noise (0.2 mm: 0.39 × here) and with noise σ 1 mm (0.61 ×); 51
+//! frames–2 s: better than PCHIP (the 0.7 × target is not met on these
+//! sessions yet: 0.87 × with 0.2 mm, 0.80 × with 1 mm of noise; 0.69 × and
+//! 0.65 × on the README's sweep); 1–10 frames: never worse. No fill
+//! bridges two markers, and every filled sample is flagged as filled.
 
 use treemocap::model::trace::SampleKind;
 use treemocap::sim::{self, score, stress};
 use treemocap::track::{self, Tracker, TrackingSettings};
 
-#[test]
-fn fills_beat_pchip_on_gaps_over_ten_frames_and_match_it_below() {
+/// Tracks and cleans two seeds of a 30-tip session with long occlusions
+/// (0.3–1.8 s, so the 51 f–2 s bin has gaps) and `noise_mm` of noise;
+/// checks the flags and that the neighbours filled some gaps; returns the
+/// merged score.
+fn sessions(noise_mm: f64) -> score::Score {
     let mut total = score::Score::default();
     for seed in [14, 15] {
         let opts = sim::SynthOptions {
-            // Long occlusions of 0.3–1.8 s, so the 51 f–2 s bin has gaps.
             long_gaps: Some(10),
             long_gap_min_s: 0.3,
             long_gap_max_s: 1.8,
+            noise_mm,
             ..stress::base(seed, 30, 4.0, 12.0)
         };
         let syn = sim::generate(&opts).unwrap();
@@ -44,6 +48,12 @@ fn fills_beat_pchip_on_gaps_over_ten_frames_and_match_it_below() {
         assert!(summary.gaps.from_neighbours > 0, "seed {seed}: {summary}");
         total.merge(&score::score(&tips, &syn));
     }
+    total
+}
+
+/// Asserts each bin's share filled and our error against `limits` ×
+/// PCHIP's (1–10, 11–50, 51 f–2 s).
+fn check_bins(total: &score::Score, limits: [f64; 3]) {
     assert_eq!(total.bridged, 0, "fills bridging two markers");
     let bins = score::fill_bins(240.0);
     for (k, (lo, hi)) in bins.into_iter().enumerate() {
@@ -57,12 +67,23 @@ fn fills_beat_pchip_on_gaps_over_ten_frames_and_match_it_below() {
             filled >= 3 && filled * 10 >= gaps * 9,
             "{lo}-{hi}: {filled}/{gaps}"
         );
-        // Issue 14's targets: never worse on 1–10, 0.7 × on 11–50; on
-        // 51 f–2 s only "better than PCHIP" holds yet (see the header).
-        let limit = [1.0, 0.7, 0.9][k];
+        let limit = limits[k];
         assert!(
             ours <= limit * pchip + 1e-6,
             "{lo}-{hi}: {ours} > {limit} × PCHIP {pchip}"
         );
     }
+}
+
+#[test]
+fn fills_beat_pchip_on_gaps_over_ten_frames_and_match_it_below() {
+    // Never worse on 1–10, 0.7 × on 11–50; on 51 f–2 s only "better than
+    // PCHIP" holds yet (see the header).
+    check_bins(&sessions(0.2), [1.0, 0.7, 0.9]);
+}
+
+#[test]
+fn under_noise_of_a_millimetre_fills_beat_pchip_by_the_target_on_11_to_50_frames() {
+    // 51 f–2 s: 0.80 × here, not yet 0.7 × (see the header).
+    check_bins(&sessions(1.0), [1.0, 0.7, 0.85]);
 }

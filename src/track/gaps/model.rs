@@ -32,14 +32,19 @@ const MIN_MISMATCH_M: f64 = 0.008;
 
 /// The fitted model of one gap `a .. b` of the host trace.
 pub(super) struct Model {
-    /// Streams of the neighbours, nearest first.
-    neighbours: Vec<usize>,
     /// Weight of each neighbour's displacement.
     weights: Vec<f64>,
     /// Each neighbour's position at `a`, the origin of its displacement.
     origins: Vec<DVec3>,
     /// The host's position at `a` plus the fitted offset `c`.
     offset: DVec3,
+    /// Each neighbour's positions (short holes bridged) on frames
+    /// `lo ..= a + window + (b − a)`, decoded once for the fit, the
+    /// residuals and the fill (a lookup per row and neighbour in the
+    /// streams was most of gap filling's time).
+    columns: Vec<Vec<Option<DVec3>>>,
+    /// First frame of `columns`.
+    lo: i64,
     /// Residuals on the measured samples before the gap, frames
     /// `a − window ..= a` (`None` where the host or a neighbour is missing).
     pub(super) before: Vec<Option<DVec3>>,
@@ -47,15 +52,43 @@ pub(super) struct Model {
     pub(super) after: Vec<Option<DVec3>>,
 }
 
-/// A neighbour's position at `f`, bridging its own short holes linearly.
-fn neighbour_at(s: &Stream<'_>, f: i64) -> Option<DVec3> {
-    if let Some(p) = s.at(f) {
-        return Some(p);
+/// A neighbour's positions on frames `lo ..= hi`, each bridging its own
+/// short holes linearly (up to `NEIGHBOUR_HOLE` frames each side).
+fn column(s: &Stream<'_>, lo: i64, hi: i64) -> Vec<Option<DVec3>> {
+    let h = NEIGHBOUR_HOLE;
+    let raw: Vec<Option<DVec3>> = (lo - h..=hi + h).map(|f| s.at(f)).collect();
+    let at = |f: i64| raw[(f - lo + h) as usize];
+    (lo..=hi)
+        .map(|f| {
+            if let Some(p) = at(f) {
+                return Some(p);
+            }
+            let before = (1..=h).find_map(|d| at(f - d).map(|p| (f - d, p)))?;
+            let after = (1..=h).find_map(|d| at(f + d).map(|p| (f + d, p)))?;
+            let x = (f - before.0) as f64 / (after.0 - before.0) as f64;
+            Some(before.1.lerp(after.1, x))
+        })
+        .collect()
+}
+
+/// A column averaged over `2 m + 1` frames where all are present (noisy
+/// neighbours would carry their noise into the fill); `m = 0`: as is.
+fn smoothed(c: Vec<Option<DVec3>>, m: usize) -> Vec<Option<DVec3>> {
+    if m == 0 {
+        return c;
     }
-    let before = (1..=NEIGHBOUR_HOLE).find_map(|d| s.at(f - d).map(|p| (f - d, p)))?;
-    let after = (1..=NEIGHBOUR_HOLE).find_map(|d| s.at(f + d).map(|p| (f + d, p)))?;
-    let x = (f - before.0) as f64 / (after.0 - before.0) as f64;
-    Some(before.1.lerp(after.1, x))
+    (0..c.len())
+        .map(|i| {
+            let c0 = c[i]?;
+            if i < m || i + m >= c.len() {
+                return Some(c0);
+            }
+            let sum = c[i - m..=i + m]
+                .iter()
+                .try_fold(DVec3::ZERO, |acc, p| p.map(|p| acc + p));
+            Some(sum.map_or(c0, |s| s / (2 * m + 1) as f64))
+        })
+        .collect()
 }
 
 /// The markers measured (up to short holes) from `a` to `b`, nearest to
@@ -86,70 +119,113 @@ fn choose_neighbours(ctx: &Context<'_, '_>, pa: DVec3) -> Vec<(usize, DVec3)> {
     near.into_iter().map(|(_, j, q)| (j, q)).collect()
 }
 
-/// One sample of the fit: the host's and each neighbour's displacement.
-struct Row {
-    host: DVec3,
+/// The samples of the fit, flat: the host's displacement and, `k` per
+/// row, the neighbours' displacements.
+struct Rows {
+    k: usize,
+    host: Vec<DVec3>,
     neighbours: Vec<DVec3>,
+}
+
+impl Rows {
+    fn len(&self) -> usize {
+        self.host.len()
+    }
+
+    fn row(&self, i: usize) -> (DVec3, &[DVec3]) {
+        (self.host[i], &self.neighbours[i * self.k..(i + 1) * self.k])
+    }
 }
 
 impl Model {
     /// Fits the model of the context's gap on `window` frames each side;
     /// `None` without neighbours or with too few samples to fit them.
-    pub(super) fn fit(ctx: &Context<'_, '_>, window: i64) -> Option<Model> {
-        let a = ctx.a;
+    pub(super) fn fit(ctx: &Context<'_, '_>, window: i64, smooth: usize) -> Option<Model> {
+        let (a, b) = (ctx.a, ctx.b);
         let pa = ctx.host_at(a)?;
         let chosen = choose_neighbours(ctx, pa);
         if chosen.is_empty() {
             return None;
         }
-        let (neighbours, origins): (Vec<usize>, Vec<DVec3>) = chosen.into_iter().unzip();
+        let lo = a - window;
+        let columns = (chosen.iter())
+            .map(|&(j, _)| smoothed(column(&ctx.streams[j], lo, b + window), smooth))
+            .collect();
         let mut model = Model {
             weights: Vec::new(),
-            neighbours,
-            origins,
+            origins: chosen.into_iter().map(|(_, q)| q).collect(),
             offset: pa,
+            columns,
+            lo,
             before: Vec::new(),
             after: Vec::new(),
         };
-        let before = model.rows(ctx, a - window, a, pa);
-        let after = model.rows(ctx, ctx.b, ctx.b + window, pa);
-        let rows: Vec<&Row> = before.iter().chain(&after).flatten().collect();
-        let k = model.neighbours.len();
+        let k = model.origins.len();
+        let mut rows = Rows {
+            k,
+            host: Vec::with_capacity(2 * window as usize + 2),
+            neighbours: Vec::with_capacity((2 * window as usize + 2) * k),
+        };
+        let before = model.rows(ctx, lo, a, pa, &mut rows);
+        let after = model.rows(ctx, b, b + window, pa, &mut rows);
         if rows.len() < 2 * k + 4 {
             return None;
         }
-        let (weights, c) = regress(&rows, k)?;
+        let (weights, c) = regress(&rows)?;
         model.weights = weights;
         model.offset = pa + c;
-        model.before = model.residuals(&before, c);
-        model.after = model.residuals(&after, c);
+        model.before = model.residuals(&before, &rows, c);
+        model.after = model.residuals(&after, &rows, c);
         Some(model)
     }
 
-    /// Displacements of the host (from `pa`) and of the neighbours (from
-    /// their origins) on frames `from ..= to`.
-    fn rows(&self, ctx: &Context<'_, '_>, from: i64, to: i64, pa: DVec3) -> Vec<Option<Row>> {
+    /// The neighbours' positions at `f` (`None` where one is missing).
+    fn neighbours_at(&self, f: i64) -> impl Iterator<Item = Option<DVec3>> + '_ {
+        let i = (f - self.lo) as usize;
+        self.columns
+            .iter()
+            .map(move |c| c.get(i).copied().flatten())
+    }
+
+    /// Appends the displacements of the host (from `pa`) and of the
+    /// neighbours (from their origins) on frames `from ..= to` to `rows`;
+    /// returns, per frame, the index of its row (`None` where the host or
+    /// a neighbour is missing).
+    fn rows(
+        &self,
+        ctx: &Context<'_, '_>,
+        from: i64,
+        to: i64,
+        pa: DVec3,
+        rows: &mut Rows,
+    ) -> Vec<Option<usize>> {
         (from..=to)
             .map(|f| {
                 let host = ctx.host_at(f)? - pa;
-                let neighbours = self
-                    .neighbours
-                    .iter()
-                    .zip(&self.origins)
-                    .map(|(&j, o)| neighbour_at(&ctx.streams[j], f).map(|q| q - *o))
-                    .collect::<Option<Vec<_>>>()?;
-                Some(Row { host, neighbours })
+                let mark = rows.neighbours.len();
+                for (q, o) in self.neighbours_at(f).zip(&self.origins) {
+                    let Some(q) = q else {
+                        rows.neighbours.truncate(mark);
+                        return None;
+                    };
+                    rows.neighbours.push(q - *o);
+                }
+                rows.host.push(host);
+                Some(rows.host.len() - 1)
             })
             .collect()
     }
 
     /// The residual of each row: what the model leaves of the host's
     /// displacement.
-    fn residuals(&self, rows: &[Option<Row>], c: DVec3) -> Vec<Option<DVec3>> {
-        rows.iter()
-            .map(|r| {
-                r.as_ref()
-                    .map(|r| r.host - c - self.explained(&r.neighbours))
+    fn residuals(&self, index: &[Option<usize>], rows: &Rows, c: DVec3) -> Vec<Option<DVec3>> {
+        index
+            .iter()
+            .map(|i| {
+                i.map(|i| {
+                    let (host, d) = rows.row(i);
+                    host - c - self.explained(d)
+                })
             })
             .collect()
     }
@@ -183,10 +259,10 @@ impl Model {
 
     /// The model's position of the host at `f` (no residual); `None` where
     /// a neighbour is missing.
-    pub(super) fn at(&self, ctx: &Context<'_, '_>, f: i64) -> Option<DVec3> {
+    pub(super) fn at(&self, f: i64) -> Option<DVec3> {
         let mut p = self.offset;
-        for ((&j, o), w) in self.neighbours.iter().zip(&self.origins).zip(&self.weights) {
-            p += (neighbour_at(&ctx.streams[j], f)? - *o) * *w;
+        for ((q, o), w) in self.neighbours_at(f).zip(&self.origins).zip(&self.weights) {
+            p += (q? - *o) * *w;
         }
         Some(p)
     }
@@ -194,20 +270,22 @@ impl Model {
 
 /// Ridge least squares of the host's displacement on the neighbours' (all
 /// three axes stacked), centred so the offset is free: (weights, offset).
-fn regress(rows: &[&Row], k: usize) -> Option<(Vec<f64>, DVec3)> {
+fn regress(rows: &Rows) -> Option<(Vec<f64>, DVec3)> {
+    let k = rows.k;
     let n = rows.len() as f64;
-    let mean_h = rows.iter().map(|r| r.host).sum::<DVec3>() / n;
+    let mean_h = rows.host.iter().copied().sum::<DVec3>() / n;
     let mean_q: Vec<DVec3> = (0..k)
-        .map(|j| rows.iter().map(|r| r.neighbours[j]).sum::<DVec3>() / n)
+        .map(|j| (0..rows.len()).map(|i| rows.row(i).1[j]).sum::<DVec3>() / n)
         .collect();
     let mut ata = vec![0.0; k * k];
     let mut atb = vec![0.0; k];
     let mut v = vec![DVec3::ZERO; k];
-    for r in rows {
+    for i in 0..rows.len() {
+        let (host, d) = rows.row(i);
         for j in 0..k {
-            v[j] = r.neighbours[j] - mean_q[j];
+            v[j] = d[j] - mean_q[j];
         }
-        let h = r.host - mean_h;
+        let h = host - mean_h;
         for i in 0..k {
             atb[i] += v[i].dot(h);
             for j in i..k {
