@@ -60,10 +60,8 @@ fn true_bases(t: &Truth) -> Vec<ConfiguredTree> {
 
 /// Sway links from the truth's motion over the wind phase (25 Hz).
 fn links(t: &Truth) -> Vec<SwayLink> {
-    let rests: Vec<DVec3> = t.tips.iter().map(|x| x.rest).collect();
     let markers: Vec<usize> = (0..t.tips.len()).collect();
-    let threshold = ForestSettings::default().sway_correlation;
-    sway::links_of_series(&t.wind_sway(25.0), &rests, &markers, 50, threshold)
+    sway::links_of_series(&t.wind_sway(25.0), &markers, 50)
 }
 
 /// Tips of `plan` on their true tree (tree ids = true tree indices when the
