@@ -106,9 +106,11 @@ pub fn candidates(tips: &[DVec3], s: &ForestSettings, sway: &Coherence) -> Vec<C
 /// chooses the count"): start from the fit's K (the smallest that fits
 /// within `fit_tolerance_m`, else the least penalised); refuse it while two
 /// of its crowns sway as one tree (mean correlation at least
-/// `trunk_coherence` and at least [`SAME_TREE_RATIO`] of their own), and
-/// take a K more while that split's crowns all sway independently (no two
-/// above [`APART_RATIO`] of their own correlation).
+/// `trunk_coherence` and at least [`SAME_TREE_RATIO`] of their own) and a
+/// K less still fits fairly (within [`MERGE_FIT`] × `fit_tolerance_m`:
+/// two trees whose trunks happen to sway alike are not merged into a crown
+/// no surface fits), and take a K more while that split's crowns all sway
+/// independently (no two above [`APART_RATIO`] of their own correlation).
 pub fn by_sway(tips: &[DVec3], s: &ForestSettings, sway: &Coherence) -> Detection {
     let all = candidates(tips, s, sway);
     let rms: Vec<(usize, f64)> = all.iter().map(|c| (c.k, c.rms)).collect();
@@ -116,7 +118,7 @@ pub fn by_sway(tips: &[DVec3], s: &ForestSettings, sway: &Coherence) -> Detectio
         return by_fit(tips, s);
     };
     let same_tree = |c: &Candidate| c.dependence >= s.trunk_coherence && c.ratio >= SAME_TREE_RATIO;
-    while at > 0 && same_tree(&all[at]) {
+    while at > 0 && same_tree(&all[at]) && all[at - 1].rms <= MERGE_FIT * s.fit_tolerance_m {
         at -= 1;
     }
     while at + 1 < all.len() && all[at + 1].k == all[at].k + 1 && all[at + 1].ratio < APART_RATIO
@@ -134,7 +136,10 @@ pub fn by_sway(tips: &[DVec3], s: &ForestSettings, sway: &Coherence) -> Detectio
 
 /// Two crowns whose mean sway correlation is at least this fraction of
 /// their own (geometric mean) are two parts of one tree.
-pub const SAME_TREE_RATIO: f64 = 0.7;
+pub const SAME_TREE_RATIO: f64 = 0.65;
+/// How much worse than `fit_tolerance_m` the fewer crowns may fit for the
+/// sway to merge two crowns into one tree.
+pub const MERGE_FIT: f64 = 1.5;
 /// A split whose crowns all correlate below this fraction of their own is
 /// taken over fewer trees.
 pub const APART_RATIO: f64 = 0.3;
