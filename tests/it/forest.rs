@@ -238,7 +238,12 @@ fn the_sway_finds_the_count_where_the_crown_fit_alone_misses() {
         let still = forest::plan(&tips, &[], &[], &s, &recon).unwrap();
         assert_ne!(still.trees.len(), trees, "seed {seed}: the fit alone");
         let swayed = forest::plan(&tips, &l, &[], &s, &recon).unwrap();
-        assert_eq!(swayed.trees.len(), trees, "seed {seed}: fits {:?}", swayed.fits);
+        assert_eq!(
+            swayed.trees.len(),
+            trees,
+            "seed {seed}: fits {:?}",
+            swayed.fits
+        );
     }
 }
 

@@ -121,8 +121,7 @@ pub fn by_sway(tips: &[DVec3], s: &ForestSettings, sway: &Coherence) -> Detectio
     while at > 0 && same_tree(&all[at]) && all[at - 1].rms <= MERGE_FIT * s.fit_tolerance_m {
         at -= 1;
     }
-    while at + 1 < all.len() && all[at + 1].k == all[at].k + 1 && all[at + 1].ratio < APART_RATIO
-    {
+    while at + 1 < all.len() && all[at + 1].k == all[at].k + 1 && all[at + 1].ratio < APART_RATIO {
         at += 1;
     }
     let mut centres = all[at].centres.clone();

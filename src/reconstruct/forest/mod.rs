@@ -141,8 +141,8 @@ pub fn plan(
     let coherence = sway::Coherence::new(tips.len(), &pairs);
     // The sway decides only where the take swayed (docs/forest.md, "The
     // sway chooses the count"); a still take keeps the geometric rules.
-    let swayed = (!pairs.is_empty() && coherence.coverage() >= MIN_SWAY_COVERAGE)
-        .then_some(&coherence);
+    let swayed =
+        (!pairs.is_empty() && coherence.coverage() >= MIN_SWAY_COVERAGE).then_some(&coherence);
     let bases = where_trees_stand(&positions, configured, s, swayed);
     let limbs = sway::limb_links(&pairs, &positions, s.sway_correlation);
     let split = assign::assign(&positions, &bases.centres, &limbs, swayed, s);

@@ -100,7 +100,11 @@ pub fn links_of_series(
 
 /// The limb links among `links` (indices into `rests`): correlation at
 /// least `threshold`, rests within [`MAX_LINK_M`].
-pub fn limb_links(links: &[(usize, usize, f64)], rests: &[DVec3], threshold: f64) -> Vec<(usize, usize, f64)> {
+pub fn limb_links(
+    links: &[(usize, usize, f64)],
+    rests: &[DVec3],
+    threshold: f64,
+) -> Vec<(usize, usize, f64)> {
     links
         .iter()
         .copied()
@@ -301,7 +305,8 @@ mod tests {
         let all = links_of_series(&series, &[0, 1, 2, 3], 200);
         // The still tip has no correlation with anyone.
         assert_eq!(all.len(), 3, "{all:?}");
-        let pairs: Vec<(usize, usize, f64)> = all.iter().map(|l| (l.a, l.b, l.correlation)).collect();
+        let pairs: Vec<(usize, usize, f64)> =
+            all.iter().map(|l| (l.a, l.b, l.correlation)).collect();
         let links = limb_links(&pairs, &rests, 0.7);
         assert_eq!(links.len(), 1, "{links:?}");
         assert_eq!((links[0].0, links[0].1), (0, 1));
