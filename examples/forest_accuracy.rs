@@ -8,7 +8,6 @@
 //! truth's motion (the marker stage is measured elsewhere); the trunk bases
 //! are the true ones for the accuracy, and found for the count.
 
-use glam::DVec3;
 use treemocap::reconstruct::forest::{self, sway, AssignRule, ConfiguredTree, ForestSettings};
 use treemocap::reconstruct::ReconstructSettings;
 use treemocap::sim::{generate, Layout, SynthOptions, Truth};
@@ -35,10 +34,9 @@ fn session(seed: u64, trees: usize, overlap: f64) -> Truth {
 }
 
 /// Sway links from the truth's motion over the wind phase at 50 Hz.
-fn links(t: &Truth, threshold: f64) -> Vec<sway::SwayLink> {
-    let rests: Vec<DVec3> = t.tips.iter().map(|x| x.rest).collect();
+fn links(t: &Truth) -> Vec<sway::SwayLink> {
     let markers: Vec<usize> = (0..t.tips.len()).collect();
-    sway::links_of_series(&t.wind_sway(50.0), &rests, &markers, 100, threshold)
+    sway::links_of_series(&t.wind_sway(50.0), &markers, 100)
 }
 
 fn main() {
@@ -56,6 +54,8 @@ fn main() {
         sway_correlation: env("SWAY_CORRELATION").unwrap_or(d.sway_correlation),
         fit_tolerance_m: env("FIT_TOLERANCE").unwrap_or(d.fit_tolerance_m),
         min_spacing_m: env("MIN_SPACING").unwrap_or(d.min_spacing_m),
+        trunk_coherence: env("TRUNK_COHERENCE").unwrap_or(d.trunk_coherence),
+        trunk_weight_m: env("TRUNK_WEIGHT").unwrap_or(d.trunk_weight_m),
         ..d
     };
     // The seeds: 1000.. for the README's figures; SEED_BASE picks another
@@ -76,10 +76,10 @@ fn main() {
         sway_weight_m: 0.0,
         ..crown.clone()
     };
-    println!("overlap  sessions  tips   livny            crown, no sway   crown + sway     count right (trunks >= 1 m)");
+    println!("overlap  sessions  tips   livny            crown, no sway   crown + sway     count right (trunks >= 1 m): sway+fit, fit alone");
     for overlap in overlaps {
         let mut acc = [(0usize, 0usize, 1.0f64); 3];
-        let (mut counted, mut right) = (0, 0);
+        let (mut counted, mut right, mut right_fit) = (0, 0, 0);
         let mut tips_total = 0;
         for seed in 0..n {
             let trees = 2 + (seed % 4) as usize;
@@ -95,7 +95,7 @@ fn main() {
                     base: p.base.to_array(),
                 })
                 .collect();
-            let l = links(&t, crown.sway_correlation);
+            let l = links(&t);
             for (k, (s, links)) in [(&livny, &[][..]), (&shape_only, &[][..]), (&crown, &l[..])]
                 .into_iter()
                 .enumerate()
@@ -143,15 +143,28 @@ fn main() {
                 .fold(f64::INFINITY, f64::min);
             if min_spacing >= 1.0 {
                 counted += 1;
+                if let Ok(path) = std::env::var("CANDIDATES") {
+                    dump_candidates(&path, first_seed + seed, overlap, trees, &tips, &l, &crown);
+                }
+                let by_fit = forest::plan(&tips, &[], &[], &crown, &recon).expect("plan");
+                right_fit += usize::from(by_fit.trees.len() == trees);
                 let plan = forest::plan(&tips, &l, &[], &crown, &recon).expect("plan");
                 if plan.trees.len() == trees {
                     right += 1;
                 } else {
+                    let pairs: Vec<(usize, usize, f64)> =
+                        l.iter().map(|x| (x.a, x.b, x.correlation)).collect();
+                    let c = sway::Coherence::new(tips.len(), &pairs);
+                    let within: Vec<String> = (0..trees)
+                        .map(|k| format!("{:.2}", c.mean_between(&f.tip_tree, k, k).0))
+                        .collect();
                     eprintln!(
-                        "seed {}: {} trees found of {trees} (fits {:?})",
+                        "seed {}: {} trees found of {trees} (fits {:?}); truth: dependence {:.2}, within {}",
                         first_seed + seed,
                         plan.trees.len(),
-                        plan.fits
+                        plan.fits,
+                        c.dependence(&f.tip_tree, trees).0,
+                        within.join(" ")
                     );
                 }
             }
@@ -164,10 +177,40 @@ fn main() {
             )
         };
         println!(
-            "{overlap:+.3}  {n:8}  {tips_total:5}  {}  {}  {}  {right}/{counted}",
+            "{overlap:+.3}  {n:8}  {tips_total:5}  {}  {}  {}  {right}/{counted}, {right_fit}/{counted}",
             pct(acc[0]),
             pct(acc[1]),
             pct(acc[2])
         );
+    }
+}
+
+/// Appends every K's split of the session (RMS, sway dependence, ratio) to
+/// `path` as CSV lines: seed, overlap, true K, K, rms, dependence, ratio.
+fn dump_candidates(
+    path: &str,
+    seed: u64,
+    overlap: f64,
+    trees: usize,
+    tips: &[treemocap::model::tips::CapturedTip],
+    l: &[sway::SwayLink],
+    s: &ForestSettings,
+) {
+    use std::io::Write;
+    let pairs: Vec<(usize, usize, f64)> = l.iter().map(|x| (x.a, x.b, x.correlation)).collect();
+    let c = sway::Coherence::new(tips.len(), &pairs);
+    let positions: Vec<glam::DVec3> = tips.iter().map(|t| t.position).collect();
+    let mut f = std::fs::OpenOptions::new()
+        .create(true)
+        .append(true)
+        .open(path)
+        .expect("candidates file");
+    for cand in forest::detect::candidates(&positions, s, &c) {
+        writeln!(
+            f,
+            "{seed},{overlap:.3},{trees},{},{:.4},{:.4},{:.4}",
+            cand.k, cand.rms, cand.dependence, cand.ratio
+        )
+        .expect("write");
     }
 }

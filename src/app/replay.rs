@@ -54,7 +54,7 @@ pub fn run_with(file: &Path, config: &Config, still: bool, out_dir: &Path) -> Re
     let tips_path = out_dir.join("tips.json");
     write_atomic(&tips_path, tips.to_json().as_bytes())?;
     let links = if config.forest.sway_weight_m > 0.0 {
-        sway::links(&tips, config.forest.sway_correlation)
+        sway::links(&tips)
     } else {
         Vec::new()
     };

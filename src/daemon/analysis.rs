@@ -146,7 +146,7 @@ impl Analysis {
 fn sway_links(shared: &Shared, tips: &Tips) -> Vec<SwayLink> {
     let f = &lock(&shared.recon_config).forest;
     if f.sway_weight_m > 0.0 {
-        crate::reconstruct::forest::sway::links(tips, f.sway_correlation)
+        crate::reconstruct::forest::sway::links(tips)
     } else {
         Vec::new()
     }

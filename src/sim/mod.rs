@@ -388,7 +388,7 @@ fn sway(
 }
 
 /// The trees of a forest session, their tips' motion (each tree swaying on
-/// its own limbs in the common wind) and the centre of the whole canopy.
+/// its own trunk and limbs in the common wind, `motion::trunk_mode`) and the centre of the whole canopy.
 fn forest_tips(
     opts: &SynthOptions,
     root: &Rng,
@@ -399,13 +399,17 @@ fn forest_tips(
     let mut tips = Vec::with_capacity(chosen.len());
     for (k, p) in placed.iter().enumerate() {
         let nodes: Vec<usize> = chosen.iter().filter(|c| c.0 == k).map(|c| c.1).collect();
-        tips.extend(sway(
-            opts,
+        let tree_motion = motion::stream(&motion_base, k as u64 + 1);
+        let mut own = sway(opts, &p.tree, &nodes, wind, &tree_motion);
+        motion::trunk_mode(
+            &mut own,
             &p.tree,
-            &nodes,
+            p.base.y,
             wind,
-            &motion::stream(&motion_base, k as u64 + 1),
-        ));
+            opts.sway_scale,
+            &tree_motion,
+        );
+        tips.extend(own);
     }
     let n = placed.len() as f64;
     let centre = placed.iter().map(|p| p.base).sum::<DVec3>() / n;

@@ -18,6 +18,13 @@
 //!   the square root of `sway_scale`: the small, fast modes of a twig carry
 //!   little of the wind's energy). Neighbours thus move coherently, as they
 //!   do on a tree.
+//! - Trunk mode (forest sessions only, [`trunk_mode`]): every tip of a tree
+//!   also sways with its trunk — a narrow band near the trunk's low
+//!   frequency (0.4–0.7 Hz) on two axes, shared by the whole crown and
+//!   growing with the tip's height — and each tree's trunk draws its own
+//!   frequencies, phases and directions, so two trees sway independently
+//!   while the limbs of one crown share its trunk's motion. One-tree sessions keep
+//!   the motion they always had (their shipped replays stay byte-identical).
 //! - Gusts (`gusts_per_min`) raise the wind's strength for a few seconds;
 //!   close pairs (`close_pairs`) swing two neighbouring tips towards each
 //!   other so that their markers pass close.
@@ -200,6 +207,55 @@ pub(crate) fn tree_tips(
         })
         .collect()
 }
+
+/// Adds the tree's trunk mode to its tips' motion (module comment). A
+/// trunk in turbulent wind rings near its natural frequency with a slowly
+/// changing amplitude and phase: each of its two axes — the major one
+/// turned by up to 60° from the wind, the minor one across it at 50–90 % of
+/// the size — is the sum of [`TRUNK_PARTIALS`] sinusoids of random phase
+/// within ±10 % of the trunk's frequency (0.4–0.7 Hz, below most limbs).
+/// The top sways 12–25 mm × `sway_scale` in all; a tip at height y gets
+/// `(y / height)^1.5` of it (a cantilever's first mode: small low in the
+/// crown), plus the steady downwind lean it carries. Every tree draws its
+/// own from `base`, its own stream, so two trees sway independently.
+pub(crate) fn trunk_mode(
+    tips: &mut [TipTruth],
+    tree: &TreeTruth,
+    ground: f64,
+    wind: DVec3,
+    sway_scale: f64,
+    base: &Rng,
+) {
+    let mut rng = stream(base, 21);
+    let cross_wind = DVec3::Y.cross(wind).normalize();
+    let turn = rng.range(-60f64, 60.0).to_radians();
+    let major = wind * turn.cos() + cross_wind * turn.sin();
+    let minor = DVec3::Y.cross(major).normalize();
+    let freq = rng.range(0.4, 0.7);
+    let top = rng.range(0.012, 0.025) * sway_scale;
+    let minor_ratio = rng.range(0.5, 0.9);
+    // (direction, amplitude at the top, frequency, phase) of every partial.
+    let mut partials = Vec::with_capacity(2 * TRUNK_PARTIALS);
+    for (dir, share) in [(major, 1.0), (minor, minor_ratio)] {
+        for _ in 0..TRUNK_PARTIALS {
+            let a = top * share / (TRUNK_PARTIALS as f64).sqrt();
+            partials.push((dir, a, freq * rng.range(0.9, 1.1), rng.range(0.0, TAU)));
+        }
+    }
+    let lean = top * rng.range(0.5, 0.8);
+    let height = tree.height.max(1e-6);
+    for t in tips {
+        let gain = ((t.rest.y - ground) / height).clamp(0.0, 1.0).powf(1.5);
+        for &(dir, a, f, ph) in &partials {
+            t.sway.push(sinusoid(dir, a * gain, f, ph));
+        }
+        let bend = t.bend + wind * (lean * gain);
+        t.bend = DVec3::new(q9(bend.x), q9(bend.y), q9(bend.z));
+    }
+}
+
+/// Sinusoids per axis of a trunk's sway (see [`trunk_mode`]).
+const TRUNK_PARTIALS: usize = 3;
 
 /// Adds to `pairs` pairs of nearest neighbouring tips an opposite swing
 /// along the line between them, of amplitude (distance − `close`) / 2 at

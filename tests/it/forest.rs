@@ -60,10 +60,8 @@ fn true_bases(t: &Truth) -> Vec<ConfiguredTree> {
 
 /// Sway links from the truth's motion over the wind phase (25 Hz).
 fn links(t: &Truth) -> Vec<SwayLink> {
-    let rests: Vec<DVec3> = t.tips.iter().map(|x| x.rest).collect();
     let markers: Vec<usize> = (0..t.tips.len()).collect();
-    let threshold = ForestSettings::default().sway_correlation;
-    sway::links_of_series(&t.wind_sway(25.0), &rests, &markers, 50, threshold)
+    sway::links_of_series(&t.wind_sway(25.0), &markers, 50)
 }
 
 /// Tips of `plan` on their true tree (tree ids = true tree indices when the
@@ -197,6 +195,81 @@ fn the_number_of_trees_is_found_when_trunks_stand_a_metre_apart() {
             plan.fits
         );
     }
+}
+
+/// A session as `examples/forest_accuracy` makes it (5 s still, 15 s of
+/// wind), and its sway correlations at 50 Hz as that sweep takes them.
+fn sweep_session(seed: u64, trees: usize, overlap: f64) -> (Truth, Vec<SwayLink>) {
+    let opts = SynthOptions {
+        seed,
+        trees,
+        overlap,
+        tips: 14 + (seed as usize * 7) % 17,
+        mixed: true,
+        layout: if seed.is_multiple_of(2) {
+            Layout::Row
+        } else {
+            Layout::Cluster
+        },
+        still_s: 5.0,
+        wind_s: 15.0,
+        gap_fraction: 0.0,
+        spurious_per_s: 0.0,
+        ..SynthOptions::default()
+    };
+    let t = generate(&opts).expect("session").truth;
+    let markers: Vec<usize> = (0..t.tips.len()).collect();
+    let l = sway::links_of_series(&t.wind_sway(50.0), &markers, 100);
+    (t, l)
+}
+
+#[test]
+fn the_sway_finds_the_count_where_the_crown_fit_alone_misses() {
+    // Sessions of the settings sweep (seeds 5000–5079) where the crown fit
+    // alone takes a tree too many (a lumpy crown fitted two surfaces) or
+    // too few (two crowns fitted one): the trunks' sway sets them right,
+    // and a still take (no sway) falls back on the fit alone.
+    let recon = ReconstructSettings::default();
+    let s = ForestSettings::default();
+    for (seed, overlap) in [(5063, 0.0), (5026, 1.0 / 6.0)] {
+        let trees = 2 + (seed % 4) as usize;
+        let (t, l) = sweep_session(seed as u64, trees, overlap);
+        let tips = t.rest_tips();
+        let still = forest::plan(&tips, &[], &[], &s, &recon).unwrap();
+        assert_ne!(still.trees.len(), trees, "seed {seed}: the fit alone");
+        let swayed = forest::plan(&tips, &l, &[], &s, &recon).unwrap();
+        assert_eq!(
+            swayed.trees.len(),
+            trees,
+            "seed {seed}: fits {:?}",
+            swayed.fits
+        );
+    }
+}
+
+#[test]
+fn each_tree_sways_with_its_trunk_and_apart_from_the_others() {
+    // The simulator's forests: the tips of one tree share their trunk's
+    // sway (their mean correlation is clearly positive, even between tips
+    // of different limbs), two trees sway independently.
+    let (mut own, mut across) = (Vec::new(), Vec::new());
+    for seed in 0..6 {
+        let (t, l) = sweep_session(600 + seed, 2 + (seed % 3) as usize, 0.0);
+        let f = t.forest.as_ref().unwrap();
+        let pairs: Vec<(usize, usize, f64)> = l.iter().map(|x| (x.a, x.b, x.correlation)).collect();
+        let c = sway::Coherence::new(t.tips.len(), &pairs);
+        for k in 0..f.trees.len() {
+            own.push(c.mean_between(&f.tip_tree, k, k).0);
+            for j in 0..k {
+                across.push(c.mean_between(&f.tip_tree, k, j).0);
+            }
+        }
+    }
+    let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
+    eprintln!("within a tree {own:.2?}; between trees {across:.2?}");
+    assert!(mean(&own) > 0.25, "{own:?}");
+    assert!(mean(&across).abs() < 0.05, "{across:?}");
+    assert!(mean(&own) > mean(&across) + 0.25);
 }
 
 #[test]

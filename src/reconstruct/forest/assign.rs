@@ -15,6 +15,7 @@ use glam::DVec3;
 use super::crown::{Crown, FitOptions};
 use super::graph::path_costs;
 use super::settings::{AssignRule, ForestSettings};
+use super::sway::Coherence;
 
 /// A tip is *clear* for the first fit when its horizontal distance to the
 /// nearest trunk is below this fraction of the second nearest.
@@ -71,7 +72,13 @@ impl Assignment {
 pub type Link = (usize, usize, f64);
 
 /// Gives each of `tips` to one of the trees standing on `bases`.
-pub fn assign(tips: &[DVec3], bases: &[DVec3], links: &[Link], s: &ForestSettings) -> Assignment {
+pub fn assign(
+    tips: &[DVec3],
+    bases: &[DVec3],
+    links: &[Link],
+    sway: Option<&Coherence>,
+    s: &ForestSettings,
+) -> Assignment {
     if bases.len() <= 1 {
         return Assignment {
             tree: vec![0; tips.len()],
@@ -89,7 +96,7 @@ pub fn assign(tips: &[DVec3], bases: &[DVec3], links: &[Link], s: &ForestSetting
     };
     match s.rule {
         AssignRule::Livny => livny(),
-        AssignRule::Crown => crowns(tips, bases, links, s).unwrap_or_else(livny),
+        AssignRule::Crown => crowns(tips, bases, links, sway, s).unwrap_or_else(livny),
     }
 }
 
@@ -98,8 +105,15 @@ fn crowns(
     tips: &[DVec3],
     bases: &[DVec3],
     links: &[Link],
+    sway: Option<&Coherence>,
     s: &ForestSettings,
 ) -> Option<Assignment> {
+    let pull = Pull {
+        links,
+        weight: s.sway_weight_m,
+        trunk: sway.filter(|_| s.trunk_weight_m > 0.0),
+        trunk_weight: s.trunk_weight_m,
+    };
     let horizontal: Vec<Vec<f64>> = tips
         .iter()
         .map(|p| bases.iter().map(|b| (p.x - b.x).hypot(p.z - b.z)).collect())
@@ -107,11 +121,11 @@ fn crowns(
     let start: Vec<usize> = horizontal.iter().map(|c| argmin(c)).collect();
     let sure = clear(&horizontal, CLEAR_START);
     let mut costs = surface_costs(tips, bases, &start, &sure)?;
-    let mut tree = with_sway(&costs, links, s.sway_weight_m);
+    let mut tree = pull.apply(&costs);
     for _ in 0..ROUNDS {
         let sure = clear(&costs, CLEAR_FIT);
         costs = surface_costs(tips, bases, &tree, &sure)?;
-        let next = with_sway(&costs, links, s.sway_weight_m);
+        let next = pull.apply(&costs);
         if next == tree {
             break;
         }
@@ -154,27 +168,55 @@ fn surface_costs(
     )
 }
 
-/// The tree of least cost for every tip, less `weight` × the correlation
-/// of each linked tip already in that tree; a few rounds, all tips at once
-/// (the result does not depend on the order of the tips).
-fn with_sway(costs: &[Vec<f64>], links: &[Link], weight: f64) -> Vec<usize> {
-    let mut tree: Vec<usize> = costs.iter().map(|c| argmin(c)).collect();
-    if weight <= 0.0 || links.is_empty() {
-        return tree;
-    }
-    for _ in 0..5 {
-        let mut pulled: Vec<Vec<f64>> = costs.to_vec();
-        for &(a, b, w) in links {
-            pulled[a][tree[b]] -= weight * w;
-            pulled[b][tree[a]] -= weight * w;
+/// What pulls a tip towards a tree besides its crown: the limb links
+/// (tips it sways with closely) and its trunk's sway (its mean correlation
+/// with the tree's tips).
+struct Pull<'a> {
+    /// Limb links between tip indices.
+    links: &'a [Link],
+    /// Pull per unit of limb correlation (m).
+    weight: f64,
+    /// Every two tips' correlation, when the trunk pull is on.
+    trunk: Option<&'a Coherence>,
+    /// Pull per unit of mean correlation with a tree (m).
+    trunk_weight: f64,
+}
+
+impl Pull<'_> {
+    /// The tree of least cost for every tip, less `weight` × the
+    /// correlation of each linked tip already in that tree and
+    /// `trunk_weight` × its mean correlation with that tree's tips; a few
+    /// rounds, all tips at once (the result does not depend on the order of
+    /// the tips).
+    fn apply(&self, costs: &[Vec<f64>]) -> Vec<usize> {
+        let mut tree: Vec<usize> = costs.iter().map(|c| argmin(c)).collect();
+        let limbs = self.weight > 0.0 && !self.links.is_empty();
+        if !limbs && self.trunk.is_none() {
+            return tree;
         }
-        let next: Vec<usize> = pulled.iter().map(|c| argmin(c)).collect();
-        if next == tree {
-            break;
+        for _ in 0..5 {
+            let mut pulled: Vec<Vec<f64>> = costs.to_vec();
+            if limbs {
+                for &(a, b, w) in self.links {
+                    pulled[a][tree[b]] -= self.weight * w;
+                    pulled[b][tree[a]] -= self.weight * w;
+                }
+            }
+            if let Some(c) = self.trunk {
+                for (a, row) in pulled.iter_mut().enumerate() {
+                    for (t, cost) in row.iter_mut().enumerate() {
+                        *cost -= self.trunk_weight * c.mean_with(&tree, a, t).unwrap_or(0.0);
+                    }
+                }
+            }
+            let next: Vec<usize> = pulled.iter().map(|c| argmin(c)).collect();
+            if next == tree {
+                break;
+            }
+            tree = next;
         }
-        tree = next;
+        tree
     }
-    tree
 }
 
 /// Tips whose best cost is below `ratio` × their second best.

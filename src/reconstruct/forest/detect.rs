@@ -10,11 +10,16 @@
 //! surface distance is within `fit_tolerance_m` is taken; when none is, the
 //! K with the least RMS + `count_penalty_m`·K (one crown of a forest that
 //! fits badly must not make the search give up and take one tree).
+//!
+//! When the take swayed, the sway chooses K instead ([`by_sway`]): the
+//! largest K whose split makes crowns that all sway independently (a tree
+//! cut in two leaves two crowns sharing its trunk's sway).
 
 use glam::DVec3;
 
 use super::crown::{Crown, FitOptions};
 use super::settings::ForestSettings;
+use super::sway::Coherence;
 
 /// A weak ridge: the tips place the axis.
 const FREE: FitOptions = FitOptions {
@@ -38,8 +43,121 @@ pub struct Detection {
     pub fits: bool,
 }
 
-/// Searches for the trees among `tips`.
-pub fn find(tips: &[DVec3], s: &ForestSettings) -> Detection {
+/// Searches for the trees among `tips`: by the sway when `sway` is given
+/// (the take swayed), else by the crown fit alone.
+pub fn find(tips: &[DVec3], s: &ForestSettings, sway: Option<&Coherence>) -> Detection {
+    match sway {
+        Some(c) => by_sway(tips, s, c),
+        None => by_fit(tips, s),
+    }
+}
+
+/// One number of trees tried, with how well its split fits and sways.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Candidate {
+    /// The number of crowns.
+    pub k: usize,
+    /// The worst crown's RMS surface distance (m).
+    pub rms: f64,
+    /// The largest mean sway correlation between two of its crowns
+    /// ([`Coherence::dependence`]; −∞ for one crown).
+    pub dependence: f64,
+    /// The same pair's correlation over the geometric mean of the two
+    /// crowns' own (1 for two halves of one tree's sway, near 0 for two
+    /// trees).
+    pub ratio: f64,
+    /// Axis foot of every crown.
+    pub centres: Vec<DVec3>,
+}
+
+/// Every valid split for K = 1 ..= `max_trees` (the least RMS over the
+/// starts), with its sway dependence: what [`by_sway`] chooses among.
+pub fn candidates(tips: &[DVec3], s: &ForestSettings, sway: &Coherence) -> Vec<Candidate> {
+    let mut out = Vec::new();
+    if let Some(c) = Crown::fit(tips, centroid(tips), FREE) {
+        out.push(Candidate {
+            k: 1,
+            rms: rms_of(tips, std::slice::from_ref(&c), &vec![0; tips.len()]),
+            dependence: f64::NEG_INFINITY,
+            ratio: f64::NEG_INFINITY,
+            centres: vec![c.axis_at(0.0)],
+        });
+    }
+    for k in 2..=s.max_trees {
+        if tips.len() < k * s.min_tips {
+            break;
+        }
+        let Some(split) = best_split(tips, k, s) else {
+            continue;
+        };
+        let (dependence, ratio) = sway.dependence(&split.labels, k);
+        out.push(Candidate {
+            k,
+            rms: split.rms,
+            dependence,
+            ratio,
+            centres: split.centres,
+        });
+    }
+    out
+}
+
+/// The count by the sway and the fit together (docs/forest.md, "The sway
+/// chooses the count"): start from the fit's K (the smallest that fits
+/// within `fit_tolerance_m`, else the least penalised); refuse it while two
+/// of its crowns sway as one tree (mean correlation at least
+/// `trunk_coherence` and at least [`SAME_TREE_RATIO`] of their own) and a
+/// K less still fits fairly (within [`MERGE_FIT`] × `fit_tolerance_m`:
+/// two trees whose trunks happen to sway alike are not merged into a crown
+/// no surface fits), and take a K more while that split's crowns all sway
+/// independently (no two above [`APART_RATIO`] of their own correlation).
+pub fn by_sway(tips: &[DVec3], s: &ForestSettings, sway: &Coherence) -> Detection {
+    let all = candidates(tips, s, sway);
+    let rms: Vec<(usize, f64)> = all.iter().map(|c| (c.k, c.rms)).collect();
+    let Some(mut at) = fit_choice(&all, s) else {
+        return by_fit(tips, s);
+    };
+    let same_tree = |c: &Candidate| c.dependence >= s.trunk_coherence && c.ratio >= SAME_TREE_RATIO;
+    while at > 0 && same_tree(&all[at]) && all[at - 1].rms <= MERGE_FIT * s.fit_tolerance_m {
+        at -= 1;
+    }
+    while at + 1 < all.len() && all[at + 1].k == all[at].k + 1 && all[at + 1].ratio < APART_RATIO {
+        at += 1;
+    }
+    let mut centres = all[at].centres.clone();
+    centres.sort_by(|a, b| a.x.total_cmp(&b.x).then(a.z.total_cmp(&b.z)));
+    Detection {
+        centres,
+        rms,
+        fits: all[at].rms <= s.fit_tolerance_m,
+    }
+}
+
+/// Two crowns whose mean sway correlation is at least this fraction of
+/// their own (geometric mean) are two parts of one tree.
+pub const SAME_TREE_RATIO: f64 = 0.65;
+/// How much worse than `fit_tolerance_m` the fewer crowns may fit for the
+/// sway to merge two crowns into one tree.
+pub const MERGE_FIT: f64 = 1.5;
+/// A split whose crowns all correlate below this fraction of their own is
+/// taken over fewer trees.
+pub const APART_RATIO: f64 = 0.3;
+
+/// The index in `all` of the fit's choice (see [`by_fit`]).
+fn fit_choice(all: &[Candidate], s: &ForestSettings) -> Option<usize> {
+    if let Some(i) = all.iter().position(|c| c.rms <= s.fit_tolerance_m) {
+        return Some(i);
+    }
+    let penalised = |c: &Candidate| c.rms + s.count_penalty_m * c.k as f64;
+    (0..all.len()).min_by(|&a, &b| {
+        penalised(&all[a])
+            .total_cmp(&penalised(&all[b]))
+            .then(a.cmp(&b))
+    })
+}
+
+/// The count by the crown fit alone (module comment).
+fn by_fit(tips: &[DVec3], s: &ForestSettings) -> Detection {
     let mut rms = Vec::new();
     let one = Crown::fit(tips, centroid(tips), FREE);
     let one_rms = one
@@ -68,7 +186,12 @@ pub fn find(tips: &[DVec3], s: &ForestSettings) -> Detection {
         if tips.len() < k * s.min_tips {
             break;
         }
-        let Some((r, mut centres)) = best_split(tips, k, s) else {
+        let Some(Split {
+            rms: r,
+            mut centres,
+            ..
+        }) = best_split(tips, k, s)
+        else {
             continue;
         };
         rms.push((k, r));
@@ -98,17 +221,27 @@ pub fn find(tips: &[DVec3], s: &ForestSettings) -> Detection {
     }
 }
 
-/// The best valid split into `k` crowns over the starts: (RMS, axis feet).
-fn best_split(tips: &[DVec3], k: usize, s: &ForestSettings) -> Option<(f64, Vec<DVec3>)> {
-    let mut best: Option<(f64, Vec<DVec3>)> = None;
+/// A valid split of the tips into crowns.
+struct Split {
+    /// The worst crown's RMS surface distance (m).
+    rms: f64,
+    /// Axis foot of every crown.
+    centres: Vec<DVec3>,
+    /// Crown of every tip.
+    labels: Vec<usize>,
+}
+
+/// The best valid split into `k` crowns over the starts: the least RMS.
+fn best_split(tips: &[DVec3], k: usize, s: &ForestSettings) -> Option<Split> {
+    let mut best: Option<Split> = None;
     for start in 0..STARTS.min(tips.len()) {
         let first = start * tips.len() / STARTS.min(tips.len());
         let (centres, labels) = kmeans(tips, k, first);
-        let Some((r, centres)) = refine(tips, centres, labels, s) else {
+        let Some(split) = refine(tips, centres, labels, s) else {
             continue;
         };
-        if best.as_ref().is_none_or(|b| r < b.0) {
-            best = Some((r, centres));
+        if best.as_ref().is_none_or(|b| split.rms < b.rms) {
+            best = Some(split);
         }
     }
     best
@@ -121,7 +254,7 @@ fn refine(
     mut centres: Vec<DVec3>,
     mut labels: Vec<usize>,
     s: &ForestSettings,
-) -> Option<(f64, Vec<DVec3>)> {
+) -> Option<Split> {
     let mut crowns = Vec::new();
     for _ in 0..ROUNDS {
         crowns.clear();
@@ -157,7 +290,11 @@ fn refine(
             }
         }
     }
-    Some((rms_of(tips, &crowns, &labels), centres))
+    Some(Split {
+        rms: rms_of(tips, &crowns, &labels),
+        centres,
+        labels,
+    })
 }
 
 /// k-means on the horizontal positions, seeded with tip `first` and then

@@ -107,9 +107,13 @@ impl ForestPlan {
     }
 }
 
+/// Share of the tips that must have swayed (a known correlation with some
+/// other tip) for the sway to choose the count and pull tips to trunks.
+pub const MIN_SWAY_COVERAGE: f64 = 0.8;
+
 /// Splits `tips` into trees: the configured ones, or those found. `links`
-/// are pairs of tips (by marker) that sway together; empty when the
-/// session had no wind phase.
+/// are the sway correlations of pairs of tips (by marker,
+/// [`sway::links`]); empty when the session had no wind phase.
 pub fn plan(
     tips: &[CapturedTip],
     links: &[SwayLink],
@@ -129,13 +133,19 @@ pub fn plan(
         .into());
     }
     let positions: Vec<DVec3> = tips.iter().map(|t| t.position).collect();
-    let bases = where_trees_stand(&positions, configured, s);
     let index_of = |marker: usize| tips.iter().position(|t| t.marker == marker);
-    let links: Vec<assign::Link> = links
+    let pairs: Vec<assign::Link> = links
         .iter()
         .filter_map(|l| Some((index_of(l.a)?, index_of(l.b)?, l.correlation)))
         .collect();
-    let split = assign::assign(&positions, &bases.centres, &links, s);
+    let coherence = sway::Coherence::new(tips.len(), &pairs);
+    // The sway decides only where the take swayed (docs/forest.md, "The
+    // sway chooses the count"); a still take keeps the geometric rules.
+    let swayed =
+        (!pairs.is_empty() && coherence.coverage() >= MIN_SWAY_COVERAGE).then_some(&coherence);
+    let bases = where_trees_stand(&positions, configured, s, swayed);
+    let limbs = sway::limb_links(&pairs, &positions, s.sway_correlation);
+    let split = assign::assign(&positions, &bases.centres, &limbs, swayed, s);
     let (mut trees, empty) = tree_plans(tips, &split, &bases, recon);
     let beyond_planes = place_in_cells(&mut trees, recon);
     let ambiguous = split
@@ -179,9 +189,10 @@ fn where_trees_stand(
     positions: &[DVec3],
     configured: &[ConfiguredTree],
     s: &ForestSettings,
+    swayed: Option<&sway::Coherence>,
 ) -> Bases {
     if configured.is_empty() {
-        let found = detect::find(positions, s);
+        let found = detect::find(positions, s, swayed);
         let names = (0..found.centres.len())
             .map(settings::default_name)
             .collect();

@@ -53,6 +53,13 @@ pub struct ForestSettings {
     /// How strongly such a partner pulls a tip into its tree (m of surface
     /// distance per partner); 0 turns the sway off.
     pub sway_weight_m: f64,
+    /// Two found crowns whose tips' sway correlates this much on average
+    /// share a trunk: a split that makes such crowns cuts one tree, and
+    /// the count is the most crowns that all sway independently.
+    pub trunk_coherence: f64,
+    /// How strongly a tip's mean sway correlation with a tree's tips pulls
+    /// it into that tree (m of surface distance per unit of correlation).
+    pub trunk_weight_m: f64,
 }
 
 impl ForestSettings {
@@ -69,6 +76,8 @@ impl ForestSettings {
         r("ambiguous_ratio", self.ambiguous_ratio, 0.0, 1.0)?;
         r("sway_correlation", self.sway_correlation, 0.0, 1.0)?;
         r("sway_weight_m", self.sway_weight_m, 0.0, 10.0)?;
+        r("trunk_coherence", self.trunk_coherence, 0.0, 1.0)?;
+        r("trunk_weight_m", self.trunk_weight_m, 0.0, 10.0)?;
         Ok(())
     }
 }

@@ -1,7 +1,10 @@
 //! Tips that sway together: in wind, the tips of one limb move as one
 //! (Long & Jones §8 warn that tips sharing a parent must not move
-//! independently). Where two crowns meet, a tip that shape alone cannot
-//! place is pulled towards the tree of the tips it sways with.
+//! independently), and every tip of a tree moves with its trunk, while two
+//! trees sway independently. Where two crowns meet, a tip that shape alone
+//! cannot place is pulled towards the tree of the tips it sways with, and
+//! the number of trees is the number of crowns that sway independently
+//! ([`Coherence`], docs/forest.md "The sway chooses the count").
 //!
 //! A tip's sway is its displacement from rest with a 2 s moving average
 //! taken off: that removes the steady bend of a wind phase (which every
@@ -13,7 +16,7 @@ use glam::DVec3;
 
 use crate::model::tips::Tips;
 
-/// Two tips that sway together.
+/// The sway correlation of two tips.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SwayLink {
     /// Marker of one tip.
@@ -24,8 +27,8 @@ pub struct SwayLink {
     pub correlation: f64,
 }
 
-/// Tips farther apart than this are never linked (m): one limb is not
-/// wider, and it keeps chance likenesses between trees out.
+/// Tips farther apart than this are never pulled together as one limb (m):
+/// one limb is not wider, and it keeps chance likenesses between trees out.
 pub const MAX_LINK_M: f64 = 1.0;
 /// A tip swaying less than this (RMS, m) is still: its correlations are
 /// noise.
@@ -37,9 +40,11 @@ const MAX_FRAMES: usize = 4000;
 /// Fewest common frames for a correlation.
 const MIN_COMMON: usize = 100;
 
-/// Links between the tips of `tips` whose sway correlates at least
-/// `threshold` (from the measured samples of their traces).
-pub fn links(tips: &Tips, threshold: f64) -> Vec<SwayLink> {
+/// The sway correlation of every two swaying tips of `tips` (from the
+/// measured samples of their traces); empty for a take without wind. The
+/// limb pull keeps the strong, near ones (`forest.sway_correlation`,
+/// [`MAX_LINK_M`]); the count and the trunk pull use them all.
+pub fn links(tips: &Tips) -> Vec<SwayLink> {
     let frames = tips.timeline.len();
     let Some(dt) = tips.timeline.frame_interval() else {
         return Vec::new();
@@ -62,41 +67,152 @@ pub fn links(tips: &Tips, threshold: f64) -> Vec<SwayLink> {
             s
         })
         .collect();
-    let rests: Vec<DVec3> = tips.tips.iter().map(|t| t.rest).collect();
     let markers: Vec<usize> = tips.tips.iter().map(|t| t.marker).collect();
-    links_of_series(&series, &rests, &markers, window, threshold)
+    links_of_series(&series, &markers, window)
 }
 
 /// The core of [`links`] on plain series (one displacement per frame, `None`
 /// where unmeasured), so it can be tested without a recording.
 pub fn links_of_series(
     series: &[Vec<Option<DVec3>>],
-    rests: &[DVec3],
     markers: &[usize],
     window: usize,
-    threshold: f64,
 ) -> Vec<SwayLink> {
     let sway: Vec<Vec<Option<DVec3>>> = series.iter().map(|s| high_pass(s, window)).collect();
     let swaying: Vec<bool> = sway.iter().map(|s| rms(s) >= MIN_SWAY_M).collect();
     let mut out = Vec::new();
     for i in 0..sway.len() {
         for j in i + 1..sway.len() {
-            if !(swaying[i] && swaying[j]) || rests[i].distance(rests[j]) > MAX_LINK_M {
+            if !(swaying[i] && swaying[j]) {
                 continue;
             }
             if let Some(c) = correlation(&sway[i], &sway[j]) {
-                if c >= threshold {
-                    out.push(SwayLink {
-                        a: markers[i],
-                        b: markers[j],
-                        correlation: c,
-                    });
-                }
+                out.push(SwayLink {
+                    a: markers[i],
+                    b: markers[j],
+                    correlation: c,
+                });
             }
         }
     }
     out
 }
+
+/// The limb links among `links` (indices into `rests`): correlation at
+/// least `threshold`, rests within [`MAX_LINK_M`].
+pub fn limb_links(
+    links: &[(usize, usize, f64)],
+    rests: &[DVec3],
+    threshold: f64,
+) -> Vec<(usize, usize, f64)> {
+    links
+        .iter()
+        .copied()
+        .filter(|&(a, b, c)| c >= threshold && rests[a].distance(rests[b]) <= MAX_LINK_M)
+        .collect()
+}
+
+/// Every two tips' sway correlation, by tip index (`None` where unknown: a
+/// still tip, too few common frames): what tells one tree's crown (its
+/// tips share the trunk's sway) from two trees (which sway independently).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Coherence {
+    /// Number of tips.
+    n: usize,
+    /// Row-major n × n correlations (the diagonal unknown).
+    corr: Vec<Option<f64>>,
+}
+
+impl Coherence {
+    /// The matrix of `n` tips from links between tip indices.
+    pub fn new(n: usize, links: &[(usize, usize, f64)]) -> Self {
+        let mut corr = vec![None; n * n];
+        for &(a, b, c) in links {
+            corr[a * n + b] = Some(c);
+            corr[b * n + a] = Some(c);
+        }
+        Coherence { n, corr }
+    }
+
+    /// The correlation of tips `a` and `b`, when known.
+    pub fn get(&self, a: usize, b: usize) -> Option<f64> {
+        self.corr[a * self.n + b]
+    }
+
+    /// Share of the tips with a known correlation to some other tip: how
+    /// much of the take swayed (0 for a take without wind).
+    pub fn coverage(&self) -> f64 {
+        if self.n == 0 {
+            return 0.0;
+        }
+        let known = (0..self.n)
+            .filter(|&a| (0..self.n).any(|b| self.get(a, b).is_some()))
+            .count();
+        known as f64 / self.n as f64
+    }
+
+    /// The mean correlation between the tips labelled `x` and those
+    /// labelled `y` (`x == y`: within one group, each pair once), and how
+    /// many pairs it is over.
+    pub fn mean_between(&self, labels: &[usize], x: usize, y: usize) -> (f64, usize) {
+        let (mut sum, mut count) = (0.0, 0usize);
+        for a in (0..self.n).filter(|&a| labels[a] == x) {
+            for b in (0..self.n).filter(|&b| labels[b] == y && (x != y || b > a)) {
+                if let Some(c) = self.get(a, b) {
+                    sum += c;
+                    count += 1;
+                }
+            }
+        }
+        (if count == 0 { 0.0 } else { sum / count as f64 }, count)
+    }
+
+    /// The largest mean correlation between two of the `k` groups of
+    /// `labels` (pairs of groups with fewer than [`MIN_PAIRS`] known
+    /// correlations are not judged): near zero when every group is a tree
+    /// of its own, near a tree's trunk share when one tree was cut in two;
+    /// and the largest such mean over the geometric mean of the two groups'
+    /// own (near 1 for one tree cut in two, whatever its trunk's share).
+    /// −∞ for both when no pair is judged.
+    pub fn dependence(&self, labels: &[usize], k: usize) -> (f64, f64) {
+        let own: Vec<f64> = (0..k)
+            .map(|x| self.mean_between(labels, x, x).0.max(OWN_FLOOR))
+            .collect();
+        let (mut worst, mut ratio) = (f64::NEG_INFINITY, f64::NEG_INFINITY);
+        for x in 0..k {
+            for y in 0..x {
+                let (m, count) = self.mean_between(labels, x, y);
+                if count >= MIN_PAIRS {
+                    worst = worst.max(m);
+                    ratio = ratio.max(m / (own[x] * own[y]).sqrt());
+                }
+            }
+        }
+        (worst, ratio)
+    }
+
+    /// The mean correlation of tip `a` with the tips labelled `x` (other
+    /// than itself), when any is known.
+    pub fn mean_with(&self, labels: &[usize], a: usize, x: usize) -> Option<f64> {
+        let (mut sum, mut count) = (0.0, 0usize);
+        for b in (0..self.n).filter(|&b| b != a && labels[b] == x) {
+            if let Some(c) = self.get(a, b) {
+                sum += c;
+                count += 1;
+            }
+        }
+        (count > 0).then(|| sum / count as f64)
+    }
+}
+
+/// A group's own mean correlation counts as at least this in
+/// [`Coherence::dependence`]'s ratio, so two groups that hardly sway
+/// together inside do not make a large ratio of noise.
+const OWN_FLOOR: f64 = 0.1;
+
+/// Fewest known correlations between two groups for [`Coherence::dependence`]
+/// to judge them.
+pub const MIN_PAIRS: usize = 10;
 
 /// The series minus its centred moving average over `window` samples (the
 /// average of the measured samples in the window).
@@ -186,13 +302,18 @@ mod tests {
             tip(0.8, 0.0, 0.0005, 0.0),   // still tip: never linked
         ];
         let rests = vec![DVec3::ZERO, DVec3::X * 0.3, DVec3::X * 0.5, DVec3::X * 0.2];
-        let links = links_of_series(&series, &rests, &[0, 1, 2, 3], 200, 0.7);
+        let all = links_of_series(&series, &[0, 1, 2, 3], 200);
+        // The still tip has no correlation with anyone.
+        assert_eq!(all.len(), 3, "{all:?}");
+        let pairs: Vec<(usize, usize, f64)> =
+            all.iter().map(|l| (l.a, l.b, l.correlation)).collect();
+        let links = limb_links(&pairs, &rests, 0.7);
         assert_eq!(links.len(), 1, "{links:?}");
-        assert_eq!((links[0].a, links[0].b), (0, 1));
-        assert!(links[0].correlation > 0.85, "{links:?}");
+        assert_eq!((links[0].0, links[0].1), (0, 1));
+        assert!(links[0].2 > 0.85, "{links:?}");
         // Too far apart: not linked.
         let far = vec![DVec3::ZERO, DVec3::X * 1.5, DVec3::X * 0.5, DVec3::X * 0.2];
-        assert!(links_of_series(&series, &far, &[0, 1, 2, 3], 200, 0.7).is_empty());
+        assert!(limb_links(&pairs, &far, 0.7).is_empty());
     }
 
     #[test]
@@ -202,8 +323,9 @@ mod tests {
             *s = None;
         }
         let b = tip(0.8, 0.0, 0.012, 0.0);
-        let links = links_of_series(&[a, b], &[DVec3::ZERO, DVec3::Y * 0.2], &[5, 9], 200, 0.7);
+        let links = links_of_series(&[a, b], &[5, 9], 200);
         assert_eq!(links.len(), 1);
         assert_eq!((links[0].a, links[0].b), (5, 9));
+        assert!(links[0].correlation > 0.7, "{links:?}");
     }
 }
