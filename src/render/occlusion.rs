@@ -172,7 +172,7 @@ impl Spans for Band<'_> {
         let holds = |(a, b): (i64, i64)| a <= x0 && x1 <= b;
         let mut y = y as usize;
         while y < self.widest.len() {
-            if !self.owns(y) || (y % STRIPE == 0 && holds(self.solid[y / STRIPE])) {
+            if !self.owns(y) || (y.is_multiple_of(STRIPE) && holds(self.solid[y / STRIPE])) {
                 y += STRIPE - y % STRIPE;
             } else if holds(self.widest[y]) {
                 y += 1;
