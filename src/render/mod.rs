@@ -10,6 +10,7 @@ pub mod frames;
 mod glb;
 pub mod gltf;
 pub mod json;
+pub mod occlusion;
 pub mod outputs;
 pub mod picture;
 pub mod plot;

@@ -10,6 +10,7 @@ use glam::DVec3;
 use crate::error::Result;
 use crate::model::motion::TreeMotion;
 use crate::model::tree::{Kind, Tree};
+use crate::render::occlusion::{draw_top_down, Stroke};
 use crate::render::raster::{Canvas, Rgb};
 
 const WIDTH: u32 = 1400;
@@ -139,10 +140,15 @@ fn render_trees(trees: &[(&str, &Tree)], labelled: bool, motion: Option<&TreeMot
         canvas.text_scaled(panel_left, 20.0, title, 2, INK);
         let (_, gy) = to_px(ground);
         canvas.line(panel_left, gy, panel_left + panel_w, gy, 1.0, GROUND);
+        // The branches over the motion, drawn topmost first so each pixel
+        // is written once (occlusion.rs: tens of thousands of capsules lie
+        // under one another in a large crown).
+        let mut strokes = Vec::new();
+        branch_strokes(&mut strokes, trees, &segments, &to_px, scale);
         if let Some((m, (keys, _, _))) = extreme {
-            draw_motion(&mut canvas, trees[0].1, m, keys, &segments, &to_px, scale);
+            motion_strokes(&mut strokes, trees[0].1, m, keys, &segments, &to_px, scale);
         }
-        draw_branches(&mut canvas, trees, &segments, &to_px, scale);
+        draw_top_down(&mut canvas, &strokes);
         for (k, (name, tree)) in trees.iter().enumerate() {
             let (fill, edge) = TIP_COLOURS[k % TIP_COLOURS.len()];
             for node in &tree.nodes {
@@ -211,9 +217,11 @@ fn thickest_first(trees: &[(&str, &Tree)]) -> Vec<(usize, usize)> {
 }
 
 /// The first tree's two extreme poses as ghosts behind it, and each
-/// captured tip's path over the motion.
-fn draw_motion(
-    canvas: &mut Canvas,
+/// captured tip's path over the motion, as strokes under those already in
+/// `out`. Topmost first: the paths (the last drawn on top), then the second
+/// ghost, then the first.
+fn motion_strokes(
+    out: &mut Vec<Stroke>,
     tree: &Tree,
     m: &TreeMotion,
     keys: [usize; 2],
@@ -221,40 +229,47 @@ fn draw_motion(
     to_px: &dyn Fn(DVec3) -> (f64, f64),
     scale: f64,
 ) {
-    for (g, k) in keys.into_iter().enumerate() {
+    for c in m.captured.iter().rev() {
+        let at = |k: usize| to_px(DVec3::from(m.pose(k)[c.node].map(f64::from)));
+        for k in (1..m.keys()).rev() {
+            let ((x0, y0), (x1, y1)) = (at(k - 1), at(k));
+            out.push(Stroke {
+                ends: [x0, y0, x1, y1],
+                width: 1.0,
+                color: PATH,
+            });
+        }
+    }
+    for (g, k) in keys.into_iter().enumerate().rev() {
         let pose = m.pose(k);
         let at = |n: usize| DVec3::from(pose[n].map(f64::from));
-        for &(_, i) in segments.iter().filter(|s| s.0 == 0) {
+        for &(_, i) in segments.iter().rev().filter(|s| s.0 == 0) {
             let Some(p) = tree.nodes[i].parent else {
                 continue;
             };
             let (x0, y0) = to_px(at(i));
             let (x1, y1) = to_px(at(p));
             let width = (2.0 * tree.nodes[i].radius * scale).max(1.0);
-            canvas.line(x0, y0, x1, y1, width, GHOST[g]);
-        }
-    }
-    for c in &m.captured {
-        let mut last: Option<(f64, f64)> = None;
-        for k in 0..m.keys() {
-            let here = to_px(DVec3::from(m.pose(k)[c.node].map(f64::from)));
-            if let Some((x, y)) = last {
-                canvas.line(x, y, here.0, here.1, 1.0, PATH);
-            }
-            last = Some(here);
+            out.push(Stroke {
+                ends: [x0, y0, x1, y1],
+                width,
+                color: GHOST[g],
+            });
         }
     }
 }
 
-/// The branches at rest, as wide as they are thick, the trunk in its colour.
-fn draw_branches(
-    canvas: &mut Canvas,
+/// The branches at rest, as wide as they are thick, the trunk in its
+/// colour, as strokes under those already in `out`: thinnest first, as
+/// they lie on top.
+fn branch_strokes(
+    out: &mut Vec<Stroke>,
     trees: &[(&str, &Tree)],
     segments: &[(usize, usize)],
     to_px: &dyn Fn(DVec3) -> (f64, f64),
     scale: f64,
 ) {
-    for &(k, i) in segments {
+    for &(k, i) in segments.iter().rev() {
         let tree = trees[k].1;
         let node = &tree.nodes[i];
         let Some(parent) = node.parent.and_then(|p| tree.nodes.get(p)) else {
@@ -267,7 +282,11 @@ fn draw_branches(
         } else {
             BRANCH
         };
-        canvas.line(x0, y0, x1, y1, (2.0 * node.radius * scale).max(1.0), colour);
+        out.push(Stroke {
+            ends: [x0, y0, x1, y1],
+            width: (2.0 * node.radius * scale).max(1.0),
+            color: colour,
+        });
     }
 }
 

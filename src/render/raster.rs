@@ -116,92 +116,13 @@ impl Canvas {
 
     /// A straight line `width` pixels wide.
     pub fn line(&mut self, x0: f64, y0: f64, x1: f64, y1: f64, width: f64, color: Rgb) {
-        if !(x0.is_finite() && y0.is_finite() && x1.is_finite() && y1.is_finite()) {
-            return;
-        }
-        // Clip to a margin around the canvas so a wild coordinate cannot
-        // make the loop below run for ever.
-        let lim = 4.0 * f64::from(self.width.max(self.height));
-        let (x0, y0, x1, y1) = (
-            x0.clamp(-lim, lim),
-            y0.clamp(-lim, lim),
-            x1.clamp(-lim, lim),
-            y1.clamp(-lim, lim),
-        );
-        let half = (width.max(1.0) - 1.0) / 2.0;
-        if half > 0.0 {
-            self.capsule(x0, y0, x1, y1, half + 0.5, color);
-            return;
-        }
-        let steps = (x1 - x0).abs().max((y1 - y0).abs()).ceil().max(1.0) as i64;
-        for i in 0..=steps {
-            let t = i as f64 / steps as f64;
-            let (x, y) = (x0 + (x1 - x0) * t, y0 + (y1 - y0) * t);
-            self.set(x.round() as i64, y.round() as i64, color);
-        }
+        line_into(self, [x0, y0, x1, y1], width, color);
     }
 
-    /// Every pixel within `r` of the segment (x0, y0)–(x1, y1): a thick line
-    /// with round ends, filled row by row. Why not discs along the line: a
-    /// disc per pixel step costs length × width², which made the picture of
-    /// a large tree (thick trunk, 100 000 segments) slower than building it;
-    /// rows cost the pixels they fill.
-    fn capsule(&mut self, x0: f64, y0: f64, x1: f64, y1: f64, r: f64, color: Rgb) {
-        let r = r.min(1e5);
-        let top = (y0.min(y1) - r).floor().max(0.0) as i64;
-        let bottom = (y0.max(y1) + r).ceil().min(f64::from(self.height) - 1.0) as i64;
-        let (dx, dy) = (x1 - x0, y1 - y0);
-        let len2 = dx * dx + dy * dy;
-        let len = len2.sqrt();
-        for yy in top..=bottom {
-            let y = yy as f64;
-            let mut span = disc_span(x0, y0, r, y);
-            span = union(span, disc_span(x1, y1, r, y));
-            if len > 0.0 {
-                // The band between the ends: 0 ≤ (p − p0)·d ≤ |d|² and
-                // |(p − p0) × d| ≤ r|d|, each linear in x on this row.
-                let mut lo = f64::NEG_INFINITY;
-                let mut hi = f64::INFINITY;
-                let ry = y - y0;
-                for (a, b, min, max) in
-                    [(dx, ry * dy, 0.0, len2), (-dy, ry * dx, -r * len, r * len)]
-                {
-                    // min ≤ a·(x − x0) + b ≤ max
-                    if a.abs() < 1e-12 {
-                        if b < min || b > max {
-                            lo = f64::INFINITY;
-                        }
-                        continue;
-                    }
-                    let (p, q) = ((min - b) / a + x0, (max - b) / a + x0);
-                    lo = lo.max(p.min(q));
-                    hi = hi.min(p.max(q));
-                }
-                if lo <= hi {
-                    span = union(span, Some((lo, hi)));
-                }
-            }
-            if let Some((lo, hi)) = span {
-                self.fill_row(yy, lo.ceil(), hi.floor(), color);
-            }
-        }
-    }
-
-    /// Sets pixels `x0..=x1` of row `y`, clipped to the canvas.
-    fn fill_row(&mut self, y: i64, x0: f64, x1: f64, color: Rgb) {
-        if y < 0 || y >= i64::from(self.height) {
-            return;
-        }
-        let x0 = x0.max(0.0);
-        let x1 = x1.min(f64::from(self.width) - 1.0);
-        if x0.is_nan() || x1.is_nan() || x0 > x1 {
-            return;
-        }
-        let row = y as usize * self.width as usize * 3;
-        let (a, b) = (row + x0 as usize * 3, row + x1 as usize * 3 + 3);
-        for px in self.pixels[a..b].chunks_exact_mut(3) {
-            px.copy_from_slice(&color);
-        }
+    /// The pixels, row after row, 3 bytes each: for layers that paint
+    /// rows on several threads (`occlusion`).
+    pub(crate) fn pixels_mut(&mut self) -> &mut [u8] {
+        &mut self.pixels
     }
 
     /// Text in the built-in 5×7 font, top-left at (x, y), one pixel per dot.
@@ -246,11 +167,195 @@ impl Canvas {
         let mut encoder = png::Encoder::new(&mut out, self.width, self.height);
         encoder.set_color(png::ColorType::Rgb);
         encoder.set_depth(png::BitDepth::Eight);
+        // fdeflate's fast mode: 9 ms instead of 100 ms (`Balanced`) for a
+        // large tree's picture, for a file 3× as large (58 kB instead of
+        // 19 kB); the pixels are the same (docs/picture.md).
+        encoder.set_compression(png::Compression::Fast);
         let mut writer = encoder.write_header().map_err(err)?;
         writer.write_image_data(&self.pixels).map_err(err)?;
         writer.finish().map_err(err)?;
         Ok(out)
     }
+}
+
+/// Where a line's pixels go, as runs of one row: straight onto a
+/// [`Canvas`], or through a layer that keeps what is already drawn on top
+/// (`occlusion::TopDown`). Every run handed over is clipped to the canvas.
+pub(crate) trait Spans {
+    /// Width and height of the canvas, in pixels.
+    fn size(&self) -> (u32, u32);
+    /// The first row from `y` on that `span` wants and whose pixels
+    /// `x0..=x1` are not all known to be final already (`y` itself when
+    /// unknown): a shape skips the rows before it without their
+    /// arithmetic. May be past the last row.
+    fn hidden_until(&self, y: i64, _x0: i64, _x1: i64) -> i64 {
+        y
+    }
+    /// Paints pixels `x0..=x1` of row `y` (a layer that paints only some
+    /// rows ignores the others).
+    fn span(&mut self, y: i64, x0: i64, x1: i64, color: Rgb);
+}
+
+impl Spans for Canvas {
+    fn size(&self) -> (u32, u32) {
+        (self.width, self.height)
+    }
+
+    fn span(&mut self, y: i64, x0: i64, x1: i64, color: Rgb) {
+        let row = y as usize * self.width as usize * 3;
+        fill(&mut self.pixels[row..], x0, x1, color);
+    }
+}
+
+/// A straight line `width` pixels wide from (x0, y0) to (x1, y1), given
+/// as `[x0, y0, x1, y1]`, as runs into `out`.
+pub(crate) fn line_into(out: &mut impl Spans, ends: [f64; 4], width: f64, color: Rgb) {
+    if !ends.iter().all(|v| v.is_finite()) {
+        return;
+    }
+    let (w, h) = out.size();
+    // Clip to a margin around the canvas so a wild coordinate cannot
+    // make the loop below run for ever.
+    let lim = 4.0 * f64::from(w.max(h));
+    let [x0, y0, x1, y1] = ends.map(|v| v.clamp(-lim, lim));
+    let half = (width.max(1.0) - 1.0) / 2.0;
+    if half > 0.0 {
+        capsule(out, [x0, y0, x1, y1], half + 0.5, color);
+        return;
+    }
+    // One pixel per step along the longer axis. Steps move x by at most a
+    // pixel and y one way, so the pixels of one row are one run:
+    // handed over whole (the thin twigs of a large tree are most lines).
+    // A pixel of margin: a step's rounding may land one past an end.
+    let (top, bottom) = (y0.min(y1).round() as i64 - 1, y0.max(y1).round() as i64 + 1);
+    let (left, right) = (x0.min(x1).round() as i64 - 1, x0.max(x1).round() as i64 + 1);
+    if out.hidden_until(top.max(0), left.max(0), right.min(i64::from(w) - 1)) > bottom {
+        // Every row it would touch is final, or not `out`'s to paint.
+        return;
+    }
+    let steps = (x1 - x0).abs().max((y1 - y0).abs()).ceil().max(1.0) as i64;
+    let mut run: Option<(i64, i64, i64)> = None;
+    let mut flush = |run: Option<(i64, i64, i64)>| {
+        if let Some((y, lo, hi)) = run {
+            let (lo, hi) = (lo.max(0), hi.min(i64::from(w) - 1));
+            if (0..i64::from(h)).contains(&y) && lo <= hi {
+                out.span(y, lo, hi, color);
+            }
+        }
+    };
+    for i in 0..=steps {
+        let t = i as f64 / steps as f64;
+        let (x, y) = (x0 + (x1 - x0) * t, y0 + (y1 - y0) * t);
+        let (x, y) = (x.round() as i64, y.round() as i64);
+        match &mut run {
+            Some((row, lo, hi)) if *row == y => (*lo, *hi) = ((*lo).min(x), (*hi).max(x)),
+            _ => {
+                flush(run);
+                run = Some((y, x, x));
+            }
+        }
+    }
+    flush(run);
+}
+
+/// Every pixel within `r` of the segment (x0, y0)–(x1, y1): a thick line
+/// with round ends, filled row by row. Why not discs along the line: a
+/// disc per pixel step costs length × width², which made the picture of
+/// a large tree (thick trunk, 100 000 segments) slower than building it;
+/// rows cost the pixels they fill. A row that `out` already has final
+/// across the capsule's whole width is skipped before any arithmetic.
+fn capsule(out: &mut impl Spans, [x0, y0, x1, y1]: [f64; 4], r: f64, color: Rgb) {
+    let (w, h) = out.size();
+    let (w, h) = (f64::from(w), f64::from(h));
+    let r = r.min(1e5);
+    let top = (y0.min(y1) - r).floor().max(0.0) as i64;
+    let bottom = (y0.max(y1) + r).ceil().min(h - 1.0) as i64;
+    // The widest the capsule gets on any row, clipped: the cheap test,
+    // with a pixel of margin for the rows' rounding.
+    let left = (floor(x0.min(x1) - r) - 1.0).max(0.0) as i64;
+    let right = (ceil(x0.max(x1) + r) + 1.0).min(w - 1.0) as i64;
+    if left > right {
+        return;
+    }
+    let (dx, dy) = (x1 - x0, y1 - y0);
+    let len2 = dx * dx + dy * dy;
+    let len = len2.sqrt();
+    let mut yy = top;
+    while yy <= bottom {
+        let next = out.hidden_until(yy, left, right);
+        if next > yy {
+            yy = next;
+            continue;
+        }
+        let y = yy as f64;
+        let mut span = disc_span(x0, y0, r, y);
+        span = union(span, disc_span(x1, y1, r, y));
+        // Below a nanopixel the discs are the whole shape, and the band's
+        // tests lose their meaning (both slopes vanish: every x passes).
+        if len > 1e-9 {
+            span = union(span, band_span([x0, y0, dx, dy], len2, r * len, y));
+        }
+        if let Some((lo, hi)) = span {
+            let (lo, hi) = (ceil(lo).max(0.0), floor(hi).min(w - 1.0));
+            if !lo.is_nan() && !hi.is_nan() && lo <= hi {
+                out.span(yy, lo as i64, hi as i64, color);
+            }
+        }
+        yy += 1;
+    }
+}
+
+/// Row `y` of the band between a segment's ends: the points p with
+/// 0 ≤ (p − p0)·d ≤ |d|² and |(p − p0) × d| ≤ r|d| (`rlen`), each linear
+/// in x on the row. `seg` is [x0, y0, dx, dy], `len2` = |d|².
+fn band_span([x0, y0, dx, dy]: [f64; 4], len2: f64, rlen: f64, y: f64) -> Option<(f64, f64)> {
+    let mut lo = f64::NEG_INFINITY;
+    let mut hi = f64::INFINITY;
+    let ry = y - y0;
+    for (a, b, min, max) in [(dx, ry * dy, 0.0, len2), (-dy, ry * dx, -rlen, rlen)] {
+        // min ≤ a·(x − x0) + b ≤ max
+        if a.abs() < 1e-12 {
+            if b < min || b > max {
+                return None;
+            }
+            continue;
+        }
+        let (p, q) = ((min - b) / a + x0, (max - b) / a + x0);
+        lo = lo.max(p.min(q));
+        hi = hi.min(p.max(q));
+    }
+    (lo <= hi).then_some((lo, hi))
+}
+
+/// Sets pixels `x0..=x1` of the row starting `row` (3 bytes a pixel); the
+/// caller has clipped them to the canvas (`Spans` promises so).
+pub(crate) fn fill(row: &mut [u8], x0: i64, x1: i64, color: Rgb) {
+    debug_assert!(0 <= x0 && x0 <= x1);
+    let (a, b) = (x0 as usize * 3, x1 as usize * 3 + 3);
+    for px in row[a..b].chunks_exact_mut(3) {
+        px.copy_from_slice(&color);
+    }
+}
+
+/// `x.floor()` without the call into libm that the baseline x86-64 target
+/// makes of it (5 % of a large tree's picture). Exact for |x| < 2⁶³; beyond
+/// that (and for ±∞) it saturates, which the callers clamp to the canvas
+/// anyway. NaN stays NaN.
+fn floor(x: f64) -> f64 {
+    if x.is_nan() {
+        return x;
+    }
+    let t = x as i64 as f64;
+    if t > x {
+        t - 1.0
+    } else {
+        t
+    }
+}
+
+/// `x.ceil()` as [`floor`] does it.
+fn ceil(x: f64) -> f64 {
+    -floor(-x)
 }
 
 /// The x-interval of row `y` inside the disc of radius `r` at (cx, cy).
