@@ -152,12 +152,7 @@ fn nearest_beside(mark: &Trace, seen: &Beside, f: i64, step: i64) -> Option<Opti
 /// with these runs hand over to each other: they share no frame, and every
 /// run hands over within `HANDOVER_FRAMES` and `gate_m` on each side where
 /// the mark has data (and the mark has data beside at least one run).
-fn hands_over(
-    mark: &Trace,
-    seen: &Beside,
-    runs: &[(i64, DVec3, i64, DVec3)],
-    gate_m: f64,
-) -> bool {
+fn hands_over(mark: &Trace, seen: &Beside, runs: &[(i64, DVec3, i64, DVec3)], gate_m: f64) -> bool {
     // Cheap first: most marks are measured in the ghost's frames.
     if runs
         .iter()

@@ -465,20 +465,21 @@ mod gap_join_tests {
         for n in (41..700).chain(760..900).filter(|n| n % 7 != 3) {
             host.push(n, at(n), None);
         }
-        let spans: [&[std::ops::Range<i64>]; 7] = [
-            &[0..30],
-            &[0..45],
-            &[700..760],
-            &[701..740, 745..759],
-            &[850..1000],
-            &[910..990],
-            &[300..302],
+        // Half-open frame ranges of each fragment.
+        let spans: [&[(i64, i64)]; 7] = [
+            &[(0, 30)],
+            &[(0, 45)],
+            &[(700, 760)],
+            &[(701, 740), (745, 759)],
+            &[(850, 1000)],
+            &[(910, 990)],
+            &[(300, 302)],
         ];
         let whole = Measured::of(&host);
         for (k, ranges) in spans.iter().enumerate() {
             let frames: Vec<i64> = ranges
                 .iter()
-                .flat_map(|r| r.clone())
+                .flat_map(|&(a, b)| a..b)
                 .filter(|&n| k == 6 || !host.is_measured(n))
                 .collect();
             let mut frag = Trace::new(1, frames[0], at(frames[0]) + DVec3::X * 0.003, None);
@@ -487,13 +488,18 @@ mod gap_join_tests {
             }
             let frag = Measured::of(&frag);
             for context in [1, 5, 50, 2000] {
-                let near = Measured::around(&host, (frag.first_frame(), frag.last_frame()), context);
+                let near =
+                    Measured::around(&host, (frag.first_frame(), frag.last_frame()), context);
                 assert!(near.samples.len() <= whole.samples.len());
                 let (a, b) = (
                     switch_cost(&whole, &frag, context),
                     switch_cost(&near, &frag, context),
                 );
-                assert_eq!(a.map(f64::to_bits), b.map(f64::to_bits), "span {k}, context {context}");
+                assert_eq!(
+                    a.map(f64::to_bits),
+                    b.map(f64::to_bits),
+                    "span {k}, context {context}"
+                );
                 assert_eq!(a.is_none(), k == 6, "span {k}");
             }
         }
