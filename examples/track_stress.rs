@@ -4,8 +4,9 @@
 //! another tip or a ghost, fragments, rest error, and the wind-phase fill
 //! error by gap length beside PCHIP with perfect identity.
 //!
-//! `cargo run --release --example track_stress [SEEDS] [WIND_S]`
-//! (defaults: 3 seeds, 20 s of wind after 8 s still).
+//! `cargo run --release --example track_stress [SEEDS] [WIND_S] [NAMES]`
+//! (defaults: 3 seeds, 20 s of wind after 8 s still, every stress; NAMES
+//! picks some, comma-separated: `all,close`).
 
 use treemocap::sim::{self, score, stress};
 use treemocap::track::{self, Tracker, TrackingSettings};
@@ -14,50 +15,71 @@ fn main() {
     let args: Vec<String> = std::env::args().collect();
     let seeds: u64 = args.get(1).and_then(|s| s.parse().ok()).unwrap_or(3);
     let wind_s: f64 = args.get(2).and_then(|s| s.parse().ok()).unwrap_or(20.0);
+    let only: Option<Vec<&str>> = args.get(3).map(|s| s.split(',').collect());
     let cfg = TrackingSettings::default();
-    let bins = score::fill_bins(240.0);
     println!(
         "| stress | tips found/placed | wrong samples | fragments | rest error max (mm) | fills bridging two markers | fill error 1–10 f (mm, ours / PCHIP) | 11–50 f | 51 f–2 s | largest sway (mm) | closest tips (mm) |"
     );
     println!("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |");
-    for k in 0..stress::all(&stress::base(0, 70, 8.0, wind_s)).len() {
-        let mut total = score::Score::default();
-        let (mut sway, mut spacing) = (0.0f64, f64::INFINITY);
-        let mut name = "";
-        for seed in 0..seeds {
-            let st = stress::all(&stress::base(100 + seed, 70, 8.0, wind_s)).swap_remove(k);
-            name = st.name;
-            let syn = sim::generate(&st.options).expect("stress options are valid");
-            let mut tracker = Tracker::new(&cfg, Some(240.0));
-            for f in &syn.frames {
-                tracker.push(f);
-            }
-            let (tips, _) = track::clean(tracker.finish(), &cfg, "sim", 240.0);
-            total.merge(&score::score(&tips, &syn));
-            sway = sway.max(score::largest_sway(&syn.truth));
-            spacing = spacing.min(score::smallest_spacing(&syn.truth));
+    let names: Vec<&str> = stress::all(&stress::base(0, 70, 8.0, wind_s))
+        .iter()
+        .map(|s| s.name)
+        .collect();
+    for (k, &name) in names.iter().enumerate() {
+        if only.as_ref().is_some_and(|o| !o.contains(&name)) {
+            continue;
         }
-        let fill = |(lo, hi): (i64, i64)| {
-            let (gaps, filled, ours, pchip) = total.fill_bin(lo, hi);
-            format!(
-                "{:.2} / {:.2} ({filled}/{gaps})",
-                ours * 1000.0,
-                pchip * 1000.0
-            )
-        };
-        println!(
-            "| {name} | {}/{} | {} | {} | {:.3} | {} | {} | {} | {} | {:.0} | {:.1} |",
-            total.tips_found,
-            total.tips_placed,
-            total.wrong_samples,
-            total.fragments + total.missed_tips,
-            total.rest_max() * 1000.0,
-            total.bridged,
-            fill(bins[0]),
-            fill(bins[1]),
-            fill(bins[2]),
-            sway * 1000.0,
-            spacing * 1000.0
-        );
+        row(name, k, seeds, wind_s, &cfg);
     }
+    // The combined stress has 1 mm noise: the filters told so hold the
+    // tip count (docs/tracking.md, `noise_mm`).
+    if only.as_ref().is_none_or(|o| o.contains(&"all")) {
+        let noisy = TrackingSettings {
+            noise_mm: 1.5,
+            ..cfg.clone()
+        };
+        let k = names.iter().position(|n| *n == "all").unwrap_or(0);
+        row("all, noise_mm 1.5", k, seeds, wind_s, &noisy);
+    }
+}
+
+/// Runs stress `k` over `seeds` seeds and prints its row.
+fn row(name: &str, k: usize, seeds: u64, wind_s: f64, cfg: &TrackingSettings) {
+    let bins = score::fill_bins(240.0);
+    let mut total = score::Score::default();
+    let (mut sway, mut spacing) = (0.0f64, f64::INFINITY);
+    for seed in 0..seeds {
+        let st = stress::all(&stress::base(100 + seed, 70, 8.0, wind_s)).swap_remove(k);
+        let syn = sim::generate(&st.options).expect("stress options are valid");
+        let mut tracker = Tracker::new(cfg, Some(240.0));
+        for f in &syn.frames {
+            tracker.push(f);
+        }
+        let (tips, _) = track::clean(tracker.finish(), cfg, "sim", 240.0);
+        total.merge(&score::score(&tips, &syn));
+        sway = sway.max(score::largest_sway(&syn.truth));
+        spacing = spacing.min(score::smallest_spacing(&syn.truth));
+    }
+    let fill = |(lo, hi): (i64, i64)| {
+        let (gaps, filled, ours, pchip) = total.fill_bin(lo, hi);
+        format!(
+            "{:.2} / {:.2} ({filled}/{gaps})",
+            ours * 1000.0,
+            pchip * 1000.0
+        )
+    };
+    println!(
+        "| {name} | {}/{} | {} | {} | {:.3} | {} | {} | {} | {} | {:.0} | {:.1} |",
+        total.tips_found,
+        total.tips_placed,
+        total.wrong_samples,
+        total.fragments + total.missed_tips,
+        total.rest_max() * 1000.0,
+        total.bridged,
+        fill(bins[0]),
+        fill(bins[1]),
+        fill(bins[2]),
+        sway * 1000.0,
+        spacing * 1000.0
+    );
 }

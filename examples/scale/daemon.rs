@@ -181,10 +181,14 @@ pub fn runs(scale: &Scale) -> Vec<Row> {
     let minutes = if scale.quick { 0.5 } else { 5.0 };
     let window = 60.0;
     let mut rows = Vec::new();
+    let only = std::env::var("SCALE_DAEMON_RATE").ok();
     for (rate, n, http) in [
         (1000.0, 100, "127.0.0.1:18431"),
         (360.0, 1000, "127.0.0.1:18432"),
     ] {
+        if only.as_deref().is_some_and(|o| o != format!("{rate}")) {
+            continue;
+        }
         let seconds = window + minutes * 60.0;
         let r = run(scale, seconds, rate, n, http);
         let s = &r.status;

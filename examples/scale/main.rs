@@ -7,7 +7,8 @@
 //! ```
 //! PARTS: any of `csv daemon replay picture history peers` (default: all). `--quick`
 //! shortens everything (30 s daemon runs, a 10-minute replay) for a smoke
-//! run; the README's figures come from the full run. Python peers are
+//! run; the README's figures come from the full run. `SCALE_DAEMON_RATE=360`
+//! (or `1000`) runs only that one of the two daemon runs. Python peers are
 //! skipped with a note when not installed (`pip install -r
 //! tests/peers/requirements.txt`). Nothing here is a test: the figures
 //! depend on the machine and its load.

@@ -128,11 +128,11 @@ fn run_with(
     let handoff = Arc::new(handoff::AnalysisHandoff::default());
     let (tips_tx, tips_rx) = bounded(4);
     let (s, h) = (shared.clone(), handoff.clone());
-    threads.push(spawn("treemocap-analysis", move || {
+    threads.push(spawn_background("treemocap-analysis", move || {
         analysis::Analysis::new(s).run(&h)
     }));
     let s = shared.clone();
-    threads.push(spawn("treemocap-builder", move || {
+    threads.push(spawn_background("treemocap-builder", move || {
         builder::run(&s, tips_tx)
     }));
     let result =
@@ -237,6 +237,42 @@ fn osc_sender(targets: &[SocketAddr]) -> Result<Option<OscSender>> {
     }
     OscSender::new(targets.to_vec()).map(Some)
 }
+
+/// Like [`spawn`], for work off the latency path (the analysis of the
+/// window, the tree builder, the sway deformation): the thread runs at a
+/// lower priority (nice +[`BACKGROUND_NICE`]), so that on a machine with
+/// few cores the pipeline thread, which stamps every frame's latency, gets
+/// the CPU first whenever both want it. The background work still gets
+/// every cycle the pipeline leaves; it is only ever late, never lost.
+fn spawn_background(name: &str, f: impl FnOnce() + Send + 'static) -> JoinHandle<()> {
+    spawn(name, move || {
+        lower_priority();
+        f()
+    })
+}
+
+/// How much nicer than the pipeline the background threads are: at +10 the
+/// kernel gives a CPU-bound background thread about a tenth of a core the
+/// pipeline also wants (CFS weights 1024 against 110).
+const BACKGROUND_NICE: i32 = 10;
+
+#[cfg(target_os = "linux")]
+fn lower_priority() {
+    // On Linux a thread's nice value is its own: PRIO_PROCESS with a thread
+    // id sets it for this thread only. Raising one's own nice needs no
+    // privilege; a failure (a sandbox refusing it) only costs the priority.
+    // SAFETY: plain system calls with no pointers.
+    let r = unsafe {
+        let tid = libc::gettid();
+        libc::setpriority(libc::PRIO_PROCESS, tid as libc::id_t, BACKGROUND_NICE)
+    };
+    if r != 0 {
+        tracing::debug!("could not lower a background thread's priority");
+    }
+}
+
+#[cfg(not(target_os = "linux"))]
+fn lower_priority() {}
 
 fn spawn(name: &str, f: impl FnOnce() + Send + 'static) -> JoinHandle<()> {
     std::thread::Builder::new()

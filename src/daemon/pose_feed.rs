@@ -52,7 +52,8 @@ impl PoseFeed {
         let s = shared.clone();
         let mut pose = LivePose::new();
         let has_osc = osc.is_some();
-        let worker = super::spawn("treemocap-pose", move || work(&s, &mut pose, osc, &rx));
+        let worker =
+            super::spawn_background("treemocap-pose", move || work(&s, &mut pose, osc, &rx));
         Ok(PoseFeed {
             shared,
             tx: Some(tx),

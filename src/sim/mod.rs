@@ -116,8 +116,10 @@ pub struct SynthOptions {
     /// in the wind, so that their markers pass close (see `close_mm`).
     #[serde(skip_serializing_if = "is_zero_usize")]
     pub close_pairs: usize,
-    /// Closest approach the swing of a close pair aims at (mm); the other
-    /// modes move them too, so the truth's actual spacing is what counts.
+    /// Closest approach the swing of a close pair aims at (mm), in the
+    /// strongest gust of the session (the swing is sized for it, so that
+    /// the two pass close and not through each other); the other modes
+    /// move them too, so the truth's actual spacing is what counts.
     #[serde(skip_serializing_if = "is_default_close")]
     pub close_mm: f64,
     /// Trees in the session, 1–5 (docs/forest.md); `tips` markers each.
@@ -280,11 +282,33 @@ pub struct Synthetic {
 
 /// Generates a session. Same options → same session, bit for bit.
 pub fn generate(opts: &SynthOptions) -> Result<Synthetic> {
+    let truth = truth(opts)?;
+    let capture_rng = motion::stream(&Rng::new(opts.seed), CAPTURE);
+    let frames = capture::frames(&truth, opts.noise_mm / 1000.0, &capture_rng);
+    Ok(Synthetic {
+        frames,
+        columns: truth.columns.clone(),
+        truth,
+    })
+}
+
+/// The truth of the session [`generate`] makes from `opts`, without its
+/// frames: the tree, the motion, the gaps, the ghosts and the columns
+/// (cheap enough to try options, as [`stress`] does to bound the sway).
+pub fn truth(opts: &SynthOptions) -> Result<Truth> {
     opts.validate()?;
     let root = Rng::new(opts.seed);
     let mut wind_rng = motion::stream(&root, WIND);
     let angle = wind_rng.range(0.0, TAU);
     let wind_direction = DVec3::new(tree::q9(angle.cos()), 0.0, tree::q9(angle.sin()));
+    // Gusts first (their own stream): a close pair's swing is sized for
+    // the strongest wind, so that they pass close, not through each other.
+    let gusts = motion::gusts(
+        opts.gusts_per_min,
+        (opts.still_s + opts.wind_ramp_s, opts.still_s + opts.wind_s),
+        &motion::stream(&root, GUSTS),
+    );
+    let strongest = 1.0 + gusts.iter().map(|g| g.extra).fold(0.0, f64::max);
     let (tree, tips, forest, crown_centre) = if opts.trees > 1 {
         forest_tips(opts, &root, wind_direction)?
     } else {
@@ -297,6 +321,7 @@ pub fn generate(opts: &SynthOptions) -> Result<Synthetic> {
             &mut tips,
             opts.close_pairs,
             opts.close_mm / 1000.0,
+            strongest,
             &tree,
             &motion::stream(&motion_rng, 3),
         );
@@ -304,11 +329,6 @@ pub fn generate(opts: &SynthOptions) -> Result<Synthetic> {
     };
     let fan = crown_centre - wind_direction * 2.0;
     let fan_position = DVec3::new(tree::q9(fan.x), tree::q9(fan.y), tree::q9(fan.z));
-    let gusts = motion::gusts(
-        opts.gusts_per_min,
-        (opts.still_s + opts.wind_ramp_s, opts.still_s + opts.wind_s),
-        &motion::stream(&root, GUSTS),
-    );
 
     let frames = ((opts.still_s + opts.wind_s) * opts.frame_rate).round() as usize;
     let capture_rng = motion::stream(&root, CAPTURE);
@@ -334,12 +354,7 @@ pub fn generate(opts: &SynthOptions) -> Result<Synthetic> {
         forest,
     };
     capture::columns(&mut truth, FIRST_UNLABELED);
-    let frames = capture::frames(&truth, opts.noise_mm / 1000.0, &capture_rng);
-    Ok(Synthetic {
-        frames,
-        columns: truth.columns.clone(),
-        truth,
-    })
+    Ok(truth)
 }
 
 /// The motion of the marked `nodes` of `tree`: the tree-like sway model

@@ -202,13 +202,16 @@ pub(crate) fn tree_tips(
 }
 
 /// Adds to `pairs` pairs of nearest neighbouring tips an opposite swing
-/// along the line between them, of amplitude (distance − `close`) / 2, so
-/// that the two come within about `close` of each other twice a period.
+/// along the line between them, of amplitude (distance − `close`) / 2 at
+/// the wind's `strongest` strength (1 without gusts; the swing scales with
+/// the wind like every mode), so that the two come within about `close` of
+/// each other twice a period and never swing through each other.
 /// Pairs are taken closest first, each tip in at most one pair.
 pub(crate) fn close_pairs(
     tips: &mut [TipTruth],
     pairs: usize,
     close: f64,
+    strongest: f64,
     tree: &TreeTruth,
     base: &Rng,
 ) {
@@ -235,7 +238,7 @@ pub(crate) fn close_pairs(
         used[j] = true;
         let mut rng = stream(base, (tree.nodes.len() * i + j) as u64);
         let u = (tips[j].rest - tips[i].rest) / d;
-        let amp = (d - close) / 2.0;
+        let amp = (d - close) / 2.0 / strongest.max(1.0);
         let f = rng.range(0.4, 1.2);
         let ph = rng.range(0.0, TAU);
         tips[i].sway.push(sinusoid(u, amp, f, ph));

@@ -47,6 +47,10 @@ const DIRECT_NEIGHBOURS_MAX: usize = 128;
 /// Error of the neighbours' prediction per metre they moved since the gap
 /// began (a tip swings further or less far than its neighbours).
 const MOVED_ERROR: f64 = 0.3;
+/// A candidate's match is ambiguous while another lost identity fits it,
+/// or another candidate fits its identity, at a cost less than this above
+/// its own (costs are negative log-likelihoods: within a factor e^0.5 ≈ 1.6).
+const AMBIGUOUS: f64 = 1.0;
 /// Variance a new neighbour pair starts with (m²): (50 mm)², unknown.
 const VAR0: f64 = 0.05 * 0.05;
 
@@ -453,73 +457,108 @@ impl Identities {
     /// Compares candidates due for it with the lost identities, joins the
     /// best pairs, and confirms candidates nobody claims. `all`: every
     /// candidate is due (end of session).
+    ///
+    /// Every candidate already watched for `link_frames` takes part in the
+    /// assignment, due or not: two markers hidden together (a close pair)
+    /// come back as two candidates a few frames apart, and the first must
+    /// not take the other's identity only because it was judged alone. A
+    /// due candidate whose match is ambiguous (another lost identity, or
+    /// another candidate, fits nearly as well: see `AMBIGUOUS`) waits for
+    /// more samples, until `confirm_frames`.
     fn evaluate(&mut self, all: bool) {
         let confirm_frames = self.s.confirm_frames;
-        let due: Vec<usize> = self
+        let link = self.s.link_frames.max(3);
+        let mut any_due = false;
+        let pool: Vec<(usize, bool)> = self
             .candidates
             .iter()
             .filter(|(_, c)| {
-                let n = c.samples.len();
-                if all {
-                    n >= 3
-                } else {
-                    n >= c.next_eval
-                }
+                c.samples.len() >= link.min(c.next_eval) || (all && c.samples.len() >= 3)
             })
-            .map(|(t, _)| *t)
+            .map(|(t, c)| {
+                let due = all || c.samples.len() >= c.next_eval;
+                any_due |= due;
+                (*t, due)
+            })
             .collect();
-        if due.is_empty() {
+        if !any_due {
             return;
         }
-        self.edges.clear();
-        if !self.lost.is_empty() {
-            for (row, trace) in due.iter().enumerate() {
-                let Some(cand) = self.candidates.get(trace) else {
-                    continue;
-                };
-                let born = cand.samples[0].0;
-                let recent = recent(&cand.samples, confirm_frames);
-                for (col, &i) in self.lost.iter().enumerate() {
-                    let Some(g) = self.idents[i].gap.as_ref() else {
-                        continue;
-                    };
-                    if g.from >= born {
-                        continue;
-                    }
-                    if let Some(cost) = path_cost(recent, g, &self.s) {
-                        self.edges.push(Edge { row, col, cost });
-                    }
-                }
-            }
-        }
-        self.assigner
-            .solve(due.len(), self.lost.len(), &self.edges, 1.0, &mut self.out);
+        self.pool_edges(&pool);
+        let miss = join_miss(&self.s);
+        self.assigner.solve(
+            pool.len(),
+            self.lost.len(),
+            &self.edges,
+            miss,
+            &mut self.out,
+        );
         let mut joined_ids = Vec::new();
-        for (row, trace) in due.iter().enumerate() {
+        for (row, &(trace, due)) in pool.iter().enumerate() {
+            if !due {
+                continue;
+            }
             let claimed = self.out.get(row).copied().flatten();
-            let Some(cand) = self.candidates.get_mut(trace) else {
+            let Some(cand) = self.candidates.get_mut(&trace) else {
                 continue;
             };
-            if let Some(col) = claimed {
-                let i = self.lost[col];
-                joined_ids.push(i);
-                let Some(cand) = self.candidates.remove(trace) else {
-                    continue;
-                };
-                self.join(*trace, cand, i);
-            } else if (cand.samples.len() >= confirm_frames
-                || (all && cand.samples.len() >= confirm_frames / 2))
-                && (all || !follows_coasting(&self.idents, &self.active, cand, &self.s))
-            {
-                let Some(cand) = self.candidates.remove(trace) else {
-                    continue;
-                };
-                self.confirm(*trace, cand);
-            } else {
-                cand.next_eval = (cand.next_eval * 2).min(confirm_frames);
+            let last_chance = all || cand.samples.len() >= confirm_frames;
+            match claimed {
+                // An ambiguous candidate is neither joined nor confirmed: it
+                // waits (and stays out of every tip) until one path wins or
+                // the rival identity is no longer joinable.
+                Some(col) if ambiguous(&self.edges, row, col) && !all => {
+                    cand.next_eval = (cand.next_eval * 2).min(confirm_frames);
+                }
+                Some(col) => {
+                    let i = self.lost[col];
+                    joined_ids.push(i);
+                    let Some(cand) = self.candidates.remove(&trace) else {
+                        continue;
+                    };
+                    self.join(trace, cand, i);
+                }
+                None if last_chance
+                    && cand.samples.len() >= confirm_frames / 2
+                    && (all || !follows_coasting(&self.idents, &self.active, cand, &self.s)) =>
+                {
+                    let Some(cand) = self.candidates.remove(&trace) else {
+                        continue;
+                    };
+                    self.confirm(trace, cand);
+                }
+                _ => cand.next_eval = (cand.next_eval * 2).min(confirm_frames),
             }
         }
         self.lost.retain(|i| !joined_ids.contains(i));
+    }
+
+    /// The edges (candidate row, lost identity column, path cost) of the
+    /// candidates in `pool`.
+    fn pool_edges(&mut self, pool: &[(usize, bool)]) {
+        self.edges.clear();
+        if self.lost.is_empty() {
+            return;
+        }
+        let confirm_frames = self.s.confirm_frames;
+        for (row, (trace, _)) in pool.iter().enumerate() {
+            let Some(cand) = self.candidates.get(trace) else {
+                continue;
+            };
+            let born = cand.samples[0].0;
+            let recent = recent(&cand.samples, confirm_frames);
+            for (col, &i) in self.lost.iter().enumerate() {
+                let Some(g) = self.idents[i].gap.as_ref() else {
+                    continue;
+                };
+                if g.from >= born {
+                    continue;
+                }
+                if let Some(cost) = path_cost(recent, g, &self.s) {
+                    self.edges.push(Edge { row, col, cost });
+                }
+            }
+        }
     }
 
     /// Short pieces that ended go to the lost identity whose predicted path
@@ -598,6 +637,21 @@ impl Identities {
     }
 }
 
+/// Whether row `row`'s match `col` has a rival: another column fitting the
+/// row, or another row fitting the column, within `AMBIGUOUS` of its cost.
+fn ambiguous(edges: &[Edge], row: usize, col: usize) -> bool {
+    let Some(own) = edges
+        .iter()
+        .find(|e| e.row == row && e.col == col)
+        .map(|e| e.cost)
+    else {
+        return false;
+    };
+    edges
+        .iter()
+        .any(|e| (e.row == row) != (e.col == col) && e.cost < own + AMBIGUOUS)
+}
+
 /// The latest `n` samples of a candidate: the stretch the predicted paths
 /// of the lost identities still cover (they keep `confirm_frames + 2`
 /// predictions), also for a candidate whose confirmation was put off.
@@ -632,9 +686,14 @@ fn follows_coasting(
     })
 }
 
-/// RMS distance between a candidate's samples and a lost identity's
-/// predicted path, in units of the join radius; `None` beyond it or when
-/// the prediction does not cover the samples.
+/// How well a candidate's samples follow a lost identity's predicted path:
+/// the squared RMS distance in units of the join radius (the path's
+/// expected error) plus the log of that radius squared, relative to
+/// `link_min` (a likelihood, as for the tracker's gates: where a candidate
+/// follows two paths, the surer one wins, and an identity lost long ago,
+/// whose radius has grown, no longer draws the pieces of its neighbours);
+/// `None` beyond the radius or when the prediction does not cover the
+/// samples. At most [`join_miss`].
 fn path_cost(samples: &[(i64, DVec3)], g: &Gap, s: &IdentitySettings) -> Option<f64> {
     let mut sum = 0.0;
     let mut n = 0usize;
@@ -649,8 +708,13 @@ fn path_cost(samples: &[(i64, DVec3)], g: &Gap, s: &IdentitySettings) -> Option<
     }
     let rms = (sum / n as f64).sqrt();
     let radius = (s.link_min_m + 3.0 * g.spread + MOVED_ERROR * g.moved).min(s.link_max_m);
-    let cost = rms / radius;
-    (cost <= 1.0).then_some(cost)
+    let c = rms / radius;
+    (c <= 1.0).then(|| c * c + 2.0 * (radius / s.link_min_m.max(1e-6)).ln().max(0.0))
+}
+
+/// The cost of leaving a candidate unjoined: above every path cost.
+fn join_miss(s: &IdentitySettings) -> f64 {
+    1.0 + 2.0 * (s.link_max_m / s.link_min_m.max(1e-6)).ln().max(0.0)
 }
 
 /// Finds the `NEIGHBOURS` nearest of a set of identities' positions: by

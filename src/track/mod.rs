@@ -21,7 +21,9 @@
 pub mod adopt;
 pub mod assign;
 pub mod gaps;
+mod grid;
 mod identity;
+mod jitter;
 pub mod live;
 mod motion;
 pub mod noise;

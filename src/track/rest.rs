@@ -109,13 +109,22 @@ impl BlockSums {
     }
 }
 
+/// A still marker's spread (the standard deviation of its distance from
+/// its mean) is √3 σ for noise σ per axis: a still phase is one where every
+/// marker moves less than `rest_motion_mm` or, on a noisier capture, less
+/// than this many σ (1 mm of noise read as motion made the whole take the
+/// "still phase", rest positions 9 mm off).
+const NOISE_SIGMAS: f64 = 3.0;
+
 /// Finds the still phase: the longest window in which every marker present
-/// moves less than `rest_motion_m`. `None` when there is none.
+/// moves less than `rest_motion_m` (or [`NOISE_SIGMAS`] times the capture's
+/// measured noise, if larger). `None` when there is none.
 pub fn find_rest_window(
     traces: &[Trace],
     timeline: &Timeline,
     rest_motion_m: f64,
 ) -> Option<RestWindow> {
+    let rest_motion_m = rest_motion_m.max(NOISE_SIGMAS * super::jitter::noise_of(traces));
     let total = timeline.len() as i64;
     if total < 2 {
         return None;

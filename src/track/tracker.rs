@@ -9,7 +9,7 @@
 //! decided for all of them at once ([`assign`]): the cheapest total of
 //! squared normalised distances plus the log of each prediction's variance,
 //! so that where two traces could take one marker, the surer one does.
-//! Candidates come from a kd-tree of the frame's markers (for small frames,
+//! Candidates come from a grid of the frame's markers (for small frames,
 //! a direct scan of all pairs, which is cheaper). A trace that misses its
 //! marker ends once its prediction is too unsure to pick the right one
 //! again (the gate would exceed `gate_mm`), or after `max_gap` frames; a
@@ -37,11 +37,12 @@
 //!   cannot make the time line huge).
 
 use glam::DVec3;
-use kiddo::{ImmutableKdTree, SquaredEuclidean};
 use serde::Serialize;
 
 use super::assign::{Assigner, Edge};
+use super::grid::Grid;
 use super::identity::{Identities, IdentitySettings};
+use super::jitter::{third_difference, Jitter};
 use super::motion::{Motion, MotionParams};
 use crate::model::frame::MarkerFrame;
 use crate::model::trace::{Timeline, Trace};
@@ -100,11 +101,16 @@ struct Live {
     /// Prediction for the current frame and its variance per axis.
     prediction: DVec3,
     variance: f64,
+    /// Its last three measurements, oldest first, and how many of the
+    /// latest frames in a row measured it (up to 3): the noise estimate's
+    /// input ([`Jitter`]).
+    recent: [DVec3; 3],
+    run: u8,
 }
 
 /// Up to this many trace × marker pairs per frame, candidates are found by
-/// comparing every pair; beyond, from a kd-tree of the frame's markers
-/// (O(n log n)). Building the tree costs more than the whole scan for a
+/// comparing every pair; beyond, from a grid of the frame's markers
+/// (src/track/grid.rs). Building the grid costs more than the whole scan for a
 /// typical tree capture of 24–70 markers (see benches/tracking.rs).
 const DIRECT_SCAN_MAX: usize = 4096;
 
@@ -117,6 +123,9 @@ pub struct Tracker {
     gate_m: f64,
     gate_sigma: f64,
     noise_m: f64,
+    /// The noise measured on the traces: the filters take the larger of it
+    /// and `noise_m` (a filter told too little breaks its traces).
+    jitter: Jitter,
     params: MotionParams,
     params_set: bool,
     identities: Identities,
@@ -150,6 +159,9 @@ pub struct Tracker {
     order: Vec<usize>,
     keep: Vec<bool>,
     edges: Vec<Edge>,
+    /// The frame's markers bucketed for the gate search (beyond
+    /// `DIRECT_SCAN_MAX` pairs).
+    grid: Grid,
     out: Vec<Option<usize>>,
     taken: Vec<bool>,
 }
@@ -166,6 +178,7 @@ impl Tracker {
             gate_m: cfg.gate_mm / 1000.0,
             gate_sigma: cfg.gate_sigma,
             noise_m,
+            jitter: Jitter::default(),
             params: MotionParams::new(noise_m, dt),
             params_set: known.is_some(),
             identities: Identities::new(identity_settings),
@@ -191,6 +204,7 @@ impl Tracker {
             order: Vec::new(),
             keep: Vec::new(),
             edges: Vec::new(),
+            grid: Grid::default(),
             out: Vec::new(),
             taken: Vec::new(),
         }
@@ -285,6 +299,7 @@ impl Tracker {
         self.taken.clear();
         self.taken.resize(self.points.len(), false);
         self.measured_at.clear();
+        let mut noise_changed = false;
         for (row, col) in self.out.iter().enumerate() {
             let (Some(col), Some(l)) = (*col, self.live.get_mut(row)) else {
                 continue;
@@ -294,6 +309,7 @@ impl Tracker {
             };
             self.taken[col] = true;
             self.measured_at.push((l.trace, self.src[col]));
+            noise_changed |= note_jitter(l, p, t, &mut self.jitter);
             l.motion.update(p, t, &self.params);
             l.measured += 1;
             if self.record {
@@ -323,6 +339,8 @@ impl Tracker {
                 measured: 1,
                 prediction: p,
                 variance: 0.0,
+                recent: [p; 3],
+                run: 1,
             });
             self.identities.started(id, p);
         }
@@ -330,6 +348,11 @@ impl Tracker {
         // traces have the next ids): sorted by trace, as the lookup needs.
         debug_assert!(self.measured_at.is_sorted());
         self.identities.end();
+        if noise_changed {
+            // Only a capture noisier than `noise_mm` changes the filters:
+            // on a capture within it the tracking is that of `noise_mm`.
+            self.params.r = self.noise_m.max(self.jitter.sigma()).powi(2);
+        }
     }
 
     /// Predicts every live trace for frame `t` and ends those that cannot
@@ -387,14 +410,12 @@ impl Tracker {
                 }
             }
         } else if !self.points.is_empty() && !self.live.is_empty() {
-            if let Ok(tree) = ImmutableKdTree::<f64, 3>::new_from_slice(&self.points) {
-                for (row, l) in self.live.iter().enumerate() {
-                    let q = l.prediction.to_array();
-                    let found = tree.query(&q).within::<SquaredEuclidean<f64>>(r2).execute();
-                    for item in found {
-                        if let Some(e) = edge(row, item.item as usize, l, item.distance) {
-                            self.edges.push(e);
-                        }
+            self.grid.build(&self.points, self.gate_m);
+            for (row, l) in self.live.iter().enumerate() {
+                let q = l.prediction.to_array();
+                for &(d2, col) in self.grid.within(&self.points, q, self.gate_m) {
+                    if let Some(e) = edge(row, col as usize, l, d2) {
+                        self.edges.push(e);
                     }
                 }
             }
@@ -460,7 +481,7 @@ impl Tracker {
             if !self.params_set && self.dt > 0.0 {
                 // The rate was not known: the first frame interval sets the
                 // filters' priors.
-                self.params = MotionParams::new(self.noise_m, self.dt);
+                self.params = MotionParams::new(self.noise_m.max(self.jitter.sigma()), self.dt);
                 self.identities
                     .set_settings(identity_settings(&self.cfg, self.dt));
                 self.params_set = true;
@@ -583,6 +604,20 @@ impl Tracker {
             );
         }
     }
+}
+
+/// Feeds the third difference of `l`'s last measurements and `p` (frame
+/// `t`) to the noise estimate when they are four frames in a row; keeps the
+/// last three. Returns whether the estimate changed.
+fn note_jitter(l: &mut Live, p: DVec3, t: i64, jitter: &mut Jitter) -> bool {
+    let consecutive = l.motion.t() == t - 1;
+    let mut changed = false;
+    if consecutive && l.run >= 3 {
+        changed = jitter.observe(third_difference([l.recent[0], l.recent[1], l.recent[2], p]));
+    }
+    l.run = if consecutive { (l.run + 1).min(3) } else { 1 };
+    l.recent = [l.recent[1], l.recent[2], p];
+    changed
 }
 
 /// The identity layer's settings for a frame interval `dt` (s).
@@ -757,7 +792,7 @@ mod tests {
 
     #[test]
     fn kd_tree_path_tracks_many_markers() {
-        // 100 markers (10 000 pairs: the kd-tree path), 80 mm apart, each
+        // 100 markers (10 000 pairs: the grid path), 80 mm apart, each
         // moving 3 mm per frame in its own direction, listed in rotating
         // order; every marker must stay one trace.
         let mut tr = Tracker::new(&cfg(), Some(100.0));

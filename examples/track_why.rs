@@ -1,0 +1,153 @@
+//! Why a stress session fails issue 14's targets: for one stress and seed,
+//! every output tip made of more than one true tip (or of a ghost), as the
+//! runs of whose samples it holds, with how far apart the two true tips
+//! were where it changes from one to the other. What to look at before
+//! changing the tracker.
+//!
+//! `cargo run --release --example track_why STRESS SEED [WIND_S] [NOISE_MM]`
+
+use treemocap::sim::{self, stress};
+use treemocap::track::{self, Tracker, TrackingSettings};
+
+fn main() {
+    let args: Vec<String> = std::env::args().collect();
+    let name = args.get(1).map(String::as_str).unwrap_or("all");
+    let seed: u64 = args.get(2).and_then(|s| s.parse().ok()).unwrap_or(100);
+    let wind_s: f64 = args.get(3).and_then(|s| s.parse().ok()).unwrap_or(20.0);
+    let mut cfg = TrackingSettings::default();
+    if let Some(n) = args.get(4).and_then(|s| s.parse().ok()) {
+        cfg.noise_mm = n;
+    }
+    let Some(st) = stress::all(&stress::base(seed, 70, 8.0, wind_s))
+        .into_iter()
+        .find(|s| s.name == name)
+    else {
+        eprintln!("no stress named {name}");
+        return;
+    };
+    let syn = sim::generate(&st.options).expect("stress options are valid");
+    let mut tracker = Tracker::new(&cfg, Some(240.0));
+    for f in &syn.frames {
+        tracker.push(f);
+    }
+    let (tips, _) = track::clean(tracker.finish(), &cfg, "sim", 240.0);
+    let truth = &syn.truth;
+    if let Ok(spec) = std::env::var("PAIR") {
+        pair(&spec, &tips, truth);
+    }
+    println!(
+        "{} tips found, {} placed",
+        tips.tips.len(),
+        truth.tips.len()
+    );
+    for (n, tip) in tips.tips.iter().enumerate() {
+        let (k, err) = (0..truth.tips.len())
+            .map(|k| (k, truth.tips[k].rest.distance(tip.rest)))
+            .min_by(|a, b| a.1.total_cmp(&b.1))
+            .unwrap_or((0, 0.0));
+        if err > 0.0005 {
+            println!(
+                "output tip {n}: rest {:.2} mm from tip {k}'s, {} samples at rest, spread {:.2} mm, first frame {}",
+                err * 1000.0,
+                tip.samples,
+                tip.spread_m * 1000.0,
+                tip.trace.first_frame()
+            );
+        }
+        let runs = owner_runs(tip, truth);
+        if runs.len() < 2 {
+            continue;
+        }
+        println!("output tip {n} (marker {}):", tip.marker);
+        let mut before: Option<&(Option<usize>, i64, i64, usize)> = None;
+        for r in &runs {
+            let apart = match (before, r) {
+                (Some(&(Some(a), _, _, _)), &(Some(b), f, _, _)) => {
+                    let pa = truth_position(truth, a, f);
+                    let pb = truth_position(truth, b, f);
+                    format!("{:.1} mm from the previous tip", pa.distance(pb) * 1000.0)
+                }
+                _ => String::new(),
+            };
+            println!(
+                "  {:>9} frames {:>5}..{:>5} ({:>4} samples) {apart}",
+                r.0.map_or("ghost".to_string(), |k| format!("tip {k}")),
+                r.1,
+                r.2,
+                r.3
+            );
+            before = Some(r);
+        }
+    }
+}
+
+/// The runs of consecutive samples of `tip` from one true owner:
+/// (owner, first frame, last frame, samples).
+fn owner_runs(
+    tip: &treemocap::model::tips::Tip,
+    truth: &sim::Truth,
+) -> Vec<(Option<usize>, i64, i64, usize)> {
+    let mut runs: Vec<(Option<usize>, i64, i64, usize)> = Vec::new();
+    let mut src = tip.trace.sources().iter().peekable();
+    let mut col = None;
+    for (frame, _) in tip.trace.measurements() {
+        while let Some(r) = src.next_if(|r| r.frame <= frame) {
+            col = r.id;
+        }
+        let who = col
+            .and_then(|c| truth.columns.get(c as usize))
+            .and_then(|c| c.tip);
+        match runs.last_mut() {
+            Some(last) if last.0 == who => {
+                last.2 = frame;
+                last.3 += 1;
+            }
+            _ => runs.push((who, frame, frame, 1)),
+        }
+    }
+    runs
+}
+
+/// Where true tip `k` is in frame `f` (m).
+fn truth_position(truth: &sim::Truth, k: usize, f: i64) -> glam::DVec3 {
+    truth.position(k, truth.time_of(f))
+}
+
+/// `PAIR=a,b,from,to`: frame by frame, how far apart true tips `a` and `b`
+/// are, whether each is hidden, and which output tip holds each.
+fn pair(spec: &str, tips: &treemocap::model::tips::Tips, truth: &sim::Truth) {
+    let v: Vec<i64> = spec.split(',').filter_map(|x| x.parse().ok()).collect();
+    let [a, b, from, to] = v[..] else { return };
+    let hidden = |k: usize, f: i64| {
+        truth
+            .gaps
+            .iter()
+            .any(|g| g.tip == k && g.first_frame <= f && f <= g.last_frame)
+    };
+    let mut holder = std::collections::HashMap::new();
+    for (n, tip) in tips.tips.iter().enumerate() {
+        for r in owner_runs(tip, truth) {
+            if let Some(k) = r.0 {
+                if k as i64 == a || k as i64 == b {
+                    for (f, _) in tip.trace.measurements() {
+                        if f >= r.1 && f <= r.2 {
+                            holder.insert((k, f), n);
+                        }
+                    }
+                }
+            }
+        }
+    }
+    for f in from..=to {
+        let (a, b) = (a as usize, b as usize);
+        let d = truth_position(truth, a, f).distance(truth_position(truth, b, f));
+        println!(
+            "{f}: {:.1} mm  a {} {:?}  b {} {:?}",
+            d * 1000.0,
+            if hidden(a, f) { "hid" } else { "   " },
+            holder.get(&(a, f)),
+            if hidden(b, f) { "hid" } else { "   " },
+            holder.get(&(b, f))
+        );
+    }
+}
