@@ -34,6 +34,6 @@ mod settings;
 pub use deform::{Deformer, TipInput};
 pub use keys::{choose_keys, Keys};
 pub use motion::animate;
-pub use paths::{Sampled, TipPaths};
+pub use paths::{KeyPaths, Sampled, TipPaths};
 pub use rig::Rig;
 pub use settings::AnimateSettings;

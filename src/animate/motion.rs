@@ -168,6 +168,40 @@ mod tests {
         }
     }
 
+    /// What `replay` animates from (the traces sampled at the keys, the
+    /// traces then dropped) moves the tree exactly as the traces do, with
+    /// a window and a cut, a fill and a gap.
+    #[test]
+    fn key_samples_animate_as_the_traces_do() {
+        let tree = small_tree();
+        let at = |f: i64| tree.nodes[3].position + DVec3::X * 0.02 * (f as f64 * 0.1).sin();
+        let mut tr = Trace::new(0, 3, at(3), None);
+        for f in (4..300).filter(|f| !(40..50).contains(f) && !(90..160).contains(f)) {
+            tr.push(f, at(f), None);
+        }
+        tr.add_fill(Fill {
+            from: 39,
+            to: 50,
+            curve: Curve::Points((40..50).map(at).collect()),
+        });
+        let tips = tips_with(vec![(5, tr)], 320);
+        for settings in [
+            AnimateSettings::default(),
+            AnimateSettings {
+                window_s: vec![0.3, 2.9],
+                max_duration_s: 1.5,
+                rate_hz: 24.0,
+                ..AnimateSettings::default()
+            },
+        ] {
+            let keys = crate::animate::KeyPaths::of(&tips, &settings).unwrap();
+            let from_traces = animate(&tree, &tips, &settings).unwrap();
+            assert_eq!(animate(&tree, &keys, &settings).unwrap(), from_traces);
+            let flags = |s| from_traces.captured.iter().any(|c| c.sources.contains(&s));
+            assert!(flags(TipSource::Filled) && flags(TipSource::Measured));
+        }
+    }
+
     #[test]
     fn captured_tips_follow_their_traces_with_flags() {
         let tree = small_tree();

@@ -5,6 +5,9 @@
 
 use glam::DVec3;
 
+use super::keys::choose_keys;
+use super::AnimateSettings;
+use crate::error::Result;
 use crate::model::motion::TipSource;
 use crate::model::tips::Tips;
 use crate::model::tips_traces::TipTraces;
@@ -56,6 +59,63 @@ impl TipPaths for TipTraces {
                             TipSource::Measured
                         },
                     ))
+                })
+                .collect(),
+        )
+    }
+}
+
+/// The captured tips' samples at the animation's key frames only, taken
+/// from the traces once: `replay` builds it and drops the traces before the
+/// animation and tree.glb (a key-frame sample per tip instead of the whole
+/// take, so an hour-long replay holds the traces or the animation, never
+/// both).
+pub struct KeyPaths {
+    /// Time of every frame, as the traces had it (the keys are chosen
+    /// from it again by [`super::motion::animate`]).
+    times: Vec<f64>,
+    /// The key frames sampled, increasing.
+    frames: Vec<i64>,
+    /// (marker, its samples at `frames`), in tips order.
+    tips: Vec<(usize, Vec<Sampled>)>,
+}
+
+impl KeyPaths {
+    /// `tips` sampled at the keys `settings` chooses on their timeline.
+    pub fn of(tips: &Tips, settings: &AnimateSettings) -> Result<KeyPaths> {
+        let times = tips.timeline.times.clone();
+        let frames = choose_keys(&times, settings)?.frames;
+        let tips = tips
+            .tips
+            .iter()
+            .map(|t| (t.marker, sample_trace(&t.trace, &frames)))
+            .collect();
+        Ok(KeyPaths {
+            times,
+            frames,
+            tips,
+        })
+    }
+}
+
+impl TipPaths for KeyPaths {
+    fn times(&self) -> &[f64] {
+        &self.times
+    }
+
+    /// The samples at `frames`; a frame that is not a key it was built for
+    /// has no sample (the keys of the same times and settings always are).
+    fn sample(&self, marker: usize, frames: &[i64]) -> Option<Vec<Sampled>> {
+        let (_, samples) = self.tips.iter().find(|t| t.0 == marker)?;
+        if frames == self.frames.as_slice() {
+            return Some(samples.clone());
+        }
+        Some(
+            frames
+                .iter()
+                .map(|f| {
+                    let k = self.frames.binary_search(f).ok()?;
+                    samples.get(k).copied().flatten()
                 })
                 .collect(),
         )

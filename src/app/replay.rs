@@ -7,12 +7,14 @@ use std::path::{Path, PathBuf};
 
 use glam::DVec3;
 
+use crate::animate::KeyPaths;
 use crate::app::files::write_atomic;
 use crate::app::open::open_recording;
 use crate::app::reconstruct::run_and_write;
 use crate::config::Config;
 use crate::error::Result;
 use crate::model::tips::Tips;
+use crate::model::trace::Trace;
 use crate::model::wind::{WindEstimate, WindSource};
 use crate::reconstruct::forest::sway;
 use crate::render::outputs::{Motion, Report};
@@ -21,7 +23,9 @@ use crate::wind::{fan::configured_fan_wind, pca::SwayPca, WindSelector};
 
 /// What a replay found and wrote.
 pub struct ReplayReport {
-    /// The tips found, as written to tips.json.
+    /// The tips found, as written to tips.json; their traces are dropped
+    /// once the wind, the sway links and the animation's keys are taken
+    /// from them (memory: `tips --json --traces` and `export` have them).
     pub tips: Tips,
     /// What the marker stage did, printed before the tree's line.
     pub summary: Summary,
@@ -58,10 +62,21 @@ pub fn run_with(file: &Path, config: &Config, still: bool, out_dir: &Path) -> Re
     } else {
         Vec::new()
     };
-    let motion = if still {
-        Motion::Still
+    // The animation needs the traces at its keys only: sampled there, the
+    // traces go before the animation and tree.glb are built, so the two
+    // never sit in memory together (on an hour-long take the traces are
+    // most of the marker stage's memory, the animation a constant part).
+    let keys = if still {
+        None
     } else {
-        Motion::Traces(&tips, &config.animate)
+        Some(KeyPaths::of(&tips, &config.animate)?)
+    };
+    for tip in &mut tips.tips {
+        tip.trace = Trace::default();
+    }
+    let motion = match &keys {
+        None => Motion::Still,
+        Some(keys) => Motion::Traces(keys, &config.animate),
     };
     let tree = run_and_write(
         &tips.captured(),

@@ -118,8 +118,9 @@ pub struct SourceRun {
     pub id: Option<i64>,
 }
 
-/// The path of one marker.
-#[derive(Debug, Clone, PartialEq)]
+/// The path of one marker. `Default` is an empty trace (no frames): what a
+/// replay's report keeps once the traces are no longer needed.
+#[derive(Debug, Clone, Default, PartialEq)]
 pub struct Trace {
     /// Number given by the tracker in order of appearance; stable in reports.
     pub id: usize,
@@ -192,7 +193,7 @@ impl Trace {
         self.len
     }
 
-    /// Never true: a trace starts with a measurement.
+    /// Only for the empty `Trace::default()`: a trace starts with a measurement.
     pub fn is_empty(&self) -> bool {
         self.len == 0
     }

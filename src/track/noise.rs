@@ -222,20 +222,24 @@ pub fn join_into_gaps(
             .filter(|(_, t)| t.as_ref().is_some_and(|t| t.measured() >= min_len))
             .map(|(i, _)| i)
             .collect();
-        let host_runs: Vec<Option<Measured>> = hosts
-            .iter()
-            .map(|&h| slots[h].as_ref().map(Measured::of))
-            .collect();
         let mut edges = Vec::new();
         for (row, &f) in fragments.iter().enumerate() {
             let Some(frag) = slots[f].as_ref().map(Measured::of) else {
                 continue;
             };
-            for (col, host) in host_runs.iter().enumerate() {
-                let Some(host) = host.as_ref() else {
+            let span = (frag.first_frame(), frag.last_frame());
+            for (col, &h) in hosts.iter().enumerate() {
+                // Only the host's measurements a hand-over can look at, one
+                // host at a time: a whole host of an hour-long take as
+                // samples and prefix sums is 56 bytes a sample (3.2 GB
+                // for 70 tips), the hosts being most of the take.
+                let Some(host) = slots[h]
+                    .as_ref()
+                    .map(|t| Measured::around(t, span, context as usize))
+                else {
                     continue;
                 };
-                let Some(cost) = switch_cost(host, &frag, context as usize) else {
+                let Some(cost) = switch_cost(&host, &frag, context as usize) else {
                     continue;
                 };
                 if cost <= radius_m {
@@ -268,24 +272,60 @@ pub fn join_into_gaps(
     (slots.into_iter().flatten().collect(), joins)
 }
 
-/// A trace's measurements with prefix sums of their positions, so the mean
-/// of any run of them costs O(1).
+/// A trace's measurements (all of them, or those around a span) with prefix
+/// sums of their positions, so the mean of any run of them costs O(1).
 struct Measured {
     samples: Vec<(i64, DVec3)>,
+    /// `prefix[k]`: the sum of every measurement of the trace before
+    /// `samples[k]` (from the trace's first, even when `samples` starts
+    /// later), so that a mean is the same, bit for bit, whichever part of
+    /// the trace was kept.
     prefix: Vec<DVec3>,
 }
 
 impl Measured {
     fn of(t: &Trace) -> Self {
-        let samples: Vec<(i64, DVec3)> = t.measurements().collect();
-        let mut prefix = Vec::with_capacity(samples.len() + 1);
+        Measured::around(t, (i64::MIN, i64::MAX), 0)
+    }
+
+    /// The measurements a fragment spanning the frames `span` can hand over
+    /// with in [`switch_cost`]: those inside the span and `context` on each
+    /// side. Before the span the walk only steps through the host, and after
+    /// the first hand-over back to it nothing is compared, so the cost is
+    /// that of the whole trace.
+    fn around(t: &Trace, span: (i64, i64), context: usize) -> Self {
+        let mut samples: std::collections::VecDeque<(i64, DVec3)> = Default::default();
+        let mut prefix: std::collections::VecDeque<DVec3> = Default::default();
         let mut acc = DVec3::ZERO;
-        prefix.push(acc);
-        for s in &samples {
+        let mut after = 0usize;
+        for s in t.measurements() {
+            if s.0 > span.1 {
+                if after == context {
+                    break;
+                }
+                after += 1;
+            }
+            samples.push_back(s);
+            prefix.push_back(acc);
             acc += s.1;
-            prefix.push(acc);
+            if s.0 < span.0 && samples.len() > context {
+                samples.pop_front();
+                prefix.pop_front();
+            }
         }
-        Measured { samples, prefix }
+        prefix.push_back(acc);
+        Measured {
+            samples: samples.into(),
+            prefix: prefix.into(),
+        }
+    }
+
+    fn first_frame(&self) -> i64 {
+        self.samples.first().map_or(i64::MAX, |s| s.0)
+    }
+
+    fn last_frame(&self) -> i64 {
+        self.samples.last().map_or(i64::MIN, |s| s.0)
     }
 
     /// Mean of measurements `[lo, hi)` (clamped; `None` when empty).
@@ -413,5 +453,58 @@ mod gap_join_tests {
         assert_eq!(out.len(), 3);
         assert_eq!(out[0].pieces, vec![0, 2]);
         assert_eq!(out[0].measured(), 1600 + 300);
+    }
+
+    /// The host's measurements around a fragment give the cost of the
+    /// whole host, bit for bit, wherever the fragment lies: before, inside
+    /// a gap, interleaved, across the end, after it, and sharing a frame.
+    #[test]
+    fn host_around_a_fragment_costs_what_the_whole_host_costs() {
+        let at = |n: i64| DVec3::new(0.02 * (n as f64 / 30.0).sin(), 1.0, 0.001 * n as f64);
+        let mut host = Trace::new(0, 40, at(40), None);
+        for n in (41..700).chain(760..900).filter(|n| n % 7 != 3) {
+            host.push(n, at(n), None);
+        }
+        // Half-open frame ranges of each fragment.
+        let spans: [&[(i64, i64)]; 7] = [
+            &[(0, 30)],
+            &[(0, 45)],
+            &[(700, 760)],
+            &[(701, 740), (745, 759)],
+            &[(850, 1000)],
+            &[(910, 990)],
+            &[(300, 302)],
+        ];
+        let whole = Measured::of(&host);
+        for (k, ranges) in spans.iter().enumerate() {
+            let frames: Vec<i64> = ranges
+                .iter()
+                .flat_map(|&(a, b)| a..b)
+                .filter(|&n| k == 6 || !host.is_measured(n))
+                .collect();
+            let mut frag = Trace::new(1, frames[0], at(frames[0]) + DVec3::X * 0.003, None);
+            for &n in &frames[1..] {
+                frag.push(n, at(n) + DVec3::X * 0.003, None);
+            }
+            let frag = Measured::of(&frag);
+            for context in [1, 5, 50, 2000] {
+                let near =
+                    Measured::around(&host, (frag.first_frame(), frag.last_frame()), context);
+                assert!(near.samples.len() <= whole.samples.len());
+                let (a, b) = (
+                    switch_cost(&whole, &frag, context),
+                    switch_cost(&near, &frag, context),
+                );
+                assert_eq!(
+                    a.map(f64::to_bits),
+                    b.map(f64::to_bits),
+                    "span {k}, context {context}"
+                );
+                assert_eq!(a.is_none(), k == 6, "span {k}");
+            }
+        }
+        // Far from both ends, only the span and its context are kept.
+        let near = Measured::around(&host, (300, 302), 5);
+        assert_eq!(near.samples.len(), 5 + 3 + 5);
     }
 }
