@@ -10,26 +10,10 @@
 
 use treemocap::reconstruct::forest::{self, sway, AssignRule, ConfiguredTree, ForestSettings};
 use treemocap::reconstruct::ReconstructSettings;
-use treemocap::sim::{generate, Layout, SynthOptions, Truth};
+use treemocap::sim::{generate, SynthOptions, Truth};
 
 fn session(seed: u64, trees: usize, overlap: f64) -> Truth {
-    let opts = SynthOptions {
-        seed,
-        trees,
-        overlap,
-        tips: 14 + (seed as usize * 7) % 17,
-        mixed: true,
-        layout: if seed.is_multiple_of(2) {
-            Layout::Row
-        } else {
-            Layout::Cluster
-        },
-        still_s: 5.0,
-        wind_s: 15.0,
-        gap_fraction: 0.0,
-        spurious_per_s: 0.0,
-        ..SynthOptions::default()
-    };
+    let opts = SynthOptions::forest_sweep(seed, trees, overlap);
     generate(&opts).expect("session").truth
 }
 

@@ -197,6 +197,31 @@ impl Default for SynthOptions {
 }
 
 impl SynthOptions {
+    /// The forest sessions of the accuracy sweep (`examples/forest_accuracy`
+    /// and the forest tests): `trees` trees of 14–30 tips of mixed shapes,
+    /// in a row (even seeds) or a cluster (odd), 5 s still then 15 s of
+    /// wind, without the capture's gaps and ghosts (the marker stage is
+    /// measured on its own).
+    pub fn forest_sweep(seed: u64, trees: usize, overlap: f64) -> SynthOptions {
+        SynthOptions {
+            seed,
+            trees,
+            overlap,
+            tips: 14 + (seed as usize * 7) % 17,
+            mixed: true,
+            layout: if seed.is_multiple_of(2) {
+                Layout::Row
+            } else {
+                Layout::Cluster
+            },
+            still_s: 5.0,
+            wind_s: 15.0,
+            gap_fraction: 0.0,
+            spurious_per_s: 0.0,
+            ..SynthOptions::default()
+        }
+    }
+
     /// Rejects options that make no session (errors name the option).
     pub fn validate(&self) -> Result<()> {
         check("tips", self.tips as f64, 1.0, 70.0)?;

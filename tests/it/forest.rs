@@ -18,7 +18,7 @@ use treemocap::reconstruct::forest::{
 use treemocap::reconstruct::ReconstructSettings;
 use treemocap::render::forest::forest_outputs;
 use treemocap::render::outputs::{build_outputs, Motion};
-use treemocap::sim::{generate, CrownShape, Layout, SynthOptions, Truth};
+use treemocap::sim::{generate, CrownShape, SynthOptions, Truth};
 
 use crate::common::gltf::Glb;
 
@@ -26,22 +26,10 @@ use crate::common::gltf::Glb;
 /// is checked elsewhere; `replay_splits_a_forest_session` runs it too).
 fn forest(seed: u64, trees: usize, overlap: f64) -> Truth {
     let opts = SynthOptions {
-        seed,
-        trees,
-        overlap,
-        tips: 14 + (seed as usize * 7) % 17,
-        mixed: true,
-        layout: if seed.is_multiple_of(2) {
-            Layout::Row
-        } else {
-            Layout::Cluster
-        },
         still_s: 2.0,
         wind_s: 12.0,
         frame_rate: 50.0,
-        gap_fraction: 0.0,
-        spurious_per_s: 0.0,
-        ..SynthOptions::default()
+        ..SynthOptions::forest_sweep(seed, trees, overlap)
     };
     generate(&opts).expect("session").truth
 }
@@ -200,23 +188,7 @@ fn the_number_of_trees_is_found_when_trunks_stand_a_metre_apart() {
 /// A session as `examples/forest_accuracy` makes it (5 s still, 15 s of
 /// wind), and its sway correlations at 50 Hz as that sweep takes them.
 fn sweep_session(seed: u64, trees: usize, overlap: f64) -> (Truth, Vec<SwayLink>) {
-    let opts = SynthOptions {
-        seed,
-        trees,
-        overlap,
-        tips: 14 + (seed as usize * 7) % 17,
-        mixed: true,
-        layout: if seed.is_multiple_of(2) {
-            Layout::Row
-        } else {
-            Layout::Cluster
-        },
-        still_s: 5.0,
-        wind_s: 15.0,
-        gap_fraction: 0.0,
-        spurious_per_s: 0.0,
-        ..SynthOptions::default()
-    };
+    let opts = SynthOptions::forest_sweep(seed, trees, overlap);
     let t = generate(&opts).expect("session").truth;
     let markers: Vec<usize> = (0..t.tips.len()).collect();
     let l = sway::links_of_series(&t.wind_sway(50.0), &markers, 100);
