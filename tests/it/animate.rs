@@ -19,10 +19,12 @@ use std::sync::OnceLock;
 use glam::DVec3;
 use treemocap::app::replay::{run, ReplayReport};
 use treemocap::config::Config;
+use treemocap::model::tips::Tips;
 use treemocap::model::trace::SampleKind;
 use treemocap::sim::Truth;
 
 use crate::common::gltf::{validate, Glb};
+use crate::common::tracked::tracked_tips;
 
 fn root() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
@@ -34,6 +36,8 @@ struct Maple {
     glb_path: PathBuf,
     glb: Glb,
     report: ReplayReport,
+    /// The replay's tips with their trajectories (the report drops them).
+    tips: Tips,
     truth: Truth,
 }
 
@@ -41,12 +45,10 @@ fn maple() -> &'static Maple {
     static MAPLE: OnceLock<Maple> = OnceLock::new();
     MAPLE.get_or_init(|| {
         let dir = tempfile::tempdir().unwrap();
-        let report = run(
-            &root().join("replays/maple-24.csv"),
-            &Config::default(),
-            dir.path(),
-        )
-        .unwrap();
+        let csv = root().join("replays/maple-24.csv");
+        let report = run(&csv, &Config::default(), dir.path()).unwrap();
+        let mut tips = tracked_tips(&csv, &Config::default());
+        tips.wind = report.tips.wind;
         let glb_path = dir.path().join("tree.glb");
         let glb = Glb::parse(&std::fs::read(&glb_path).unwrap());
         let text = std::fs::read_to_string(root().join("replays/maple-24.truth.json")).unwrap();
@@ -55,6 +57,7 @@ fn maple() -> &'static Maple {
             glb_path,
             glb,
             report,
+            tips,
             truth: serde_json::from_str(&text).unwrap(),
         }
     })
@@ -90,7 +93,7 @@ fn key_frame(m: &Maple, key_time: f32) -> usize {
         .as_f64()
         .unwrap();
     let t = start + f64::from(key_time);
-    let times = &m.report.tips.timeline.times;
+    let times = &m.tips.timeline.times;
     let i = times.partition_point(|&x| x < t).min(times.len() - 1);
     if i > 0 && (t - times[i - 1]).abs() < (times[i] - t).abs() {
         i - 1
@@ -101,7 +104,7 @@ fn key_frame(m: &Maple, key_time: f32) -> usize {
 
 /// Where the tracker had marker `marker` in `frame` (measured or filled).
 fn tracked(m: &Maple, marker: usize, frame: usize) -> Option<DVec3> {
-    let tip = m.report.tips.tips.iter().find(|t| t.marker == marker)?;
+    let tip = m.tips.tips.iter().find(|t| t.marker == marker)?;
     let s = tip.trace.samples().find(|s| s.frame == frame as i64)?;
     (s.kind != SampleKind::Missing).then_some(s.position)
 }
@@ -290,7 +293,7 @@ fn blender_imports_the_animation_with_tips_in_place() {
 /// A tips.json with the trajectories (`tips --json --traces` layout) of the
 /// maple replay's tips.
 fn tips_with_traces(m: &Maple, path: &Path) {
-    let tips = &m.report.tips;
+    let tips = &m.tips;
     let mut doc: serde_json::Value = serde_json::from_str(&tips.to_json()).unwrap();
     let n = tips.timeline.len();
     doc["frames"] = serde_json::json!((0..n).collect::<Vec<_>>());

@@ -21,6 +21,7 @@ use treemocap::render::outputs::{build_outputs, Motion};
 use treemocap::sim::{generate, CrownShape, SynthOptions, Truth};
 
 use crate::common::gltf::Glb;
+use crate::common::tracked::tracked_tips;
 
 /// A forest session without the capture's imperfections (the marker stage
 /// is checked elsewhere; `replay_splits_a_forest_session` runs it too).
@@ -385,6 +386,7 @@ fn replay_splits_the_shipped_forest_replay_into_trees() {
         ..Config::default()
     };
     let report = treemocap::app::replay::run(&csv, &config, &out).unwrap();
+    let tracked = tracked_tips(&csv, &config);
     let printed = report.to_string();
     assert!(
         printed.contains("trees: 3 found") && printed.contains("[[trees]]"),
@@ -474,7 +476,7 @@ fn replay_splits_the_shipped_forest_replay_into_trees() {
     let start = g["animations"][0]["extras"]["start_s"].as_f64().unwrap();
     let key = times.len() * 3 / 4;
     let t = start + f64::from(times[key]);
-    let timeline = &report.tips.timeline.times;
+    let timeline = &tracked.timeline.times;
     let i = timeline.partition_point(|&x| x < t).min(timeline.len() - 1);
     let frame = if i > 0 && t - timeline[i - 1] < timeline[i] - t {
         i - 1
@@ -489,8 +491,7 @@ fn replay_splits_the_shipped_forest_replay_into_trees() {
             .iter()
             .filter_map(|m| m.as_u64())
         {
-            let tip = report
-                .tips
+            let tip = tracked
                 .tips
                 .iter()
                 .find(|t| t.marker as u64 == marker)

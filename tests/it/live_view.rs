@@ -730,8 +730,7 @@ fn view_scrubs_a_recording_frame_by_frame() {
 
     // What the marker stage says of one frame with a filled gap.
     let config = Config::load(None, &[]).unwrap();
-    let mut rec = treemocap::app::open::open_recording(&replay, &config).unwrap();
-    let (tips, _) = treemocap::track::process(rec.as_mut(), &config.tracking).unwrap();
+    let tips = crate::common::tracked::tracked_tips(&replay, &config);
     let samples: Vec<Vec<treemocap::model::trace::Sample>> = tips
         .tips
         .iter()

@@ -2,3 +2,4 @@ pub mod crowns;
 pub mod gltf;
 pub mod natnet;
 pub mod running;
+pub mod tracked;
