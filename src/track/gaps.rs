@@ -27,6 +27,7 @@
 use glam::DVec3;
 use serde::Serialize;
 
+use super::jitter::third_difference;
 use crate::model::trace::{Curve, Fill, Sample, SampleKind, Timeline, Trace};
 
 mod model;
@@ -92,7 +93,7 @@ const MAX_OWN_S: f64 = 0.21;
 /// away, short against a 3 Hz twig's period (chosen on the stress sweep
 /// among 0.1, 0.125 and 0.15 s).
 const END_FIT_S: f64 = 0.1;
-/// Measurement noise (σ per axis, m, from the host's second differences
+/// Measurement noise (σ per axis, m, from the host's third differences
 /// beside the gap) above which the gap's ends count as noisy: the stress
 /// sweep's 1 mm, not a real system's 0.1–0.2 mm (whose fills stay as they
 /// were, byte for byte).
@@ -345,7 +346,7 @@ fn noise_sigma(ctx: &Context<'_, '_>, span: i64) -> Option<f64> {
     for f in (a - span..=a - 3).chain(b..=b + span - 3) {
         let p = |d: i64| ctx.host_at(f + d);
         if let (Some(p0), Some(p1), Some(p2), Some(p3)) = (p(0), p(1), p(2), p(3)) {
-            sum += (p3 - p0 + 3.0 * (p1 - p2)).length_squared();
+            sum += third_difference([p0, p1, p2, p3]).length_squared();
             n += 1;
         }
     }
