@@ -22,6 +22,7 @@ pub mod adopt;
 pub mod assign;
 pub mod gaps;
 mod grid;
+mod id_hash;
 mod identity;
 mod jitter;
 pub mod live;
