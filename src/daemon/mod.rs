@@ -258,21 +258,15 @@ const BACKGROUND_NICE: i32 = 10;
 
 #[cfg(target_os = "linux")]
 fn lower_priority() {
-    // SCHED_IDLE: the thread runs only on a core nothing else wants, and a
-    // waking pipeline thread takes the core at once. Under nice +10 alone
-    // the scheduler still let a running analysis finish its slice first,
-    // and those waits were the daemon's latency tail at 360 Hz × 1 000.
-    // The nice value stays as well, for kernels or sandboxes that refuse
-    // the policy. Neither needs a privilege: a thread may always lower its
-    // own priority; a failure only costs the priority.
-    // SAFETY: plain system calls; `param` lives across the call.
-    let (nice, idle) = unsafe {
+    // On Linux a thread's nice value is its own: PRIO_PROCESS with a thread
+    // id sets it for this thread only. Raising one's own nice needs no
+    // privilege; a failure (a sandbox refusing it) only costs the priority.
+    // SAFETY: plain system calls with no pointers.
+    let r = unsafe {
         let tid = libc::gettid();
-        let nice = libc::setpriority(libc::PRIO_PROCESS, tid as libc::id_t, BACKGROUND_NICE);
-        let param = libc::sched_param { sched_priority: 0 };
-        (nice, libc::sched_setscheduler(0, libc::SCHED_IDLE, &param))
+        libc::setpriority(libc::PRIO_PROCESS, tid as libc::id_t, BACKGROUND_NICE)
     };
-    if nice != 0 || idle != 0 {
+    if r != 0 {
         tracing::debug!("could not lower a background thread's priority");
     }
 }
