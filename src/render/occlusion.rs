@@ -6,8 +6,8 @@
 //! that lie mostly under one another (every branch of the crown inside its
 //! parents' width), so painting bottom first wrote each pixel of the crown
 //! hundreds of times. From the top down each pixel is written once, and a
-//! row that is already final across a capsule's whole width is skipped
-//! before its arithmetic. The spans are the very ones `Canvas::line`
+//! stripe of rows, then a row, that is already final wherever a capsule
+//! could reach is skipped before the row's exact arithmetic. The spans are the very ones `Canvas::line`
 //! computes, and rows do not depend on one another, so the pixels are the
 //! same as painting bottom first, whichever thread paints which rows.
 
