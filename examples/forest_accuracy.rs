@@ -128,16 +128,7 @@ fn main() {
             if min_spacing >= 1.0 {
                 counted += 1;
                 if let Ok(path) = std::env::var("CANDIDATES") {
-                    dump_candidates(
-                        &path,
-                        first_seed + seed,
-                        overlap,
-                        trees,
-                        &tips,
-                        &l,
-                        &crown,
-                        &f.tip_tree,
-                    );
+                    dump_candidates(&path, first_seed + seed, overlap, trees, &tips, &l, &crown);
                 }
                 let by_fit = forest::plan(&tips, &[], &[], &crown, &recon).expect("plan");
                 right_fit += usize::from(by_fit.trees.len() == trees);
@@ -179,8 +170,7 @@ fn main() {
 }
 
 /// Appends every K's split of the session (RMS, sway dependence, ratio) to
-/// `path` as CSV lines: seed, overlap, true K, K, rms, dependence, ratio,
-/// trunk-band crown correlation.
+/// `path` as CSV lines: seed, overlap, true K, K, rms, dependence, ratio.
 fn dump_candidates(
     path: &str,
     seed: u64,
@@ -189,32 +179,21 @@ fn dump_candidates(
     tips: &[treemocap::model::tips::CapturedTip],
     l: &[sway::SwayLink],
     s: &ForestSettings,
-    truth: &[usize],
 ) {
     use std::io::Write;
-    let pairs: Vec<(usize, usize, f64, f64)> = l
-        .iter()
-        .map(|x| (x.a, x.b, x.correlation, x.trunk))
-        .collect();
-    let c = sway::Coherence::with_trunk(tips.len(), &pairs);
+    let pairs: Vec<(usize, usize, f64)> = l.iter().map(|x| (x.a, x.b, x.correlation)).collect();
+    let c = sway::Coherence::new(tips.len(), &pairs);
     let positions: Vec<glam::DVec3> = tips.iter().map(|t| t.position).collect();
     let mut f = std::fs::OpenOptions::new()
         .create(true)
         .append(true)
         .open(path)
         .expect("candidates file");
-    // K = 0: the true split's largest trunk-band crown correlation.
-    writeln!(
-        f,
-        "{seed},{overlap:.3},{trees},0,0,0,0,{:.4}",
-        c.trunk_dependence(truth, trees)
-    )
-    .expect("write");
     for cand in forest::detect::candidates(&positions, s, &c) {
         writeln!(
             f,
-            "{seed},{overlap:.3},{trees},{},{:.4},{:.4},{:.4},{:.4}",
-            cand.k, cand.rms, cand.dependence, cand.ratio, cand.trunk
+            "{seed},{overlap:.3},{trees},{},{:.4},{:.4},{:.4}",
+            cand.k, cand.rms, cand.dependence, cand.ratio
         )
         .expect("write");
     }

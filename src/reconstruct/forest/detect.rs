@@ -66,9 +66,6 @@ pub struct Candidate {
     /// crowns' own (1 for two halves of one tree's sway, near 0 for two
     /// trees).
     pub ratio: f64,
-    /// The largest correlation of two crowns' summed sway in the trunk
-    /// band ([`Coherence::trunk_dependence`]; −∞ for one crown).
-    pub trunk: f64,
     /// Axis foot of every crown.
     pub centres: Vec<DVec3>,
 }
@@ -83,7 +80,6 @@ pub fn candidates(tips: &[DVec3], s: &ForestSettings, sway: &Coherence) -> Vec<C
             rms: rms_of(tips, std::slice::from_ref(&c), &vec![0; tips.len()]),
             dependence: f64::NEG_INFINITY,
             ratio: f64::NEG_INFINITY,
-            trunk: f64::NEG_INFINITY,
             centres: vec![c.axis_at(0.0)],
         });
     }
@@ -100,7 +96,6 @@ pub fn candidates(tips: &[DVec3], s: &ForestSettings, sway: &Coherence) -> Vec<C
             rms: split.rms,
             dependence,
             ratio,
-            trunk: sway.trunk_dependence(&split.labels, k),
             centres: split.centres,
         });
     }

@@ -134,12 +134,11 @@ pub fn plan(
     }
     let positions: Vec<DVec3> = tips.iter().map(|t| t.position).collect();
     let index_of = |marker: usize| tips.iter().position(|t| t.marker == marker);
-    let both: Vec<(usize, usize, f64, f64)> = links
+    let pairs: Vec<assign::Link> = links
         .iter()
-        .filter_map(|l| Some((index_of(l.a)?, index_of(l.b)?, l.correlation, l.trunk)))
+        .filter_map(|l| Some((index_of(l.a)?, index_of(l.b)?, l.correlation)))
         .collect();
-    let pairs: Vec<assign::Link> = both.iter().map(|l| (l.0, l.1, l.2)).collect();
-    let coherence = sway::Coherence::with_trunk(tips.len(), &both);
+    let coherence = sway::Coherence::new(tips.len(), &pairs);
     // The sway decides only where the take swayed (docs/forest.md, "The
     // sway chooses the count"); a still take keeps the geometric rules.
     let swayed =

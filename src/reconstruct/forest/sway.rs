@@ -25,10 +25,6 @@ pub struct SwayLink {
     pub b: usize,
     /// Correlation of their sway, 0–1.
     pub correlation: f64,
-    /// Correlation of their sway in the trunk band ([`TRUNK_BAND_HZ`]),
-    /// where a tree's trunk rings below most of its limbs: what tells one
-    /// tree from two (the count), where `correlation` tells one limb.
-    pub trunk: f64,
 }
 
 /// Tips farther apart than this are never pulled together as one limb (m):
@@ -43,13 +39,6 @@ const HIGH_PASS_S: f64 = 2.0;
 const MAX_FRAMES: usize = 4000;
 /// Fewest common frames for a correlation.
 const MIN_COMMON: usize = 100;
-/// The band (Hz) a trunk sways in: a trunk's first mode rings near 0.4–0.7
-/// Hz, below most limbs (0.5–1.2 Hz) and every twig (1–3 Hz), so in this
-/// band a crown's tips move mostly with their trunk.
-pub const TRUNK_BAND_HZ: (f64, f64) = (0.3, 0.8);
-/// Most frequencies the trunk band is sampled at (a long take's band is
-/// sampled coarser than its frequency resolution).
-const MAX_BAND_BINS: usize = 40;
 
 /// The sway correlation of every two swaying tips of `tips` (from the
 /// measured samples of their traces); empty for a take without wind. The
@@ -91,12 +80,6 @@ pub fn links_of_series(
 ) -> Vec<SwayLink> {
     let sway: Vec<Vec<Option<DVec3>>> = series.iter().map(|s| high_pass(s, window)).collect();
     let swaying: Vec<bool> = sway.iter().map(|s| rms(s) >= MIN_SWAY_M).collect();
-    let band = Band::new(series.first().map_or(0, Vec::len), window);
-    let spectra: Vec<Vec<f64>> = sway
-        .iter()
-        .zip(&swaying)
-        .map(|(s, &on)| if on { band.spectrum(s) } else { Vec::new() })
-        .collect();
     let mut out = Vec::new();
     for i in 0..sway.len() {
         for j in i + 1..sway.len() {
@@ -108,87 +91,11 @@ pub fn links_of_series(
                     a: markers[i],
                     b: markers[j],
                     correlation: c,
-                    trunk: spectral_correlation(&spectra[i], &spectra[j]),
                 });
             }
         }
     }
     out
-}
-
-/// The trunk band's frequencies and their Hann-windowed Fourier kernels
-/// over a series of `len` samples.
-struct Band {
-    /// Per frequency, per sample: (cos, sin) × the Hann window.
-    kernels: Vec<Vec<(f64, f64)>>,
-}
-
-impl Band {
-    /// The band of a series of `len` samples, `window` of which span
-    /// [`HIGH_PASS_S`] (that fixes the sample interval): frequencies one
-    /// resolution step (1 / the series' length) apart, at most
-    /// [`MAX_BAND_BINS`].
-    fn new(len: usize, window: usize) -> Self {
-        let dt = HIGH_PASS_S / window.max(1) as f64;
-        let (lo, hi) = TRUNK_BAND_HZ;
-        let span = len.max(1) as f64 * dt;
-        let step = (1.0 / span).max((hi - lo) / MAX_BAND_BINS as f64);
-        let count = ((hi - lo) / step).floor() as usize + 1;
-        let kernels = (0..count)
-            .map(|k| {
-                let w = std::f64::consts::TAU * (lo + k as f64 * step) * dt;
-                (0..len)
-                    .map(|t| {
-                        let hann = 0.5 - 0.5 * (std::f64::consts::TAU * t as f64 / len as f64).cos();
-                        let a = w * t as f64;
-                        (hann * a.cos(), hann * a.sin())
-                    })
-                    .collect()
-            })
-            .collect();
-        Band { kernels }
-    }
-
-    /// The series' Fourier coefficients at the band's frequencies over its
-    /// measured samples (mean taken off): per frequency, re and im of x,
-    /// y and z.
-    fn spectrum(&self, s: &[Option<DVec3>]) -> Vec<f64> {
-        let (sum, n) = s
-            .iter()
-            .flatten()
-            .fold((DVec3::ZERO, 0usize), |(a, n), v| (a + *v, n + 1));
-        let mean = sum / n.max(1) as f64;
-        let mut out = Vec::with_capacity(self.kernels.len() * 6);
-        for kernel in &self.kernels {
-            let (mut re, mut im) = (DVec3::ZERO, DVec3::ZERO);
-            for (v, &(c, si)) in s.iter().zip(kernel) {
-                if let Some(v) = v {
-                    re += (*v - mean) * c;
-                    im -= (*v - mean) * si;
-                }
-            }
-            out.extend([re.x, im.x, re.y, im.y, re.z, im.z]);
-        }
-        out
-    }
-}
-
-/// The correlation of two band-limited series from their spectra (by
-/// Parseval, the inner product of the band-passed series over their
-/// norms); 0 where either has no power in the band.
-fn spectral_correlation(a: &[f64], b: &[f64]) -> f64 {
-    let (mut ab, mut aa, mut bb) = (0.0, 0.0, 0.0);
-    for (x, y) in a.iter().zip(b) {
-        ab += x * y;
-        aa += x * x;
-        bb += y * y;
-    }
-    let d = (aa * bb).sqrt();
-    if d > 0.0 {
-        ab / d
-    } else {
-        0.0
-    }
 }
 
 /// The limb links among `links` (indices into `rests`): correlation at
@@ -214,9 +121,6 @@ pub struct Coherence {
     n: usize,
     /// Row-major n × n correlations (the diagonal unknown).
     corr: Vec<Option<f64>>,
-    /// The same in the trunk band ([`SwayLink::trunk`]); empty when not
-    /// given.
-    trunk: Vec<Option<f64>>,
 }
 
 impl Coherence {
@@ -227,65 +131,7 @@ impl Coherence {
             corr[a * n + b] = Some(c);
             corr[b * n + a] = Some(c);
         }
-        Coherence {
-            n,
-            corr,
-            trunk: Vec::new(),
-        }
-    }
-
-    /// The matrix of `n` tips from links between tip indices: (a, b,
-    /// correlation, trunk-band correlation).
-    pub fn with_trunk(n: usize, links: &[(usize, usize, f64, f64)]) -> Self {
-        let plain: Vec<(usize, usize, f64)> = links.iter().map(|l| (l.0, l.1, l.2)).collect();
-        let mut c = Coherence::new(n, &plain);
-        c.trunk = vec![None; n * n];
-        for &(a, b, _, t) in links {
-            c.trunk[a * n + b] = Some(t);
-            c.trunk[b * n + a] = Some(t);
-        }
-        c
-    }
-
-    /// The correlation in the trunk band of the summed sway of the tips
-    /// labelled `x` and of those labelled `y` (each tip's band-passed sway
-    /// scaled to unit power, so one loud tip does not speak for its
-    /// crown): the sum cancels the limbs' and twigs' own motion and keeps
-    /// the trunk's, which every tip of a tree shares. `None` without
-    /// trunk-band correlations or with fewer than [`MIN_PAIRS`] known pairs
-    /// between the groups.
-    pub fn crown_correlation(&self, labels: &[usize], x: usize, y: usize) -> Option<f64> {
-        if self.trunk.is_empty() {
-            return None;
-        }
-        let group = |g: usize| (0..self.n).filter(move |&a| labels[a] == g);
-        let sum = |g: usize, h: usize| {
-            let (mut s, mut count) = (0.0, 0usize);
-            for a in group(g) {
-                for b in group(h) {
-                    if a == b {
-                        s += 1.0;
-                    } else if let Some(c) = self.trunk[a * self.n + b] {
-                        s += c;
-                        count += 1;
-                    }
-                }
-            }
-            (s, count)
-        };
-        let (xy, count) = sum(x, y);
-        let (xx, yy) = (sum(x, x).0, sum(y, y).0);
-        (count >= MIN_PAIRS && xx > 0.0 && yy > 0.0).then(|| xy / (xx * yy).sqrt())
-    }
-
-    /// The largest [`Coherence::crown_correlation`] between two of the `k`
-    /// groups of `labels` (−∞ when none is known): near 1 when one tree was
-    /// cut in two, low when every group is a tree of its own.
-    pub fn trunk_dependence(&self, labels: &[usize], k: usize) -> f64 {
-        (0..k)
-            .flat_map(|x| (0..x).map(move |y| (x, y)))
-            .filter_map(|(x, y)| self.crown_correlation(labels, x, y))
-            .fold(f64::NEG_INFINITY, f64::max)
+        Coherence { n, corr }
     }
 
     /// The correlation of tips `a` and `b`, when known.
