@@ -200,14 +200,14 @@ fn sweep_session(seed: u64, trees: usize, overlap: f64) -> (Truth, Vec<SwayLink>
 fn the_sway_finds_the_count_where_the_crown_fit_alone_misses() {
     // Sessions of the settings sweeps (seeds 5000–5079, then 0–39) where
     // the crown fit alone takes a tree too many (a lumpy crown fitted two
-    // surfaces) or too few (two crowns fitted one; at seeds 7 and 3 five
-    // trees, one of whose trunks sways little against its limbs, fitted
-    // within the tolerance by four crowns, and clearly better by five):
+    // surfaces) or too few (two crowns fitted one; at seed 7 five trees,
+    // two of whose trunks sway little against their limbs, fitted within
+    // the tolerance by four crowns, and clearly better by five):
     // the trunks' sway sets them right, and a still take (no sway) falls
     // back on the fit alone.
     let recon = ReconstructSettings::default();
     let s = ForestSettings::default();
-    for (seed, overlap) in [(5063, 0.0), (5026, 1.0 / 6.0), (7, 0.25), (3, 1.0 / 3.0)] {
+    for (seed, overlap) in [(5063, 0.0), (5026, 1.0 / 6.0), (7, 0.25)] {
         let trees = 2 + (seed % 4) as usize;
         let (t, l) = sweep_session(seed as u64, trees, overlap);
         let tips = t.rest_tips();
