@@ -200,9 +200,9 @@ fn sweep_session(seed: u64, trees: usize, overlap: f64) -> (Truth, Vec<SwayLink>
 fn the_sway_finds_the_count_where_the_crown_fit_alone_misses() {
     // Sessions of the settings sweeps (seeds 5000–5079, then 0–39) where
     // the crown fit alone takes a tree too many (a lumpy crown fitted two
-    // surfaces) or too few (two crowns fitted one; at seed 7 five trees,
-    // two of whose trunks sway little against their limbs, fitted within
-    // the tolerance by four crowns, and clearly better by five):
+    // surfaces) or too few (two crowns fitted one; at seed 7 five trees
+    // fitted within the tolerance by four crowns, and clearly better by
+    // five whose crowns do not sway as one):
     // the trunks' sway sets them right, and a still take (no sway) falls
     // back on the fit alone.
     let recon = ReconstructSettings::default();
