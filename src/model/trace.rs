@@ -299,16 +299,16 @@ impl Trace {
 
     /// Appends `other` (which must start after this trace ends) to this one:
     /// the frames between become a gap. Gives `other` back unchanged when
-    /// they overlap.
+    /// they overlap (`None`: appended).
     ///
     /// The piece's stored samples are moved, not decoded and stored again:
     /// an hour-long take's markers are joined from thousands of pieces, and
     /// copying them held each marker twice while the freed pieces' small
     /// chunks could not take the joined trace's larger ones (the marker
     /// stage's peak memory was 1.7 times its traces).
-    pub fn append(&mut self, other: Trace) -> Result<(), Trace> {
+    pub fn append(&mut self, other: Trace) -> Option<Trace> {
         if other.first_frame() <= self.last_frame() {
-            return Err(other);
+            return Some(other);
         }
         let offset = (other.first - self.first) as usize;
         self.len = offset + other.len;
@@ -331,7 +331,7 @@ impl Trace {
         }
         self.fills.extend(other.fills);
         self.pieces.extend_from_slice(&other.pieces);
-        Ok(())
+        None
     }
 
     /// Number of measured frames in `[from, to]`.
@@ -503,8 +503,12 @@ impl Store {
         }
         let (samples, chunks) = (self.count, self.chunks.len());
         self.restarts.push((samples, chunks));
-        self.restarts
-            .extend(other.restarts.iter().map(|&(s, c)| (s + samples, c + chunks)));
+        self.restarts.extend(
+            other
+                .restarts
+                .iter()
+                .map(|&(s, c)| (s + samples, c + chunks)),
+        );
         self.chunks.extend(other.chunks);
         self.prev = other.prev;
         self.count += other.count;
@@ -733,8 +737,8 @@ mod tests {
         a.push(3, DVec3::ONE, Some(1));
         let mut b = Trace::new(5, 10, DVec3::ONE, Some(2));
         b.push(11, DVec3::ONE, Some(3));
-        assert!(b.clone().append(a.clone()).is_err());
-        assert!(a.append(b).is_ok());
+        assert!(b.clone().append(a.clone()).is_some());
+        assert!(a.append(b).is_none());
         assert_eq!(a.pieces, vec![0, 5]);
         assert_eq!(a.len(), 12);
         assert_eq!(a.measured(), 4);
@@ -757,7 +761,11 @@ mod tests {
             let mut t: Option<Trace> = None;
             for i in 0..(200 + 900 * (piece % 2)) {
                 frame += if rng.chance(0.05) { rng.int(2, 9) } else { 1 };
-                let p = DVec3::new(0.4 + 0.02 * (i as f64 * 0.03).sin(), 1.0, rng.normal() * 3e-4);
+                let p = DVec3::new(
+                    0.4 + 0.02 * (i as f64 * 0.03).sin(),
+                    1.0,
+                    rng.normal() * 3e-4,
+                );
                 let id = Some(piece as i64 / 2);
                 match t.as_mut() {
                     None => t = Some(Trace::new(piece, frame, p, id)),
@@ -775,13 +783,13 @@ mod tests {
         let mut tail = pieces.split_off(3);
         let mut later = tail.remove(0);
         for t in tail {
-            later.append(t).unwrap();
+            assert!(later.append(t).is_none());
         }
         let mut joined = pieces.remove(0);
         for t in pieces {
-            joined.append(t).unwrap();
+            assert!(joined.append(t).is_none());
         }
-        joined.append(later).unwrap();
+        assert!(joined.append(later).is_none());
         assert_eq!(joined.len(), pushed.len());
         assert_eq!(joined.measured(), pushed.measured());
         assert_eq!(joined.sources(), pushed.sources());
@@ -800,7 +808,7 @@ mod tests {
             b.push(frame + k, p, None);
         }
         assert!(a.measurements().eq(b.measurements()));
-        assert!(a.clone().append(b).is_err());
+        assert!(a.clone().append(b).is_some());
     }
 
     #[test]

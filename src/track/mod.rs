@@ -169,7 +169,7 @@ fn assemble(
         };
         for &i in iter {
             if let Some(piece) = slots.get_mut(i).and_then(Option::take) {
-                let Err(piece) = joined.append(piece) else {
+                let Some(piece) = joined.append(piece) else {
                     continue;
                 };
                 // A piece judged on line while a later one was alive: it
