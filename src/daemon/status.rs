@@ -67,9 +67,9 @@ pub struct Status {
     pub source_state: std::sync::OnceLock<SourceState>,
     /// The last failed config reload (SIGHUP), cleared by a good one.
     pub config_error: Mutex<Option<String>>,
-    /// Per-frame latency in microseconds, from the frame's arrival (stamped
-    /// by the source as it hands the decoded datagram over, so time queued
-    /// in the channel counts) to its tips published.
+    /// Per-frame latency in microseconds, from the frame's arrival (the
+    /// NatNet client stamps it when `recv` returns the datagram, so decoding
+    /// and time queued in the channel count) to its tips published.
     pub latency_us_last: AtomicU64,
     /// The largest of those latencies since the start (µs).
     pub latency_us_max: AtomicU64,
@@ -87,8 +87,8 @@ pub struct Status {
     pub backlog_frames: AtomicU64,
     /// The largest backlog seen.
     pub backlog_max: AtomicU64,
-    /// How long the frame just taken waited in the channel, and the longest
-    /// wait seen (µs).
+    /// How long the frame just taken waited since it arrived (decoding and
+    /// the channel), and the longest wait seen (µs).
     pub queue_us_last: AtomicU64,
     /// The longest wait seen (µs).
     pub queue_us_max: AtomicU64,

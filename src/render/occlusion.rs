@@ -272,13 +272,8 @@ mod tests {
     /// words full, rows' reach full) hide nothing that would show.
     #[test]
     fn a_dense_random_crown_top_down_is_the_painters_crown() {
-        let mut seed: u64 = 0x5EED_CAFE;
-        let mut random = move || {
-            seed = seed
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (seed >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut rng = crate::rng::Rng::new(0x5EED_CAFE);
+        let mut random = move || rng.f64();
         // (x0, y0, x1, y1, width): a trunk, then branches from the ends.
         let mut segments = vec![(150.0, 235.0, 151.3, 150.0, 24.0)];
         let mut k = 0;
