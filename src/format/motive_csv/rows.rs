@@ -155,23 +155,14 @@ impl RowParser {
         let mut out = Parsed::default();
         let mut pos = 0;
         while pos < chunk.len() {
-            let next = cells::find_newline(chunk, pos).map_or(chunk.len(), |i| i + 1);
             out.lines += 1;
             let line = out.lines;
-            let result = if next - pos > self.layout.limits.max_bytes {
-                let e = RowError::TooLong {
-                    line,
-                    limit: self.layout.limits.max_bytes,
-                };
-                Err((None, row_error(&self.layout.path, e)))
-            } else {
-                self.row(&chunk[pos..], next - pos, line, &mut out)
-            };
+            let (end, result) = self.row(&chunk[pos..], line, &mut out);
             if let Err((time, error)) = result {
                 out.failure = Some(Failure { line, time, error });
                 break;
             }
-            pos = next;
+            pos += end + 1;
         }
         for &ci in &self.touched {
             let ci = ci as usize;
@@ -184,22 +175,60 @@ impl RowParser {
         out
     }
 
-    /// Parses the row at the start of `rest` (`len` bytes with its line
-    /// end) into `out`; a blank row gives nothing.
-    fn row(&mut self, rest: &[u8], len: usize, line: u64, out: &mut Parsed) -> Result<(), RowFail> {
-        let content = trim_eol(&rest[..len]);
-        let Some((n, in_place)) = self.find_cells(&rest[..content], line)? else {
-            return Ok(());
+    /// Parses the row at the start of `rest` into `out` (a blank row gives
+    /// nothing); returns where its line feed is (`rest.len()`: none).
+    ///
+    /// The row's cells and its end are found in one pass over its bytes
+    /// ([`cells::scan_row`]); a row past the length limit is refused at its
+    /// line as before, its cells found meanwhile being at most the header's
+    /// width plus one.
+    fn row(&mut self, rest: &[u8], line: u64, out: &mut Parsed) -> (usize, Result<(), RowFail>) {
+        self.cells.clear();
+        let cells = &mut self.cells;
+        // Cells past the header's width are kept only as far as the first
+        // one (the error names it): a hostile row of millions of fields
+        // costs no memory beyond the row itself.
+        let width = self.layout.width;
+        let keep = |c: usize, a: usize, b: usize| {
+            if cells.last().is_none_or(|l| l.0 < width) {
+                cells.push((c, a, b));
+            }
         };
+        let (scan, end) = cells::scan_row(rest, keep);
+        let len = if end < rest.len() { end + 1 } else { end };
+        let limit = self.layout.limits.max_bytes;
+        if len > limit {
+            let e = RowError::TooLong { line, limit };
+            return (end, Err((None, row_error(&self.layout.path, e))));
+        }
+        let result = match scan {
+            Scan::Fields(n) => self.frame(rest, n, line, out),
+            Scan::Quoted => self.quoted_row(&rest[..trim_eol(&rest[..len])], line, out),
+        };
+        (end, result)
+    }
+
+    /// A row with a quoted cell (`line_bytes` without its line end): split
+    /// by the full CSV reader, then read like any other.
+    fn quoted_row(
+        &mut self,
+        line_bytes: &[u8],
+        line: u64,
+        out: &mut Parsed,
+    ) -> Result<(), RowFail> {
+        let n = self.split_quoted(line_bytes, line)?;
         let quoted = std::mem::take(&mut self.quoted);
-        let buf = if in_place { rest } else { &quoted[..] };
-        let result = self.frame(buf, n, line, out);
+        let result = self.frame(&quoted, n, line, out);
         self.quoted = quoted;
         result
     }
 
-    /// The frame of a row whose cells were found (`buf` holds them).
+    /// The frame of a row whose cells were found (`buf` holds them, `n`
+    /// fields); nothing for a blank row.
     fn frame(&mut self, buf: &[u8], n: usize, line: u64, out: &mut Parsed) -> Result<(), RowFail> {
+        if self.cells.is_empty() {
+            return Ok(());
+        }
         self.check_field_count(n, line).map_err(|e| (None, e))?;
         let (frame, time) = self.frame_and_time(buf, line).map_err(|e| (None, e))?;
         out.rows_read += 1;
@@ -220,32 +249,6 @@ impl RowParser {
                 Err((time.map(|t| (frame, t)), e))
             }
         }
-    }
-
-    /// Finds the non-empty cells of `line_bytes` (a row without its line
-    /// end); `None` for a blank line, else the number of fields and whether
-    /// the cells point into the row itself (unquoted) or into `quoted`.
-    fn find_cells(
-        &mut self,
-        line_bytes: &[u8],
-        line: u64,
-    ) -> Result<Option<(usize, bool)>, RowFail> {
-        self.cells.clear();
-        let cells = &mut self.cells;
-        // Cells past the header's width are kept only as far as the first
-        // one (the error names it): a hostile row of millions of fields
-        // costs no memory beyond the row itself.
-        let width = self.layout.width;
-        let keep = |c: usize, a: usize, b: usize| {
-            if cells.last().is_none_or(|l| l.0 < width) {
-                cells.push((c, a, b));
-            }
-        };
-        let fields = match cells::scan(line_bytes, keep) {
-            Scan::Fields(n) => (n, true),
-            Scan::Quoted => (self.split_quoted(line_bytes, line)?, false),
-        };
-        Ok((!self.cells.is_empty()).then_some(fields))
     }
 
     /// A row with a quoted cell, through the full CSV reader (no quoted
