@@ -371,3 +371,74 @@ fn a_truncated_last_row_is_read_as_it_always_was() {
         assert_eq!(frames, last - 7, "cut at {cut}");
     }
 }
+
+/// Cells in every form a number may take in an export (Motive's six
+/// decimals with 1 to 9 integer digits, fewer and more decimals, none, an
+/// exponent, very long digit strings, negative zero, leading zeros) and
+/// empty ones, so that rows of every length cross the scan's 64-byte steps.
+fn every_form(rows: usize) -> Vec<String> {
+    let forms: [fn(f64) -> String; 12] = [
+        |v| format!("{v:.6}"),
+        |v| format!("{:.6}", v * 1e5),
+        |v| format!("{:.6}", -v * 1e-4),
+        |v| format!("{v:.3}"),
+        |v| format!("{v:.9}"),
+        |v| format!("{:.0}", v * 10.0),
+        |v| format!("{v:e}"),
+        |v| format!("{v:E}"),
+        |v| format!("{v:.20}"),
+        |v| format!("{v}"),
+        |v| format!("{:.6}", -v * 0.0),
+        |v| format!("000{:.6}", v.abs()),
+    ];
+    let mut lines = dense(0);
+    for i in 0..rows {
+        let mut l = format!("{i},{:.6}", i as f64 / 100.0);
+        for m in 0..3 {
+            if (i + m) % 13 == 0 {
+                l.push_str(",,,");
+                continue;
+            }
+            for k in 0..3 {
+                let v = ((i * 31 + m * 7 + k) as f64 * 0.618034).sin() * 1234.5;
+                l.push(',');
+                l.push_str(&forms[(i * 5 + m * 3 + k) % forms.len()](v));
+            }
+        }
+        lines.push(l);
+    }
+    lines
+}
+
+#[test]
+fn every_form_of_number_is_the_standard_parse_bit_for_bit() {
+    let dir = tempfile::tempdir().unwrap();
+    for crlf in [false, true] {
+        let path = dir.path().join("forms.csv");
+        let lines = every_form(2000);
+        write_lines(&path, &lines, crlf);
+        let mut want = Vec::new();
+        for l in &lines[7..] {
+            let cells: Vec<&str> = l.split(',').collect();
+            let mut markers = Vec::new();
+            for m in 0..3 {
+                let xyz = &cells[2 + 3 * m..5 + 3 * m];
+                if xyz.iter().all(|c| !c.is_empty()) {
+                    let p: [u64; 3] =
+                        std::array::from_fn(|k| (xyz[k].parse::<f64>().unwrap() * 0.001).to_bits());
+                    markers.push((Some(m as i64), p));
+                }
+            }
+            want.push((cells[0].parse::<i64>().unwrap(), markers));
+        }
+        for (workers, block) in [(0, 1 << 30), (2, 1000), (2, 4096)] {
+            let out = read_with(&path, workers, block);
+            assert!(out.error.is_none(), "{:?}", out.error);
+            let got: Vec<_> = out.frames.iter().map(|f| (f.0, f.2.clone())).collect();
+            assert!(
+                got == want,
+                "crlf {crlf}, {workers} workers, {block} B blocks"
+            );
+        }
+    }
+}
