@@ -52,18 +52,14 @@ const MOVED_ERROR: f64 = 0.3;
 /// or another candidate fits its identity, at a cost less than this above
 /// its own (costs are negative log-likelihoods: within a factor e^0.5 ≈ 1.6).
 const AMBIGUOUS: f64 = 1.0;
+/// A coasting trace is checked against its neighbours' prediction only
+/// while a neighbour's marker, measured in the last two frames, is within
+/// this distance (m) of the trace's own prediction
+/// ([`Identities::coast_agrees`]). 30 and 40 mm gave the same counts on the
+/// stress sweep, 60 mm more wrong samples on `all`.
+const COAST_NEAR_M: f64 = 0.04;
 /// Variance a new neighbour pair starts with (m²): (50 mm)², unknown.
 const VAR0: f64 = 0.05 * 0.05;
-/// A neighbour is a hidden identity's [`Partner`] when its own swing
-/// explains at least this fraction of the identity's (R² of the
-/// regression)...
-const PARTNER_R2: f64 = 0.6;
-/// ...and that swing is larger than this (m, RMS): below, the
-/// neighbours' common motion predicts within the join radius anyway.
-const PARTNER_SWING_MIN: f64 = 0.004;
-/// Largest gain of a partner's swing (a fork's two tips swing at most
-/// about twice as far as each other).
-const PARTNER_GAIN_MAX: f64 = 2.0;
 
 /// Settings of the identity layer, in frames and metres.
 #[derive(Debug, Clone, Copy)]
@@ -88,28 +84,6 @@ struct Neighbour {
     mean: DVec3,
     var: f64,
     seen: bool,
-    /// Exponential averages of `z · y` and `|z|²`, where `y` is how far the
-    /// identity is from where its neighbours put it and `z` how far this
-    /// neighbour is from that same place: the regression of the identity's
-    /// own swing on this neighbour's ([`Partner`]).
-    zy: f64,
-    zz: f64,
-}
-
-/// A neighbour whose own swing (relative to the rest of the
-/// neighbourhood) explains the identity's: two tips of one fork swinging
-/// towards each other, which the neighbours' common motion does not show.
-/// While the identity is hidden, its predicted swing is `gain` times the
-/// partner's.
-#[derive(Debug, Clone, Copy)]
-struct Partner {
-    id: usize,
-    /// The partner's position when the gap began.
-    p0: DVec3,
-    gain: f64,
-    /// The partner's term of the latest prediction, held while the partner
-    /// is hidden too.
-    term: DVec3,
 }
 
 /// What an identity looked like when its current gap began.
@@ -128,8 +102,6 @@ struct Gap {
     /// Largest predicted displacement since the gap began (m): the
     /// neighbours' model errs in proportion to how far they moved.
     moved: f64,
-    /// The neighbour whose swing the identity's follows, if one does.
-    partner: Option<Partner>,
     /// The trace has ended: the identity waits for a candidate.
     ended: bool,
 }
@@ -143,8 +115,6 @@ struct Ident {
     last: (i64, DVec3),
     prev: (i64, DVec3),
     neighbours: Vec<Neighbour>,
-    /// Exponential average of `|y|²`, `y` as in [`Neighbour::zy`].
-    yy: f64,
     gap: Option<Gap>,
     /// Mean and RMS spread of its first `confirm_frames` measurements: the
     /// live daemon matches identities to a tree's tips with it.
@@ -257,21 +227,34 @@ impl Identities {
     }
 
     /// Whether trace `trace`, coasting through a gap, may go on with its
-    /// own prediction `p`: false once where the neighbours (and a partner)
-    /// put its identity is outside the trace's `gate` (m) around `p`. A coasting
-    /// trace extrapolates the marker's last motion; when the marker swung
-    /// back or towards a neighbour while hidden, that extrapolation runs
-    /// into the neighbour's marker and takes it (a swap that lasts). Ended
+    /// own prediction `p`: false once where the neighbours put its identity
+    /// is outside the trace's `gate` (m) around `p` while a neighbour's
+    /// marker is within `COAST_NEAR_M` of `p`. A coasting trace extrapolates
+    /// the marker's last motion; when the marker swung back or towards a
+    /// neighbour while hidden, that extrapolation runs into the neighbour's
+    /// marker and takes it (a swap that lasts: what broke `close`). Ended
     /// instead, the identity is lost and its marker is joined again by the
     /// neighbours' prediction.
     pub(crate) fn coast_agrees(&self, trace: usize, p: DVec3, gate: f64) -> bool {
         let Some(Owner::Ident(i)) = self.owner.get(&trace) else {
             return true;
         };
-        let Some(g) = self.idents[*i].gap.as_ref() else {
+        let id = &self.idents[*i];
+        let Some(g) = id.gap.as_ref() else {
             return true;
         };
-        g.preds.is_empty() || p.distance(g.last_pred) <= gate.max(self.s.link_min_m)
+        // Only where the coasting prediction could take another marker:
+        // away from every neighbour's marker a wrong extrapolation finds
+        // nothing and the trace ends on its own gate, while in a gust the
+        // marker's own motion can predict it better than its neighbours'
+        // (checked everywhere, gusts and `all` lost more identities than
+        // they kept: docs/tracking.md §4a).
+        let near = id.neighbours.iter().any(|n| {
+            self.idents.get(n.id).is_some_and(|j| {
+                j.last.0 >= self.frame - 2 && j.last.1.distance(p) <= COAST_NEAR_M
+            })
+        });
+        !near || g.preds.is_empty() || p.distance(g.last_pred) <= gate.max(self.s.link_min_m)
     }
 
     /// Trace `trace` ended (too long without a marker, or a restart).
@@ -385,7 +368,6 @@ impl Identities {
         let from = id.last.0;
         let mut snap = Vec::new();
         let mut wsum = 0.0;
-        let mut partner: Option<(f64, Partner)> = None;
         for n in id.neighbours.iter().filter(|n| n.seen) {
             let Some(j) = self.idents.get(n.id) else {
                 continue;
@@ -400,21 +382,6 @@ impl Identities {
             let w = 1.0 / n.var.max(1e-8);
             wsum += w;
             snap.push((n.id, pj, w));
-            if let Some(r2) = partner_fit(n, id.yy) {
-                if partner.is_none_or(|(best, _)| r2 > best) {
-                    let gain = (n.zy / n.zz).clamp(-PARTNER_GAIN_MAX, PARTNER_GAIN_MAX);
-                    let term = DVec3::ZERO;
-                    partner = Some((
-                        r2,
-                        Partner {
-                            id: n.id,
-                            p0: pj,
-                            gain,
-                            term,
-                        },
-                    ));
-                }
-            }
         }
         let spread = if wsum > 0.0 {
             (2.0 / wsum).sqrt()
@@ -430,7 +397,6 @@ impl Identities {
             preds: VecDeque::new(),
             last_pred: p0,
             moved: 0.0,
-            partner: partner.map(|(_, p)| p),
             ended: false,
         });
     }
@@ -449,24 +415,12 @@ impl Identities {
                     wsum += w;
                 }
             }
-            let common = num / wsum.max(f64::MIN_POSITIVE);
-            // The partner's swing beyond the common motion, scaled; held
-            // while the partner is hidden too.
-            let term = g
-                .partner
-                .map(|q| match self.cur.get(q.id).copied().flatten() {
-                    Some(pk) if wsum > 0.0 => (pk - q.p0 - common) * q.gain,
-                    _ => q.term,
-                });
             let pred = if wsum > 0.0 {
-                g.p0 + common + term.unwrap_or(DVec3::ZERO)
+                g.p0 + num / wsum
             } else {
                 g.last_pred
             };
             if let Some(g) = self.idents[i].gap.as_mut() {
-                if let (Some(q), Some(term)) = (g.partner.as_mut(), term) {
-                    q.term = term;
-                }
                 g.last_pred = pred;
                 g.moved = g.moved.max(pred.distance(g.p0));
                 g.preds.push_back((t, pred));
@@ -483,23 +437,6 @@ impl Identities {
         for &i in &self.active {
             let Some(pi) = self.cur[i] else { continue };
             let cur = &self.cur;
-            // Where the neighbours put it (each neighbour's position plus
-            // their mean offset, weighted as in the gap's prediction), and
-            // how far it is from there.
-            let (mut num, mut wsum) = (DVec3::ZERO, 0.0);
-            for n in self.idents[i].neighbours.iter().filter(|n| n.seen) {
-                if let Some(pj) = cur.get(n.id).copied().flatten() {
-                    let w = 1.0 / n.var.max(1e-8);
-                    num += (pj + n.mean) * w;
-                    wsum += w;
-                }
-            }
-            let placed = (wsum > 0.0).then(|| num / wsum);
-            let y = placed.map(|c| pi - c);
-            if let Some(y) = y {
-                let id = &mut self.idents[i];
-                id.yy = (1.0 - a) * id.yy + a * y.length_squared();
-            }
             for n in self.idents[i].neighbours.iter_mut() {
                 let Some(pj) = cur.get(n.id).copied().flatten() else {
                     continue;
@@ -508,10 +445,6 @@ impl Identities {
                 if !n.seen {
                     n.mean = o;
                     n.seen = true;
-                } else if let (Some(c), Some(y)) = (placed, y) {
-                    let z = pj + n.mean - c;
-                    n.zy = (1.0 - a) * n.zy + a * z.dot(y);
-                    n.zz = (1.0 - a) * n.zz + a * z.length_squared();
                 }
                 let d = o - n.mean;
                 n.mean += d * a;
@@ -553,8 +486,6 @@ impl Identities {
                             mean: DVec3::ZERO,
                             var: VAR0,
                             seen: false,
-                            zy: 0.0,
-                            zz: 0.0,
                         })
                 })
                 .collect();
@@ -732,7 +663,6 @@ impl Identities {
             last,
             prev,
             neighbours: Vec::new(),
-            yy: 0.0,
             gap: None,
             first: (mean, spread),
         });
@@ -743,17 +673,6 @@ impl Identities {
         // confirmed can already be predicted.
         self.next_refresh = self.frame;
     }
-}
-
-/// The R² of the regression of an identity's swing (mean square `yy`) on
-/// neighbour `n`'s, if `n` qualifies as its partner (see `PARTNER_R2`).
-fn partner_fit(n: &Neighbour, yy: f64) -> Option<f64> {
-    let floor = PARTNER_SWING_MIN * PARTNER_SWING_MIN;
-    if n.zz <= floor || yy <= floor {
-        return None;
-    }
-    let r2 = n.zy * n.zy / (n.zz * yy);
-    (r2 >= PARTNER_R2).then_some(r2)
 }
 
 /// Whether row `row`'s match `col` has a rival: another column fitting the
@@ -826,14 +745,9 @@ fn path_cost(samples: &[(i64, DVec3)], g: &Gap, s: &IdentitySettings) -> Option<
         return None;
     }
     let rms = (sum / n as f64).sqrt();
-    let radius = join_radius(g, s);
+    let radius = (s.link_min_m + 3.0 * g.spread + MOVED_ERROR * g.moved).min(s.link_max_m);
     let c = rms / radius;
     (c <= 1.0).then(|| c * c + 2.0 * (radius / s.link_min_m.max(1e-6)).ln().max(0.0))
-}
-
-/// The radius within which a piece follows a gap's predicted path.
-fn join_radius(g: &Gap, s: &IdentitySettings) -> f64 {
-    (s.link_min_m + 3.0 * g.spread + MOVED_ERROR * g.moved).min(s.link_max_m)
 }
 
 /// The cost of leaving a candidate unjoined: above every path cost.
