@@ -250,9 +250,9 @@ impl Identities {
         // (checked everywhere, gusts and `all` lost more identities than
         // they kept: docs/tracking.md §4a).
         let near = id.neighbours.iter().any(|n| {
-            self.idents.get(n.id).is_some_and(|j| {
-                j.last.0 >= self.frame - 2 && j.last.1.distance(p) <= COAST_NEAR_M
-            })
+            self.idents
+                .get(n.id)
+                .is_some_and(|j| j.last.0 >= self.frame - 2 && j.last.1.distance(p) <= COAST_NEAR_M)
         });
         !near || g.preds.is_empty() || p.distance(g.last_pred) <= gate.max(self.s.link_min_m)
     }
