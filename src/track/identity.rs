@@ -52,6 +52,12 @@ const MOVED_ERROR: f64 = 0.3;
 /// or another candidate fits its identity, at a cost less than this above
 /// its own (costs are negative log-likelihoods: within a factor e^0.5 ≈ 1.6).
 const AMBIGUOUS: f64 = 1.0;
+/// A coasting trace is checked against its neighbours' prediction only
+/// while a neighbour's marker, measured in the last two frames, is within
+/// this distance (m) of the trace's own prediction
+/// ([`Identities::coast_agrees`]). 30 and 40 mm gave the same counts on the
+/// stress sweep, 60 mm more wrong samples on `all`.
+const COAST_NEAR_M: f64 = 0.04;
 /// Variance a new neighbour pair starts with (m²): (50 mm)², unknown.
 const VAR0: f64 = 0.05 * 0.05;
 
@@ -218,6 +224,37 @@ impl Identities {
             }
             None => {}
         }
+    }
+
+    /// Whether trace `trace`, coasting through a gap, may go on with its
+    /// own prediction `p`: false once where the neighbours put its identity
+    /// is outside the trace's `gate` (m) around `p` while a neighbour's
+    /// marker is within `COAST_NEAR_M` of `p`. A coasting trace extrapolates
+    /// the marker's last motion; when the marker swung back or towards a
+    /// neighbour while hidden, that extrapolation runs into the neighbour's
+    /// marker and takes it (a swap that lasts: what broke `close`). Ended
+    /// instead, the identity is lost and its marker is joined again by the
+    /// neighbours' prediction.
+    pub(crate) fn coast_agrees(&self, trace: usize, p: DVec3, gate: f64) -> bool {
+        let Some(Owner::Ident(i)) = self.owner.get(&trace) else {
+            return true;
+        };
+        let id = &self.idents[*i];
+        let Some(g) = id.gap.as_ref() else {
+            return true;
+        };
+        // Only where the coasting prediction could take another marker:
+        // away from every neighbour's marker a wrong extrapolation finds
+        // nothing and the trace ends on its own gate, while in a gust the
+        // marker's own motion can predict it better than its neighbours'
+        // (checked everywhere, gusts and `all` lost more identities than
+        // they kept: docs/tracking.md §4a).
+        let near = id.neighbours.iter().any(|n| {
+            self.idents
+                .get(n.id)
+                .is_some_and(|j| j.last.0 >= self.frame - 2 && j.last.1.distance(p) <= COAST_NEAR_M)
+        });
+        !near || g.preds.is_empty() || p.distance(g.last_pred) <= gate.max(self.s.link_min_m)
     }
 
     /// Trace `trace` ended (too long without a marker, or a restart).

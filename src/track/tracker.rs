@@ -372,6 +372,7 @@ impl Tracker {
     fn end_lost_traces(&mut self, t: i64) {
         let max_gap = self.max_gap;
         let gate = self.gate_m / self.gate_sigma;
+        let gate_sigma = self.gate_sigma;
         let params = self.params;
         let traces = &mut self.traces;
         let identities = &mut self.identities;
@@ -380,7 +381,10 @@ impl Tracker {
             l.prediction = p;
             l.variance = s;
             let missed = t - l.motion.t() - 1;
-            let alive = missed <= 0 || (missed <= max_gap && s <= gate * gate);
+            let alive = missed <= 0
+                || (missed <= max_gap
+                    && s <= gate * gate
+                    && identities.coast_agrees(l.trace, p, gate_sigma * s.sqrt()));
             if !alive {
                 if let Some(tr) = traces.get_mut(l.trace) {
                     tr.seal();

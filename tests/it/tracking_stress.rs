@@ -73,6 +73,22 @@ fn the_still_phase_is_found_under_noise_above_noise_mm() {
     check("noise, seed 101", &st.options);
 }
 
+/// Ten close pairs passing within a few mm on the sweep's 70-tip session
+/// of seed 104: every tip keeps its identity. Before, a tip hidden while
+/// its pair swung towards each other kept coasting on its own
+/// extrapolation, ran into its partner's marker and took it (71 tips, one
+/// holding two); a coasting trace near another marker now ends once its
+/// neighbours put it elsewhere (docs/tracking.md §4a).
+#[test]
+fn close_pairs_keep_their_identities_through_a_gap() {
+    let base = stress::base(104, 70, 8.0, 20.0);
+    let st = stress::all(&base)
+        .into_iter()
+        .find(|s| s.name == "close")
+        .unwrap();
+    check("close, seed 104", &st.options);
+}
+
 #[test]
 fn rest_window_is_on_the_time_column_when_the_take_starts_late() {
     // A take exported from frame 1000 on, its Time column starting at 0:
