@@ -292,3 +292,70 @@ fn below(v: f64, t: f64) -> f64 {
 fn above(v: f64, t: f64) -> f64 {
     -below(v, t)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::DVec3;
+
+    fn cand(k: usize, rms: f64, dependence: f64, ratio: f64) -> Candidate {
+        Candidate {
+            k,
+            rms,
+            dependence,
+            ratio,
+            centres: vec![DVec3::ZERO; k],
+        }
+    }
+
+    #[test]
+    fn the_fit_count_names_its_tolerance_and_margin() {
+        let s = ForestSettings::default();
+        let tol = s.fit_tolerance_m;
+        // Two crowns fit at 0.7 × the tolerance, one at 1.5 ×: the closer
+        // of the two to the tolerance is 30 % from it.
+        let all = [
+            cand(1, 1.5 * tol, f64::NEG_INFINITY, f64::NEG_INFINITY),
+            cand(2, 0.7 * tol, 0.0, 0.0),
+        ];
+        let c = choose(&all, &s, false).unwrap();
+        assert_eq!(
+            (c.at, c.count.basis, c.count.fit_trees),
+            (1, CountBasis::Fit, 2)
+        );
+        assert!((c.count.margin - 0.3).abs() < 1e-9, "{:?}", c.count);
+        assert!(
+            c.count.reason.starts_with("2 crowns within"),
+            "{:?}",
+            c.count
+        );
+    }
+
+    #[test]
+    fn the_sway_count_names_the_fits_number_and_its_rule() {
+        let s = ForestSettings::default();
+        let tol = s.fit_tolerance_m;
+        // The fit takes two crowns; three sway apart (ratio 0.1 against
+        // 0.3: a margin of 2/3), and four would not (ratio 0.9).
+        let all = [
+            cand(1, 3.0 * tol, f64::NEG_INFINITY, f64::NEG_INFINITY),
+            cand(2, 0.9 * tol, 0.05, 0.2),
+            cand(3, 0.8 * tol, 0.02, 0.1),
+            cand(4, 0.7 * tol, 0.5, 0.9),
+        ];
+        let c = choose(&all, &s, true).unwrap();
+        assert_eq!(
+            (c.at, c.count.basis, c.count.fit_trees),
+            (2, CountBasis::Sway, 2)
+        );
+        assert!(c.count.reason.contains("sway apart"), "{:?}", c.count);
+        assert!(
+            c.count.margin > 0.0 && c.count.margin <= 2.0 / 3.0 + 1e-9,
+            "{:?}",
+            c.count
+        );
+        // Without the sway the fit's two stand.
+        let still = choose(&all, &s, false).unwrap();
+        assert_eq!((still.at, still.count.basis), (1, CountBasis::Fit));
+    }
+}

@@ -156,7 +156,12 @@ struct Split {
 /// tried: right on more sessions of the seeds it was tried on, wrong on
 /// more of the held-out ones — its better-fitting splits move the fit's
 /// choice where the sway then errs.)
-fn best_split(tips: &[DVec3], k: usize, s: &ForestSettings, fewer: Option<&Split>) -> Option<Split> {
+fn best_split(
+    tips: &[DVec3],
+    k: usize,
+    s: &ForestSettings,
+    fewer: Option<&Split>,
+) -> Option<Split> {
     let starts = (0..STARTS.min(tips.len())).filter_map(|start| {
         let first = start * tips.len() / STARTS.min(tips.len());
         let (centres, labels) = kmeans(tips, k, first);
