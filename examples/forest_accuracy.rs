@@ -30,7 +30,8 @@ fn main() {
         .unwrap_or(40);
     let recon = ReconstructSettings::default();
     // Settings to try, from the environment: SWAY_WEIGHT, SWAY_CORRELATION,
-    // FIT_TOLERANCE, MIN_SPACING; SEED_BASE picks the seeds; OVERLAPS (comma separated) limits the sweep.
+    // FIT_TOLERANCE, MIN_SPACING; SEED_BASE picks the seeds; OVERLAPS (comma
+    // separated) limits the sweep; COUNT_ONLY skips the tip shares.
     let env = |k: &str| std::env::var(k).ok().and_then(|v| v.parse::<f64>().ok());
     let d = ForestSettings::default();
     let crown = ForestSettings {
@@ -60,6 +61,7 @@ fn main() {
         sway_weight_m: 0.0,
         ..crown.clone()
     };
+    let count_only = std::env::var("COUNT_ONLY").is_ok();
     println!("overlap  sessions  tips   livny            crown, no sway   crown + sway     count right (trunks >= 1 m): sway+fit, fit alone");
     for overlap in overlaps {
         let mut acc = [(0usize, 0usize, 1.0f64); 3];
@@ -80,10 +82,13 @@ fn main() {
                 })
                 .collect();
             let l = links(&t);
-            for (k, (s, links)) in [(&livny, &[][..]), (&shape_only, &[][..]), (&crown, &l[..])]
-                .into_iter()
-                .enumerate()
-            {
+            // COUNT_ONLY skips the tip shares (for choosing the count's settings).
+            let shares: &[(&ForestSettings, &[sway::SwayLink])] = if count_only {
+                &[]
+            } else {
+                &[(&livny, &[][..]), (&shape_only, &[][..]), (&crown, &l[..])]
+            };
+            for (k, &(s, links)) in shares.iter().enumerate() {
                 let plan = forest::plan(&tips, links, &bases, s, &recon).expect("plan");
                 let mut good = 0;
                 for tree in &plan.trees {
@@ -196,6 +201,11 @@ fn singles(first_seed: u64, n: u64, s: &ForestSettings, recon: &ReconstructSetti
         };
         made += 1;
         let t = session.truth;
+        if let Ok(path) = std::env::var("CANDIDATES") {
+            // Overlap 9 marks a tree alone in the dump.
+            let l = links(&t);
+            dump_candidates(&path, first_seed + seed, 9.0, 1, &t.rest_tips(), &l, s);
+        }
         let plan = forest::plan(&t.rest_tips(), &links(&t), &[], s, recon).expect("plan");
         if plan.trees.len() == 1 {
             whole += 1;

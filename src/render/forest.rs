@@ -84,6 +84,8 @@ pub fn forest_model(
             })
             .collect::<Vec<_>>(),
         serde_json::to_value(report.forest.as_ref().map(|f| &f.ambiguous)).unwrap_or(json!([])),
+        serde_json::to_value(report.forest.as_ref().and_then(|f| f.count.as_ref()))
+            .unwrap_or(serde_json::Value::Null),
         wind.to_array(),
         cfg,
     )?;
@@ -239,6 +241,7 @@ fn forest_report(
             rule: plan.rule,
             fits: plan.fits.clone(),
             fits_well: plan.fits_well,
+            count: plan.count.clone(),
             ambiguous: plan
                 .ambiguous
                 .iter()

@@ -10,7 +10,7 @@ use glam::DVec3;
 use serde::Serialize;
 
 use crate::model::tree::Tree;
-use crate::reconstruct::forest::{AssignRule, BaseSource};
+use crate::reconstruct::forest::{AssignRule, BaseSource, CountBasis, CountChoice};
 
 /// One tree of the outputs.
 #[derive(Debug, Clone)]
@@ -47,6 +47,10 @@ pub struct ForestReport {
     pub fits: Vec<(usize, f64)>,
     /// False when no number of trees fitted within the tolerance.
     pub fits_well: bool,
+    /// How the number of trees was chosen: by the crown fit or the sway,
+    /// the rule and its margin (`None` for configured trees).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub count: Option<CountChoice>,
     /// Tips that were close calls: marker, its tree, the runner-up, costs.
     pub ambiguous: Vec<AmbiguousLine>,
     /// Captured tips beyond one of their tree's planes.
@@ -95,6 +99,28 @@ pub(super) fn source_name(s: BaseSource) -> &'static str {
     }
 }
 
+/// The report's line on how the number of trees was chosen: by what, the
+/// fit's own number when the sway changed it, the margin and the rule.
+fn count_line(trees: usize, c: &CountChoice) -> String {
+    let by = match c.basis {
+        CountBasis::Fit => "the crown fit".to_string(),
+        CountBasis::Sway => format!("the sway (the crown fit alone: {})", c.fit_trees),
+    };
+    let close = if c.margin < CLOSE_CALL {
+        " — a close call, check them"
+    } else {
+        ""
+    };
+    format!(
+        "count: {trees} by {by}, margin {:.0} %{close}: {}",
+        100.0 * c.margin,
+        c.reason
+    )
+}
+
+/// Below this margin the count line calls the count a close call.
+const CLOSE_CALL: f64 = 0.1;
+
 impl fmt::Display for ForestReport {
     /// The trees (as `[[trees]]` tables to pin when they were found), the
     /// empty ones and the close calls.
@@ -113,6 +139,9 @@ impl fmt::Display for ForestReport {
                 fits.join(", "),
                 if self.fits_well { "" } else { " — no number fitted well, check them" }
             )?;
+            if let Some(c) = &self.count {
+                writeln!(f, "{}", count_line(self.trees.len(), c))?;
+            }
             for t in &self.trees {
                 writeln!(
                     f,

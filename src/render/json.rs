@@ -70,10 +70,12 @@ pub struct ForestEntry<'a> {
 /// Several trees as tree.json version 2 (docs/forest.md): the seed,
 /// parameters and wind, then `trees` (each with its id, name, base and seed
 /// and the version-1 skeleton keys), then `ambiguous` (the tips that were
-/// close calls, as given).
+/// close calls, as given), then `count` (how the number of trees was
+/// chosen, as given; null when the trees were configured).
 pub fn forest_json(
     trees: &[ForestEntry<'_>],
     ambiguous: Value,
+    count: Value,
     wind: [f64; 3],
     cfg: &ReconstructSettings,
 ) -> Result<String> {
@@ -105,7 +107,9 @@ pub fn forest_json(
     }
     text.push_str("  ],\n");
     let v = serde_json::to_string(&ambiguous).map_err(RenderError::from)?;
-    text.push_str(&format!("  \"ambiguous\": {v}\n}}\n"));
+    text.push_str(&format!("  \"ambiguous\": {v},\n"));
+    let v = serde_json::to_string(&count).map_err(RenderError::from)?;
+    text.push_str(&format!("  \"count\": {v}\n}}\n"));
     Ok(text)
 }
 

@@ -13,7 +13,8 @@ use glam::DVec3;
 use treemocap::config::Config;
 use treemocap::model::trace::SampleKind;
 use treemocap::reconstruct::forest::{
-    self, sway, AssignRule, ConfiguredTree, ForestCache, ForestPlan, ForestSettings, SwayLink,
+    self, sway, AssignRule, ConfiguredTree, CountBasis, ForestCache, ForestPlan, ForestSettings,
+    SwayLink,
 };
 use treemocap::reconstruct::ReconstructSettings;
 use treemocap::render::forest::forest_outputs;
@@ -220,6 +221,19 @@ fn the_sway_finds_the_count_where_the_crown_fit_alone_misses() {
             "seed {seed}: fits {:?}",
             swayed.fits
         );
+        // The plan says which evidence settled the count: the still take's
+        // by the crown fit, the swayed one's by the sway, naming the fit's
+        // own number (the still take's) and a margin in (0, 1].
+        let (by_fit, by_sway) = (still.count.unwrap(), swayed.count.unwrap());
+        assert_eq!(by_fit.basis, CountBasis::Fit, "seed {seed}: {by_fit:?}");
+        assert!(!by_fit.swayed && by_sway.swayed, "seed {seed}");
+        assert!(by_fit.reason.contains("fit tolerance"), "{by_fit:?}");
+        assert_eq!(by_sway.basis, CountBasis::Sway, "seed {seed}: {by_sway:?}");
+        assert_eq!(by_sway.fit_trees, still.trees.len(), "{by_sway:?}");
+        assert!(by_sway.reason.contains("sway"), "{by_sway:?}");
+        for c in [&by_fit, &by_sway] {
+            assert!(c.margin > 0.0 && c.margin <= 1.0, "seed {seed}: {c:?}");
+        }
     }
 }
 
@@ -399,6 +413,26 @@ fn replay_splits_the_shipped_forest_replay_into_trees() {
     let json: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("tree.json")).unwrap()).unwrap();
     assert_eq!(json["version"], 2);
+    // How the count was chosen, printed and in tree.json alike: the
+    // evidence (crown fit or sway), the margin and the rule.
+    let count = &json["count"];
+    let line = printed
+        .lines()
+        .find(|l| l.starts_with("count: 3 by "))
+        .unwrap_or_else(|| panic!("no count line in {printed}"));
+    let by = if count["basis"] == "fit" {
+        "the crown fit"
+    } else {
+        "the sway"
+    };
+    let margin = count["margin"].as_f64().unwrap();
+    assert!(margin > 0.0 && margin <= 1.0, "{count}");
+    assert!(
+        line.contains(by) && line.contains(&format!("margin {:.0} %", 100.0 * margin)),
+        "{line} vs {count}"
+    );
+    assert_eq!(count["swayed"], true, "the take has a wind phase: {count}");
+    assert!(line.ends_with(count["reason"].as_str().unwrap()), "{line}");
     let trees = json["trees"].as_array().unwrap();
     assert_eq!(trees.len(), 3);
     // Tips of tips.json matched to the truth by rest position.
@@ -546,6 +580,8 @@ fn replay_splits_the_shipped_forest_replay_into_trees() {
         assert_eq!(a["markers"], b["markers"]);
         assert_eq!(b["base_source"], "configured");
     }
+    // Configured trees were not counted.
+    assert!(json2["count"].is_null(), "{}", json2["count"]);
 }
 
 #[test]

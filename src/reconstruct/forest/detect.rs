@@ -3,21 +3,17 @@
 //! the trees stand").
 //!
 //! For K = 1, 2, … the tips are split by k-means on their horizontal
-//! positions (several deterministic starts), then crowns are fitted with a
+//! positions (several deterministic starts) and by the best split into
+//! K − 1 with one of its crowns cut in two, then crowns are fitted with a
 //! free axis and every tip goes to the nearest surface, until the split
 //! stands; a split counts when every tree has `min_tips` tips and every two
-//! axes stand `min_spacing_m` apart. The first K whose worst tree's RMS
-//! surface distance is within `fit_tolerance_m` is taken; when none is, the
-//! K with the least RMS + `count_penalty_m`·K (one crown of a forest that
-//! fits badly must not make the search give up and take one tree).
-//!
-//! When the take swayed, the sway and the fit choose K together
-//! ([`by_sway`]): a tree cut in two leaves two crowns sharing its trunk's
-//! sway, two trees sway independently, and a split that fits clearly
-//! better is taken unless its crowns sway as one.
+//! axes stand `min_spacing_m` apart, and the one with the least RMS is
+//! kept. [`super::count`] then chooses K among them (by the fit alone, or
+//! the fit and the sway) and says why.
 
 use glam::DVec3;
 
+use super::count::{self, CountChoice};
 use super::crown::{Crown, FitOptions};
 use super::settings::ForestSettings;
 use super::sway::Coherence;
@@ -40,16 +36,34 @@ pub struct Detection {
     pub centres: Vec<DVec3>,
     /// RMS surface distance (m) for each K tried that gave a valid split.
     pub rms: Vec<(usize, f64)>,
-    /// False when no K fitted within the tolerance (one tree was taken).
+    /// False when no K fitted within the tolerance (the least penalised
+    /// was taken).
     pub fits: bool,
+    /// How the number of trees was chosen, for the operator to judge.
+    pub count: CountChoice,
 }
 
 /// Searches for the trees among `tips`: by the sway when `sway` is given
 /// (the take swayed), else by the crown fit alone.
 pub fn find(tips: &[DVec3], s: &ForestSettings, sway: Option<&Coherence>) -> Detection {
-    match sway {
-        Some(c) => by_sway(tips, s, c),
-        None => by_fit(tips, s),
+    // A still take stops at the first K that fits: the fit alone takes it.
+    let all = search(tips, s, sway, sway.is_none());
+    let Some(choice) = count::choose(&all, s, sway.is_some()) else {
+        return Detection {
+            centres: vec![centroid(tips)],
+            rms: Vec::new(),
+            fits: false,
+            count: CountChoice::unfitted(),
+        };
+    };
+    let chosen = &all[choice.at];
+    let mut centres = chosen.centres.clone();
+    centres.sort_by(|a, b| a.x.total_cmp(&b.x).then(a.z.total_cmp(&b.z)));
+    Detection {
+        centres,
+        rms: all.iter().map(|c| (c.k, c.rms)).collect(),
+        fits: chosen.rms <= s.fit_tolerance_m,
+        count: choice.count,
     }
 }
 
@@ -61,7 +75,7 @@ pub struct Candidate {
     /// The worst crown's RMS surface distance (m).
     pub rms: f64,
     /// The largest mean sway correlation between two of its crowns
-    /// ([`Coherence::dependence`]; −∞ for one crown).
+    /// ([`Coherence::dependence`]; −∞ for one crown or a still take).
     pub dependence: f64,
     /// The same pair's correlation over the geometric mean of the two
     /// crowns' own (1 for two halves of one tree's sway, near 0 for two
@@ -72,181 +86,55 @@ pub struct Candidate {
 }
 
 /// Every valid split for K = 1 ..= `max_trees` (the least RMS over the
-/// starts), with its sway dependence: what [`by_sway`] chooses among.
+/// starts), with its sway dependence: what the count chooses among.
 pub fn candidates(tips: &[DVec3], s: &ForestSettings, sway: &Coherence) -> Vec<Candidate> {
+    search(tips, s, Some(sway), false)
+}
+
+/// The valid splits for K = 1, 2, … (each K's starts include the best
+/// split into K − 1 with one crown cut in two), with their sway dependence
+/// when `sway` is given; `stop_at_fit` ends the search at the first K
+/// within `fit_tolerance_m` (the fit alone takes it).
+fn search(
+    tips: &[DVec3],
+    s: &ForestSettings,
+    sway: Option<&Coherence>,
+    stop_at_fit: bool,
+) -> Vec<Candidate> {
     let mut out = Vec::new();
-    if let Some(c) = Crown::fit(tips, centroid(tips), FREE) {
-        out.push(Candidate {
-            k: 1,
-            rms: rms_of(tips, std::slice::from_ref(&c), &vec![0; tips.len()]),
-            dependence: f64::NEG_INFINITY,
-            ratio: f64::NEG_INFINITY,
+    let mut fewer = Crown::fit(tips, centroid(tips), FREE).map(|c| {
+        let labels = vec![0; tips.len()];
+        Split {
+            rms: rms_of(tips, std::slice::from_ref(&c), &labels),
             centres: vec![c.axis_at(0.0)],
-        });
-    }
-    for k in 2..=s.max_trees {
-        if tips.len() < k * s.min_tips {
+            labels,
+        }
+    });
+    let mut k = 1;
+    loop {
+        if let Some(split) = &fewer {
+            let (dependence, ratio) = match sway {
+                Some(c) if k > 1 => c.dependence(&split.labels, k),
+                _ => (f64::NEG_INFINITY, f64::NEG_INFINITY),
+            };
+            out.push(Candidate {
+                k,
+                rms: split.rms,
+                dependence,
+                ratio,
+                centres: split.centres.clone(),
+            });
+            if stop_at_fit && split.rms <= s.fit_tolerance_m {
+                break;
+            }
+        }
+        k += 1;
+        if k > s.max_trees || tips.len() < k * s.min_tips {
             break;
         }
-        let Some(split) = best_split(tips, k, s) else {
-            continue;
-        };
-        let (dependence, ratio) = sway.dependence(&split.labels, k);
-        out.push(Candidate {
-            k,
-            rms: split.rms,
-            dependence,
-            ratio,
-            centres: split.centres,
-        });
+        fewer = best_split(tips, k, s, fewer.as_ref());
     }
     out
-}
-
-/// The count by the sway and the fit together (docs/forest.md, "The sway
-/// chooses the count"): start from the fit's K (the smallest that fits
-/// within `fit_tolerance_m`, else the least penalised); refuse it while two
-/// of its crowns sway as one tree (mean correlation at least
-/// `trunk_coherence` and at least [`SAME_TREE_RATIO`] of their own) and a
-/// K less still fits fairly (within [`MERGE_FIT`] × `fit_tolerance_m`:
-/// two trees whose trunks happen to sway alike are not merged into a crown
-/// no surface fits), and take a K more while that split's crowns all sway
-/// independently (no two above [`APART_RATIO`] of their own correlation),
-/// or it fits clearly better and no two of its crowns sway as one tree
-/// ([`splits`]).
-pub fn by_sway(tips: &[DVec3], s: &ForestSettings, sway: &Coherence) -> Detection {
-    let all = candidates(tips, s, sway);
-    let rms: Vec<(usize, f64)> = all.iter().map(|c| (c.k, c.rms)).collect();
-    let Some(mut at) = fit_choice(&all, s) else {
-        return by_fit(tips, s);
-    };
-    let same_tree = |c: &Candidate| c.dependence >= s.trunk_coherence && c.ratio >= SAME_TREE_RATIO;
-    while at > 0 && same_tree(&all[at]) && all[at - 1].rms <= MERGE_FIT * s.fit_tolerance_m {
-        at -= 1;
-    }
-    while at + 1 < all.len() && all[at + 1].k == all[at].k + 1 && splits(&all[at], &all[at + 1]) {
-        at += 1;
-    }
-    let mut centres = all[at].centres.clone();
-    centres.sort_by(|a, b| a.x.total_cmp(&b.x).then(a.z.total_cmp(&b.z)));
-    Detection {
-        centres,
-        rms,
-        fits: all[at].rms <= s.fit_tolerance_m,
-    }
-}
-
-/// Two crowns whose mean sway correlation is at least this fraction of
-/// their own (geometric mean) are two parts of one tree.
-pub const SAME_TREE_RATIO: f64 = 0.65;
-/// How much worse than `fit_tolerance_m` the fewer crowns may fit for the
-/// sway to merge two crowns into one tree.
-pub const MERGE_FIT: f64 = 1.5;
-/// A split whose crowns all correlate below this fraction of their own is
-/// taken over fewer trees.
-pub const APART_RATIO: f64 = 0.3;
-
-/// A crown fitted well enough, its surface still improving by a factor
-/// [`SPLIT_FIT`] or more when cut in two, is two trees unless its halves
-/// sway as one: mean correlation at least this…
-pub const SPLIT_DEPENDENCE: f64 = 0.25;
-/// …or at least this fraction of their own.
-pub const SPLIT_RATIO: f64 = 0.75;
-/// The worst crown's RMS must fall to this fraction of the fewer crowns'
-/// for [`SPLIT_DEPENDENCE`] and [`SPLIT_RATIO`] to decide the split.
-pub const SPLIT_FIT: f64 = 0.8;
-
-/// Whether `more` (one crown more than `fewer`) is taken over `fewer`:
-/// its crowns all sway apart ([`APART_RATIO`]), or it fits clearly better
-/// ([`SPLIT_FIT`]) and none of its pairs sways as one tree. The second
-/// counts the trees whose trunk sways too little against their limbs for
-/// the first (a cut tree's halves share their trunk's sway, so they reach
-/// [`SPLIT_DEPENDENCE`] or [`SPLIT_RATIO`]; a tree cut too far barely fits
-/// better), and undoes a merge of two trees whose trunks happened to sway
-/// alike when the merged crown fits clearly worse than the two.
-fn splits(fewer: &Candidate, more: &Candidate) -> bool {
-    more.ratio < APART_RATIO
-        || (more.rms <= SPLIT_FIT * fewer.rms
-            && more.dependence < SPLIT_DEPENDENCE
-            && more.ratio < SPLIT_RATIO)
-}
-
-/// The index in `all` of the fit's choice (see [`by_fit`]).
-fn fit_choice(all: &[Candidate], s: &ForestSettings) -> Option<usize> {
-    if let Some(i) = all.iter().position(|c| c.rms <= s.fit_tolerance_m) {
-        return Some(i);
-    }
-    let penalised = |c: &Candidate| c.rms + s.count_penalty_m * c.k as f64;
-    (0..all.len()).min_by(|&a, &b| {
-        penalised(&all[a])
-            .total_cmp(&penalised(&all[b]))
-            .then(a.cmp(&b))
-    })
-}
-
-/// The count by the crown fit alone (module comment).
-fn by_fit(tips: &[DVec3], s: &ForestSettings) -> Detection {
-    let mut rms = Vec::new();
-    let one = Crown::fit(tips, centroid(tips), FREE);
-    let one_rms = one
-        .as_ref()
-        .map(|c| rms_of(tips, std::slice::from_ref(c), &vec![0; tips.len()]));
-    let single = Detection {
-        centres: vec![one.map_or(centroid(tips), |c| c.axis_at(0.0))],
-        rms: one_rms.map(|r| vec![(1, r)]).unwrap_or_default(),
-        fits: false,
-    };
-    if let Some(r) = one_rms {
-        rms.push((1, r));
-        if r <= s.fit_tolerance_m {
-            return Detection {
-                fits: true,
-                ..single
-            };
-        }
-    }
-    // Every valid split tried, for the fallback: (K, RMS, axis feet).
-    let mut splits: Vec<(usize, f64, Vec<DVec3>)> = Vec::new();
-    if let Some(r) = one_rms {
-        splits.push((1, r, single.centres.clone()));
-    }
-    for k in 2..=s.max_trees {
-        if tips.len() < k * s.min_tips {
-            break;
-        }
-        let Some(Split {
-            rms: r,
-            mut centres,
-            ..
-        }) = best_split(tips, k, s)
-        else {
-            continue;
-        };
-        rms.push((k, r));
-        centres.sort_by(|a, b| a.x.total_cmp(&b.x).then(a.z.total_cmp(&b.z)));
-        if r <= s.fit_tolerance_m {
-            return Detection {
-                centres,
-                rms,
-                fits: true,
-            };
-        }
-        splits.push((k, r, centres));
-    }
-    // Nothing fitted within the tolerance: the least penalised RMS (the
-    // first on a tie, so fewer trees win).
-    let penalised = |&(k, r, _): &(usize, f64, Vec<DVec3>)| r + s.count_penalty_m * k as f64;
-    let best = splits
-        .iter()
-        .min_by(|a, b| penalised(a).total_cmp(&penalised(b)).then(a.0.cmp(&b.0)));
-    match best {
-        Some((_, _, centres)) => Detection {
-            centres: centres.clone(),
-            rms,
-            fits: false,
-        },
-        None => Detection { rms, ..single },
-    }
 }
 
 /// A valid split of the tips into crowns.
@@ -259,20 +147,65 @@ struct Split {
     labels: Vec<usize>,
 }
 
-/// The best valid split into `k` crowns over the starts: the least RMS.
-fn best_split(tips: &[DVec3], k: usize, s: &ForestSettings) -> Option<Split> {
-    let mut best: Option<Split> = None;
-    for start in 0..STARTS.min(tips.len()) {
+/// The best valid split into `k` crowns: the least RMS over the k-means
+/// starts; when none of them stands, over the best split into `k − 1`
+/// (`fewer`) with each of its crowns cut in two. The k-means starts alone
+/// can miss a count: where two of its seeds land in one crown, every split
+/// leaves two axes too close and none stands, though cutting the one crown
+/// of the fewer that holds two trees does. (Cutting in every case was
+/// tried: right on more sessions of the seeds it was tried on, wrong on
+/// more of the held-out ones — its better-fitting splits move the fit's
+/// choice where the sway then errs.)
+fn best_split(
+    tips: &[DVec3],
+    k: usize,
+    s: &ForestSettings,
+    fewer: Option<&Split>,
+) -> Option<Split> {
+    let starts = (0..STARTS.min(tips.len())).filter_map(|start| {
         let first = start * tips.len() / STARTS.min(tips.len());
         let (centres, labels) = kmeans(tips, k, first);
-        let Some(split) = refine(tips, centres, labels, s) else {
-            continue;
-        };
-        if best.as_ref().is_none_or(|b| split.rms < b.rms) {
-            best = Some(split);
+        refine(tips, centres, labels, s)
+    });
+    let best = least_rms(starts);
+    if best.is_some() {
+        return best;
+    }
+    let f = fewer.filter(|f| f.centres.len() + 1 == k)?;
+    least_rms((0..f.centres.len()).filter_map(|t| {
+        let (centres, labels) = cut(tips, f, t)?;
+        refine(tips, centres, labels, s)
+    }))
+}
+
+/// The split of least RMS (the first on a tie).
+fn least_rms(splits: impl Iterator<Item = Split>) -> Option<Split> {
+    splits.fold(None, |best: Option<Split>, split| match best {
+        Some(b) if b.rms <= split.rms => Some(b),
+        _ => Some(split),
+    })
+}
+
+/// `split` with crown `t` cut in two by 2-means on its tips' horizontal
+/// positions (the second part becomes the last crown); `None` when the
+/// crown has too few tips to cut.
+fn cut(tips: &[DVec3], split: &Split, t: usize) -> Option<(Vec<DVec3>, Vec<usize>)> {
+    let own: Vec<usize> = (0..tips.len()).filter(|&i| split.labels[i] == t).collect();
+    if own.len() < 2 {
+        return None;
+    }
+    let points: Vec<DVec3> = own.iter().map(|&i| tips[i]).collect();
+    let (halves, parts) = kmeans(&points, 2, 0);
+    let mut centres = split.centres.clone();
+    centres[t] = halves[0];
+    centres.push(halves[1]);
+    let mut labels = split.labels.clone();
+    for (&i, &part) in own.iter().zip(&parts) {
+        if part == 1 {
+            labels[i] = centres.len() - 1;
         }
     }
-    best
+    Some((centres, labels))
 }
 
 /// Crowns with free axes fitted to the split until it stands; `None` when

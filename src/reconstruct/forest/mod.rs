@@ -10,6 +10,7 @@
 
 pub mod assign;
 pub mod cell;
+pub mod count;
 pub mod crown;
 pub mod detect;
 pub mod graph;
@@ -26,6 +27,7 @@ use crate::reconstruct::trunk::Bounds;
 use crate::reconstruct::{ReconstructError, ReconstructSettings};
 use crate::rng::Rng;
 
+pub use count::{CountBasis, CountChoice};
 pub use grow::{grow, ForestCache, GrownTree};
 pub use settings::{AssignRule, ConfiguredTree, ForestSettings};
 pub use sway::SwayLink;
@@ -94,6 +96,9 @@ pub struct ForestPlan {
     /// within `forest.fit_tolerance_m`, and took the number with the least
     /// penalised RMS (`forest.count_penalty_m`).
     pub fits_well: bool,
+    /// How the number of trees was chosen (by the crown fit or the sway,
+    /// and with what margin); `None` when the trees are configured.
+    pub count: Option<CountChoice>,
     /// Captured tips lying beyond one of their tree's planes (measured data
     /// is never moved; their first branch segment crosses the plane).
     pub beyond_planes: usize,
@@ -165,6 +170,7 @@ pub fn plan(
         rule: split.rule,
         fits: bases.fits,
         fits_well: bases.fits_well,
+        count: bases.count,
         beyond_planes,
     })
 }
@@ -183,6 +189,8 @@ struct Bases {
     fits: Vec<(usize, f64)>,
     /// Whether the found crowns explain the tips (true when configured).
     fits_well: bool,
+    /// How the number was chosen (`None` when configured).
+    count: Option<CountChoice>,
 }
 
 fn where_trees_stand(
@@ -202,6 +210,7 @@ fn where_trees_stand(
             source: BaseSource::Detected,
             fits: found.rms,
             fits_well: found.fits,
+            count: Some(found.count),
         }
     } else {
         Bases {
@@ -212,6 +221,7 @@ fn where_trees_stand(
             source: BaseSource::Configured,
             fits: Vec::new(),
             fits_well: true,
+            count: None,
         }
     }
 }
