@@ -28,7 +28,7 @@ use glam::DVec3;
 use serde::Serialize;
 
 use super::jitter::third_difference;
-use crate::model::trace::{Curve, Fill, Sample, SampleKind, Timeline, Trace};
+use crate::model::trace::{Curve, Fill, Timeline, Trace};
 
 mod model;
 use model::Model;
@@ -109,6 +109,12 @@ const NOISY_END_FIT_S: f64 = 0.15;
 /// row among 0.05, 0.1, 0.15, 0.2 and 0.3 s: 51 f–2 s 0.78, 0.75, 0.72,
 /// 0.69 and 0.65 × PCHIP, three gaps).
 const NOISY_SMOOTH_S: f64 = 0.3;
+/// Seconds each side of a long gap (over `MAX_OWN_S`) on which its model
+/// is fitted (at least the gap's length): a 1 s window saw a limb's
+/// 0.3–0.75 Hz sway over less than a period, and the weights followed
+/// the twigs (long-gap sweep, 51 f–2 s, `base`: 0.74 → 0.71 × PCHIP
+/// with the six nearest neighbours; see `model::LONG`).
+const LONG_WINDOW_S: f64 = 2.0;
 /// Gap length (s) at which the residual's end slopes are half faded
 /// towards the secant (to the 4th power): across a long gap the
 /// residual's own swing is unknown, and an extrapolated slope would carry
@@ -172,7 +178,13 @@ pub fn fill_gaps(traces: &mut [Trace], timeline: &Timeline, settings: GapSetting
 
 /// One trace read sequentially into a window of frames.
 struct Stream<'a> {
-    it: Box<dyn Iterator<Item = Sample> + 'a>,
+    /// The trace's measurements (frame, position): only they are decoded,
+    /// the missing frames between them are written as `None` (reading
+    /// every sample, missing ones included, through a boxed iterator of
+    /// `Sample`s was a tenth of gap filling's time).
+    it: Box<dyn Iterator<Item = (i64, DVec3)> + 'a>,
+    /// The measurement read but not yet placed in `buf`.
+    next: Option<(i64, DVec3)>,
     /// Frame of `buf[start]`.
     base: i64,
     /// The window's frames from `start` on (measured positions); a plain
@@ -187,7 +199,8 @@ struct Stream<'a> {
 impl<'a> Stream<'a> {
     fn new(t: &'a Trace) -> Self {
         Stream {
-            it: Box::new(t.samples()),
+            it: Box::new(t.measurements()),
+            next: None,
             base: t.first_frame(),
             buf: Vec::new(),
             start: 0,
@@ -197,13 +210,22 @@ impl<'a> Stream<'a> {
     }
 
     fn ensure(&mut self, upto: i64) {
-        while self.base + ((self.buf.len() - self.start) as i64) <= upto {
-            match self.it.next() {
-                Some(s) => self
-                    .buf
-                    .push((s.kind == SampleKind::Measured).then_some(s.position)),
-                None => break,
+        loop {
+            let end = self.base + (self.buf.len() - self.start) as i64;
+            if end > upto {
+                break;
             }
+            let Some((f, p)) = self.next.take().or_else(|| self.it.next()) else {
+                break;
+            };
+            if f > upto {
+                // Missing frames up to `upto`; the measurement waits.
+                self.buf.resize(self.buf.len() + (upto + 1 - end) as usize, None);
+                self.next = Some((f, p));
+                break;
+            }
+            self.buf.resize(self.buf.len() + (f - end) as usize, None);
+            self.buf.push(Some(p));
         }
     }
 
@@ -286,7 +308,15 @@ fn fill_one(
     }
     let dt = (timeline.time(b) - timeline.time(a)) / (b - a) as f64;
     let duration = missing as f64 * dt;
-    let window = one_s.max(b - a).min(ctx.reach - 2);
+    // A long gap's model is fitted as `model::LONG` says, over 2 s each
+    // side; the others' (their plausibility) as `model::CHECK`, over 1 s.
+    let long = duration > MAX_OWN_S;
+    let (fit, window) = if long {
+        (model::LONG, (LONG_WINDOW_S * one_s as f64).round() as i64)
+    } else {
+        (model::CHECK, one_s)
+    };
+    let window = window.max(b - a).min(ctx.reach - 2);
     let base_span = ((END_FIT_S / dt).round() as i64).max(4);
     // Under noise of a millimetre the ends are fitted over longer spans and
     // the neighbours smoothed (their noise would pass into the fill).
@@ -298,7 +328,7 @@ fn fill_one(
         (base_span, 0)
     };
     let model = if settings.neighbours && duration <= settings.max_fill_s + 1e-9 {
-        Model::fit(ctx, window, smooth)
+        Model::fit(ctx, window, smooth, fit)
     } else {
         None
     };
@@ -555,6 +585,7 @@ fn pchip_slope(d1: DVec3, h1: f64, d2: DVec3, h2: f64) -> DVec3 {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::model::trace::SampleKind;
 
     fn timeline(n: usize) -> Timeline {
         Timeline {

@@ -17,13 +17,56 @@ use super::{Context, Stream};
 
 /// Neighbours used in one fill.
 const MAX_NEIGHBOURS: usize = 6;
-/// Longest hole inside a neighbour's own data across the gap (frames),
-/// bridged linearly.
-const NEIGHBOUR_HOLE: i64 = 5;
-/// Ridge of the normal equations, as a fraction of their mean diagonal:
-/// keeps the weights of two neighbours that move alike from growing large
-/// with opposite signs.
-const RIDGE: f64 = 1e-3;
+
+/// How a gap's model is fitted: the plausibility check of every gap, and
+/// the fill of the long ones, which need more of the neighbours.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Fit {
+    /// Markers looked at, nearest first; the [`MAX_NEIGHBOURS`] whose
+    /// displacement alone best explains the host's (R² around the gap)
+    /// are kept.
+    candidates: usize,
+    /// Ridge of the normal equations, as a fraction of their mean
+    /// diagonal: keeps the weights of two neighbours that move alike from
+    /// growing large with opposite signs.
+    ridge: f64,
+    /// Longest hole inside a neighbour's own data (frames) that is bridged.
+    hole: i64,
+    /// Bridge those holes by a cubic Hermite (slopes over 3 frames each
+    /// side) instead of a straight line.
+    cubic: bool,
+}
+
+/// Every gap's plausibility, and the fills up to `MAX_OWN_S`' length (which
+/// only use the model for that): the six nearest neighbours through the
+/// gap, holes of 5 frames bridged linearly, a light ridge. Cheap (every
+/// gap of a session is checked), and what the shipped replays' outputs
+/// were made with.
+pub(super) const CHECK: Fit = Fit {
+    candidates: MAX_NEIGHBOURS,
+    ridge: 1e-3,
+    hole: 5,
+    cubic: false,
+};
+
+/// The fill of a long gap, chosen on the long-gap stress sweep
+/// (`track_stress 3 20 base,gusts,noise,occlusion long`, 51 f–2 s, × PCHIP
+/// for base / gusts / noise / occlusion): 0.74 / 0.66 / 0.66 / 1.03 with
+/// `CHECK` on a 1 s window; 16 candidates ranked by R² 0.68 / 0.61 / 0.61
+/// / 1.01 (more neighbours by distance, 10, made it worse: 0.80 / 0.70);
+/// with a 2 s window and a ridge of 0.1 (fewer, steadier weights) 0.62 /
+/// 0.57 / 0.62 / 0.96 (7 of 44 gaps left open under occlusion). Bridging
+/// a neighbour's holes lets the neighbours of a 25 %-occluded tip through
+/// (over a 1 s gap almost all of them have a hole longer than 5 frames):
+/// up to 25 frames 0.80 (43/44 filled), up to 50 (0.21 s at 240 Hz, the
+/// simulator's longest burst) by a cubic 0.64 (44/44).
+pub(super) const LONG: Fit = Fit {
+    candidates: 16,
+    ridge: 0.1,
+    hole: 50,
+    cubic: true,
+};
+
 /// A far end beyond this many RMS residual changes is not the same marker.
 const PLAUSIBLE: f64 = 6.0;
 /// The smallest mismatch that rejects a gap (m): below it two markers are
@@ -53,9 +96,9 @@ pub(super) struct Model {
 }
 
 /// A neighbour's positions on frames `lo ..= hi`, each bridging its own
-/// short holes linearly (up to `NEIGHBOUR_HOLE` frames each side).
-fn column(s: &Stream<'_>, lo: i64, hi: i64) -> Vec<Option<DVec3>> {
-    let h = NEIGHBOUR_HOLE;
+/// holes of up to `fit.hole` frames.
+fn column(s: &Stream<'_>, lo: i64, hi: i64, fit: Fit) -> Vec<Option<DVec3>> {
+    let h = fit.hole;
     let raw: Vec<Option<DVec3>> = (lo - h..=hi + h).map(|f| s.at(f)).collect();
     let at = |f: i64| raw[(f - lo + h) as usize];
     (lo..=hi)
@@ -66,6 +109,25 @@ fn column(s: &Stream<'_>, lo: i64, hi: i64) -> Vec<Option<DVec3>> {
             let before = (1..=h).find_map(|d| at(f - d).map(|p| (f - d, p)))?;
             let after = (1..=h).find_map(|d| at(f + d).map(|p| (f + d, p)))?;
             let x = (f - before.0) as f64 / (after.0 - before.0) as f64;
+            if fit.cubic {
+                let w = (after.0 - before.0) as f64;
+                let sl = |f0: i64, p0: DVec3, dir: i64| {
+                    let g = f0 + 3 * dir;
+                    (g >= lo - h && g <= hi + h)
+                        .then(|| at(g))
+                        .flatten()
+                        .map(|q| (p0 - q) * (-(dir as f64) / 3.0))
+                };
+                if let (Some(m0), Some(m1)) = (sl(before.0, before.1, -1), sl(after.0, after.1, 1)) {
+                    let (x2, x3) = (x * x, x * x * x);
+                    return Some(
+                        before.1 * (2.0 * x3 - 3.0 * x2 + 1.0)
+                            + m0 * w * (x3 - 2.0 * x2 + x)
+                            + after.1 * (-2.0 * x3 + 3.0 * x2)
+                            + m1 * w * (x3 - x2),
+                    );
+                }
+            }
             Some(before.1.lerp(after.1, x))
         })
         .collect()
@@ -93,7 +155,7 @@ fn smoothed(c: Vec<Option<DVec3>>, m: usize) -> Vec<Option<DVec3>> {
 
 /// The markers measured (up to short holes) from `a` to `b`, nearest to
 /// the host at `a` first.
-fn choose_neighbours(ctx: &Context<'_, '_>, pa: DVec3) -> Vec<(usize, DVec3)> {
+fn choose_neighbours(ctx: &Context<'_, '_>, pa: DVec3, fit: Fit) -> Vec<(usize, DVec3)> {
     let (a, b) = (ctx.a, ctx.b);
     let mut near: Vec<(f64, usize, DVec3)> = Vec::new();
     for (j, s) in ctx.streams.iter().enumerate() {
@@ -108,14 +170,14 @@ fn choose_neighbours(ctx: &Context<'_, '_>, pa: DVec3) -> Vec<(usize, DVec3)> {
         let mut hole = 0;
         let through = (a + 1..b).all(|f| {
             hole = if s.at(f).is_some() { 0 } else { hole + 1 };
-            hole <= NEIGHBOUR_HOLE
+            hole <= fit.hole
         });
         if through && s.at(b).is_some() {
             near.push((pa.distance_squared(qa), j, qa));
         }
     }
     near.sort_by(|x, y| x.0.total_cmp(&y.0).then(x.1.cmp(&y.1)));
-    near.truncate(MAX_NEIGHBOURS);
+    near.truncate(fit.candidates);
     near.into_iter().map(|(_, j, q)| (j, q)).collect()
 }
 
@@ -138,19 +200,30 @@ impl Rows {
 }
 
 impl Model {
-    /// Fits the model of the context's gap on `window` frames each side;
+    /// Fits the model of the context's gap on `window` frames each side,
+    /// the neighbours averaged over `2 smooth + 1` frames, as `fit` says;
     /// `None` without neighbours or with too few samples to fit them.
-    pub(super) fn fit(ctx: &Context<'_, '_>, window: i64, smooth: usize) -> Option<Model> {
+    pub(super) fn fit(
+        ctx: &Context<'_, '_>,
+        window: i64,
+        smooth: usize,
+        fit: Fit,
+    ) -> Option<Model> {
         let (a, b) = (ctx.a, ctx.b);
         let pa = ctx.host_at(a)?;
-        let chosen = choose_neighbours(ctx, pa);
+        let chosen = choose_neighbours(ctx, pa, fit);
         if chosen.is_empty() {
             return None;
         }
         let lo = a - window;
-        let columns = (chosen.iter())
-            .map(|&(j, _)| smoothed(column(&ctx.streams[j], lo, b + window), smooth))
+        let columns: Vec<Vec<Option<DVec3>>> = (chosen.iter())
+            .map(|&(j, _)| smoothed(column(&ctx.streams[j], lo, b + window, fit), smooth))
             .collect();
+        let (chosen, columns) = if chosen.len() > MAX_NEIGHBOURS {
+            pick(ctx, chosen, columns, lo, window, pa)
+        } else {
+            (chosen, columns)
+        };
         let mut model = Model {
             weights: Vec::new(),
             origins: chosen.into_iter().map(|(_, q)| q).collect(),
@@ -171,7 +244,7 @@ impl Model {
         if rows.len() < 2 * k + 4 {
             return None;
         }
-        let (weights, c) = regress(&rows)?;
+        let (weights, c) = regress(&rows, fit.ridge)?;
         model.weights = weights;
         model.offset = pa + c;
         model.before = model.residuals(&before, &rows, c);
@@ -268,9 +341,64 @@ impl Model {
     }
 }
 
+/// Keeps the [`MAX_NEIGHBOURS`] candidates whose displacement alone best
+/// explains the host's around the gap (R² of a one-neighbour fit, centred):
+/// the nearest markers are not always on the host's limb, and a marker on
+/// another limb adds its own sway to the fill.
+fn pick(
+    ctx: &Context<'_, '_>,
+    chosen: Vec<(usize, DVec3)>,
+    columns: Vec<Vec<Option<DVec3>>>,
+    lo: i64,
+    window: i64,
+    pa: DVec3,
+) -> (Vec<(usize, DVec3)>, Vec<Vec<Option<DVec3>>>) {
+    let (a, b) = (ctx.a, ctx.b);
+    let frames: Vec<i64> = (lo..=a).chain(b..=b + window).collect();
+    let mut score: Vec<(f64, usize)> = Vec::new();
+    for (i, (c, &(_, q0))) in columns.iter().zip(&chosen).enumerate() {
+        let (mut n, mut sh, mut sq, mut shh, mut sqq, mut shq) =
+            (0.0, DVec3::ZERO, DVec3::ZERO, 0.0, 0.0, 0.0);
+        for &f in &frames {
+            let (Some(h), Some(q)) = (ctx.host_at(f), c[(f - lo) as usize]) else {
+                continue;
+            };
+            let (h, q) = (h - pa, q - q0);
+            n += 1.0;
+            sh += h;
+            sq += q;
+            shh += h.dot(h);
+            sqq += q.dot(q);
+            shq += h.dot(q);
+        }
+        if n < 8.0 {
+            score.push((0.0, i));
+            continue;
+        }
+        let chq = shq - sh.dot(sq) / n;
+        let chh = shh - sh.dot(sh) / n;
+        let cqq = sqq - sq.dot(sq) / n;
+        let r2 = if chh > 0.0 && cqq > 0.0 {
+            chq * chq / (chh * cqq)
+        } else {
+            0.0
+        };
+        score.push((r2, i));
+    }
+    score.sort_by(|x, y| y.0.total_cmp(&x.0).then(x.1.cmp(&y.1)));
+    let mut keep = vec![false; chosen.len()];
+    for &(_, i) in score.iter().take(MAX_NEIGHBOURS) {
+        keep[i] = true;
+    }
+    // Nearest first, as they came.
+    (chosen.into_iter().zip(columns).zip(keep))
+        .filter_map(|(c, keep)| keep.then_some(c))
+        .unzip()
+}
+
 /// Ridge least squares of the host's displacement on the neighbours' (all
 /// three axes stacked), centred so the offset is free: (weights, offset).
-fn regress(rows: &Rows) -> Option<(Vec<f64>, DVec3)> {
+fn regress(rows: &Rows, ridge: f64) -> Option<(Vec<f64>, DVec3)> {
     let k = rows.k;
     let n = rows.len() as f64;
     let mean_h = rows.host.iter().copied().sum::<DVec3>() / n;
@@ -299,7 +427,7 @@ fn regress(rows: &Rows) -> Option<(Vec<f64>, DVec3)> {
         }
     }
     let trace: f64 = (0..k).map(|i| ata[i * k + i]).sum();
-    let ridge = RIDGE * trace / k as f64 + 1e-15;
+    let ridge = ridge * trace / k as f64 + 1e-15;
     for i in 0..k {
         ata[i * k + i] += ridge;
     }
