@@ -220,7 +220,8 @@ impl<'a> Stream<'a> {
             };
             if f > upto {
                 // Missing frames up to `upto`; the measurement waits.
-                self.buf.resize(self.buf.len() + (upto + 1 - end) as usize, None);
+                self.buf
+                    .resize(self.buf.len() + (upto + 1 - end) as usize, None);
                 self.next = Some((f, p));
                 break;
             }

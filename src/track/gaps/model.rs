@@ -15,6 +15,9 @@ use glam::DVec3;
 
 use super::{Context, Stream};
 
+/// A neighbour's positions on consecutive frames (`None`: missing).
+type Column = Vec<Option<DVec3>>;
+
 /// Neighbours used in one fill.
 const MAX_NEIGHBOURS: usize = 6;
 
@@ -118,7 +121,8 @@ fn column(s: &Stream<'_>, lo: i64, hi: i64, fit: Fit) -> Vec<Option<DVec3>> {
                         .flatten()
                         .map(|q| (p0 - q) * (-(dir as f64) / 3.0))
                 };
-                if let (Some(m0), Some(m1)) = (sl(before.0, before.1, -1), sl(after.0, after.1, 1)) {
+                if let (Some(m0), Some(m1)) = (sl(before.0, before.1, -1), sl(after.0, after.1, 1))
+                {
                     let (x2, x3) = (x * x, x * x * x);
                     return Some(
                         before.1 * (2.0 * x3 - 3.0 * x2 + 1.0)
@@ -348,11 +352,11 @@ impl Model {
 fn pick(
     ctx: &Context<'_, '_>,
     chosen: Vec<(usize, DVec3)>,
-    columns: Vec<Vec<Option<DVec3>>>,
+    columns: Vec<Column>,
     lo: i64,
     window: i64,
     pa: DVec3,
-) -> (Vec<(usize, DVec3)>, Vec<Vec<Option<DVec3>>>) {
+) -> (Vec<(usize, DVec3)>, Vec<Column>) {
     let (a, b) = (ctx.a, ctx.b);
     let frames: Vec<i64> = (lo..=a).chain(b..=b + window).collect();
     let mut score: Vec<(f64, usize)> = Vec::new();
