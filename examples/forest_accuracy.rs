@@ -10,7 +10,7 @@
 
 use treemocap::reconstruct::forest::{self, sway, AssignRule, ConfiguredTree, ForestSettings};
 use treemocap::reconstruct::ReconstructSettings;
-use treemocap::sim::{generate, SynthOptions, Truth};
+use treemocap::sim::{generate, CrownShape, SynthOptions, Truth};
 
 fn session(seed: u64, trees: usize, overlap: f64) -> Truth {
     let opts = SynthOptions::forest_sweep(seed, trees, overlap);
@@ -167,6 +167,48 @@ fn main() {
             pct(acc[2])
         );
     }
+    singles(first_seed, n, &crown, &recon);
+}
+
+/// Single trees (14–70 tips, maples and pines) with 15 s of wind: how
+/// many the count with the sway keeps whole (the simulator gives a tree
+/// alone no trunk mode, only its limbs' sway: the hard case for the sway).
+fn singles(first_seed: u64, n: u64, s: &ForestSettings, recon: &ReconstructSettings) {
+    let (mut whole, mut made) = (0, 0);
+    for seed in 0..n {
+        let opts = SynthOptions {
+            seed: first_seed + seed,
+            tips: [14, 24, 35, 50, 70][seed as usize % 5],
+            shape: if seed % 2 == 0 {
+                CrownShape::Maple
+            } else {
+                CrownShape::Pine
+            },
+            still_s: 5.0,
+            wind_s: 15.0,
+            gap_fraction: 0.0,
+            spurious_per_s: 0.0,
+            ..SynthOptions::default()
+        };
+        // Some seeds' trees have no room for 70 markers: skipped.
+        let Ok(session) = generate(&opts) else {
+            continue;
+        };
+        made += 1;
+        let t = session.truth;
+        let plan = forest::plan(&t.rest_tips(), &links(&t), &[], s, recon).expect("plan");
+        if plan.trees.len() == 1 {
+            whole += 1;
+        } else {
+            eprintln!(
+                "single tree, seed {}: {} trees found (fits {:?})",
+                first_seed + seed,
+                plan.trees.len(),
+                plan.fits
+            );
+        }
+    }
+    println!("single trees with wind kept whole (fit + sway): {whole}/{made}");
 }
 
 /// Appends every K's split of the session (RMS, sway dependence, ratio) to

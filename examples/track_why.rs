@@ -88,15 +88,7 @@ fn owner_runs(
     truth: &sim::Truth,
 ) -> Vec<(Option<usize>, i64, i64, usize)> {
     let mut runs: Vec<(Option<usize>, i64, i64, usize)> = Vec::new();
-    let mut src = tip.trace.sources().iter().peekable();
-    let mut col = None;
-    for (frame, _) in tip.trace.measurements() {
-        while let Some(r) = src.next_if(|r| r.frame <= frame) {
-            col = r.id;
-        }
-        let who = col
-            .and_then(|c| truth.columns.get(c as usize))
-            .and_then(|c| c.tip);
+    for (frame, who) in sim::score::owners(&tip.trace, truth) {
         match runs.last_mut() {
             Some(last) if last.0 == who => {
                 last.2 = frame;

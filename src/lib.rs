@@ -14,6 +14,7 @@ pub mod config;
 pub mod daemon;
 pub mod error;
 pub mod format;
+pub mod memory;
 pub mod model;
 pub mod protocol;
 pub mod reconstruct;

@@ -6,101 +6,69 @@
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use glam::DVec3;
 use treemocap::config::Config;
-use treemocap::format::{Format, Recording, RecordingInfo};
-use treemocap::model::frame::{Marker, MarkerFrame};
-use treemocap::rng::Rng;
+use treemocap::format::Recording;
 use treemocap::serve::natnet::{self as server, ServeOptions, ServerStats};
 
-use crate::util::{get_json, rss_mb, Row, Scale};
+use crate::util::{get_json, get_text, rss_mb, Row, Scale};
 
-/// A session generated frame by frame: `n` tips on a crown, still for the
-/// first minute, then each swaying with its own period; 1 % of samples
-/// missing; never all in memory.
-struct Session {
-    info: RecordingInfo,
-    rng: Rng,
-    rest: Vec<(DVec3, f64, f64)>,
-    next: i64,
-    frames: i64,
-}
+#[path = "../common/steady_session.rs"]
+mod steady_session;
+use steady_session::Session;
 
-impl Session {
-    fn new(seconds: f64, rate: f64, n: usize) -> Session {
-        let mut rng = Rng::new(15);
-        let rest = (0..n)
-            .map(|i| {
-                let a = i as f64 * 2.399_963;
-                let h = 1.0 + (i as f64 / n as f64) * 1.5;
-                let r = 0.6 + 0.3 * (i as f64 / n as f64) + 0.02 * rng.f64();
-                (
-                    DVec3::new(r * a.cos(), h, r * a.sin()),
-                    rng.range(0.5, 2.0),
-                    rng.range(0.0, 6.3),
-                )
-            })
-            .collect();
-        Session {
-            info: RecordingInfo {
-                format: Format::Log,
-                version: "2".into(),
-                frame_rate: rate,
-                units: "m".into(),
-                up_axis: "Y".into(),
-                source: "scale".into(),
-            },
-            rng,
-            rest,
-            next: 0,
-            frames: (seconds * rate) as i64,
-        }
-    }
-}
-
-impl Iterator for Session {
-    type Item = treemocap::Result<MarkerFrame>;
-    fn next(&mut self) -> Option<Self::Item> {
-        if self.next >= self.frames {
-            return None;
-        }
-        let f = self.next;
-        self.next += 1;
-        let t = f as f64 / self.info.frame_rate;
-        // The wind rises over 3 s: a tree starts swaying from rest. (A step
-        // here would move every marker by up to 30 mm in one frame, which
-        // no tree does and which the tracker rightly takes as every marker
-        // lost at once.)
-        let ramp = ((t - 60.0) / 3.0).clamp(0.0, 1.0);
-        let wind = ramp * ramp * (3.0 - 2.0 * ramp);
-        let mut markers = Vec::with_capacity(self.rest.len());
-        for &(p, freq, ph) in &self.rest {
-            if self.rng.chance(0.01) {
-                continue;
-            }
-            let sway = DVec3::new(
-                0.03 * (freq * t + ph).sin(),
-                0.0,
-                0.01 * (1.7 * freq * t).cos(),
-            );
-            let noise = DVec3::new(self.rng.normal(), self.rng.normal(), self.rng.normal()) * 2e-4;
-            markers.push(Marker::new(p + sway * wind + noise));
-        }
-        Some(Ok(MarkerFrame::new(f, t, markers)))
-    }
-}
-
-impl Recording for Session {
-    fn info(&self) -> &RecordingInfo {
-        &self.info
-    }
-}
+/// The daemon's window (`daemon.window_s`, its default): the runs measure
+/// once it is full.
+const WINDOW_S: f64 = 60.0;
 
 /// What one run measured.
 struct Run {
     sent: u64,
     status: serde_json::Value,
     peak_rss_mb: f64,
+    /// The latency histogram's buckets (edge in µs, frames at or below)
+    /// counted after the window filled: the end's scrape minus the scrape
+    /// at the moment the window was full.
+    full_window: Vec<(f64, u64)>,
+}
+
+/// `(edge µs, cumulative count)` of `/metrics`' latency histogram.
+fn latency_buckets(metrics: &str) -> Vec<(f64, u64)> {
+    let key = "treemocap_frame_latency_seconds_bucket{le=\"";
+    metrics
+        .lines()
+        .filter_map(|l| l.strip_prefix(key))
+        .filter_map(|rest| {
+            let (le, count) = rest.split_once("\"} ")?;
+            let edge = if le == "+Inf" {
+                f64::INFINITY
+            } else {
+                (le.parse::<f64>().ok()? * 1e6).round()
+            };
+            Some((edge, count.trim().parse().ok()?))
+        })
+        .collect()
+}
+
+/// The latency (µs) below which a fraction `q` of the counted frames fell,
+/// interpolated within its bucket; `None` without frames.
+fn quantile(buckets: &[(f64, u64)], q: f64) -> Option<f64> {
+    let total = buckets.last()?.1;
+    if total == 0 {
+        return None;
+    }
+    let want = q * total as f64;
+    let mut below = (0.0, 0u64);
+    for &(edge, count) in buckets {
+        if count as f64 >= want {
+            if edge.is_infinite() {
+                return Some(below.0);
+            }
+            let share = (want - below.1 as f64) / (count - below.1).max(1) as f64;
+            return Some(below.0 + share * (edge - below.0));
+        }
+        below = (edge, count);
+    }
+    None
 }
 
 /// Streams `seconds` at `rate` × `n` to a daemon and samples /status.
@@ -132,16 +100,18 @@ fn run(scale: &Scale, seconds: f64, rate: f64, n: usize, http: &str) -> Run {
         }
         std::thread::sleep(Duration::from_millis(5));
     };
-    let config = Config::load(
-        None,
-        &[
-            "daemon.source=natnet".into(),
-            format!("daemon.natnet_server=127.0.0.1:{port}"),
-            format!("daemon.http={http}"),
-            "daemon.channel_frames=4096".into(),
-        ],
-    )
-    .expect("config");
+    let mut sets = vec![
+        "daemon.source=natnet".into(),
+        format!("daemon.natnet_server=127.0.0.1:{port}"),
+        format!("daemon.http={http}"),
+        "daemon.channel_frames=4096".into(),
+    ];
+    // SCALE_DAEMON_SET="key=value,key=value": more settings, to see what a
+    // setting (the analysis interval, say) does to the latency.
+    if let Ok(more) = std::env::var("SCALE_DAEMON_SET") {
+        sets.extend(more.split(',').map(str::to_owned));
+    }
+    let config = Config::load(None, &sets).expect("config");
     let stop = treemocap::shutdown::Shutdown::new();
     let (flag, out) = (stop.clone(), scale.path(&format!("daemon-{n}")));
     let handle_rt = rt.handle().clone();
@@ -150,10 +120,16 @@ fn run(scale: &Scale, seconds: f64, rate: f64, n: usize, http: &str) -> Run {
     let t0 = Instant::now();
     let mut status = serde_json::Value::Null;
     let mut peak_rss_mb: f64 = 0.0;
+    let mut at_full: Option<Vec<(f64, u64)>> = None;
     while t0.elapsed().as_secs_f64() < seconds + 3.0 && !server.is_finished() {
         std::thread::sleep(Duration::from_secs(2));
         peak_rss_mb = peak_rss_mb.max(rss_mb());
         if let Some(s) = get_json(http, "/status") {
+            // The session's clock, not ours: the window is full once the
+            // daemon has seen `window` seconds of frames.
+            if at_full.is_none() && s["time_s"].as_f64().unwrap_or(0.0) >= WINDOW_S {
+                at_full = get_text(http, "/metrics").map(|m| latency_buckets(&m));
+            }
             status = s;
         }
     }
@@ -161,6 +137,15 @@ fn run(scale: &Scale, seconds: f64, rate: f64, n: usize, http: &str) -> Run {
     if let Some(s) = get_json(http, "/status") {
         status = s;
     }
+    let at_end = get_text(http, "/metrics").map_or_else(Vec::new, |m| latency_buckets(&m));
+    let full_window = match at_full {
+        Some(start) if start.len() == at_end.len() => at_end
+            .iter()
+            .zip(&start)
+            .map(|(e, s)| (e.0, e.1.saturating_sub(s.1)))
+            .collect(),
+        _ => Vec::new(),
+    };
     stop.trigger();
     let _ = stop_server.send(true);
     daemon.join().expect("daemon thread").expect("daemon");
@@ -173,13 +158,13 @@ fn run(scale: &Scale, seconds: f64, rate: f64, n: usize, http: &str) -> Run {
         sent,
         status,
         peak_rss_mb,
+        full_window,
     }
 }
 
 /// 1 000 Hz × 100 markers and 360 Hz × 1 000 markers with the window full.
 pub fn runs(scale: &Scale) -> Vec<Row> {
     let minutes = if scale.quick { 0.5 } else { 5.0 };
-    let window = 60.0;
     let mut rows = Vec::new();
     let only = std::env::var("SCALE_DAEMON_RATE").ok();
     for (rate, n, http) in [
@@ -189,7 +174,7 @@ pub fn runs(scale: &Scale) -> Vec<Row> {
         if only.as_deref().is_some_and(|o| o != format!("{rate}")) {
             continue;
         }
-        let seconds = window + minutes * 60.0;
+        let seconds = WINDOW_S + minutes * 60.0;
         let r = run(scale, seconds, rate, n, http);
         let s = &r.status;
         let got = s["frames"].as_u64().unwrap_or(0);
@@ -198,12 +183,16 @@ pub fn runs(scale: &Scale) -> Vec<Row> {
             "daemon {rate} Hz × {n}: sent {} received {got} status {s}",
             r.sent
         );
+        let full = &r.full_window;
+        let us = |q| quantile(full, q).map_or("—".to_string(), |v| format!("{v:.0}"));
+        let counted = full.last().map_or(0, |b| b.1);
+        let over_1ms = counted - full.iter().find(|b| b.0 == 1000.0).map_or(counted, |b| b.1);
         rows.push(Row::new(
             format!("daemon, {rate} Hz × {n} markers, window full for {minutes} min"),
             "0 dropped, p99 < 1 ms from arrival",
             format!(
-                "{} dropped, {lost} not received of {}; latency p50 {} µs, p99 {} µs, max {} µs; backlog max {} frames; {} analyses, {} trees; RSS {:.0} MB",
-                s["dropped"], r.sent, s["latency_us"]["p50"], s["latency_us"]["p99"],
+                "{} dropped, {lost} not received of {}; window full ({counted} frames): latency p50 {} µs, p99 {} µs, {over_1ms} frames over 1 ms; whole run: p50 {} µs, p99 {} µs, max {} µs; backlog max {} frames; {} analyses, {} trees; RSS {:.0} MB",
+                s["dropped"], r.sent, us(0.5), us(0.99), s["latency_us"]["p50"], s["latency_us"]["p99"],
                 s["latency_us"]["max"], s["backlog"]["max_frames"], s["analyses"], s["trees"],
                 r.peak_rss_mb
             ),

@@ -148,6 +148,11 @@ pub fn peak_rss(cmd: &mut Command) -> (f64, f64) {
 
 /// GET `path` from an HTTP server on loopback; the body as JSON.
 pub fn get_json(addr: &str, path: &str) -> Option<serde_json::Value> {
+    serde_json::from_str(&get_text(addr, path)?).ok()
+}
+
+/// The body of `GET path` from `addr`.
+pub fn get_text(addr: &str, path: &str) -> Option<String> {
     let mut s = std::net::TcpStream::connect(addr).ok()?;
     s.set_read_timeout(Some(std::time::Duration::from_secs(2)))
         .ok()?;
@@ -158,8 +163,7 @@ pub fn get_json(addr: &str, path: &str) -> Option<serde_json::Value> {
     .ok()?;
     let mut text = String::new();
     s.read_to_string(&mut text).ok()?;
-    let body = text.split_once("\r\n\r\n")?.1;
-    serde_json::from_str(body).ok()
+    Some(text.split_once("\r\n\r\n")?.1.to_owned())
 }
 
 /// This process's resident set size now, MB.

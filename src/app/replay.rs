@@ -74,6 +74,7 @@ pub fn run_with(file: &Path, config: &Config, still: bool, out_dir: &Path) -> Re
     for tip in &mut tips.tips {
         tip.trace = Trace::default();
     }
+    crate::memory::release_freed();
     let motion = match &keys {
         None => Motion::Still,
         Some(keys) => Motion::Traces(keys, &config.animate),

@@ -187,27 +187,36 @@ impl Pipeline {
         }
     }
 
-    /// One frame through the pipeline; `arrived` is when the source handed
-    /// it over (the latency counts from there, queueing included).
+    /// One frame through the pipeline; `arrived` is when its datagram
+    /// arrived (the latency counts from there, decoding and queueing
+    /// included).
+    ///
+    /// The latency is stamped once the frame's tips are out (OSC, the pose
+    /// feed, the viewers' state): that is the latency a user of the tips
+    /// sees. Recording the frame and keeping it in the window come after,
+    /// still before the next frame is taken, so they delay no frame's tips
+    /// unless the frame's whole work outlasts the frame interval, which the
+    /// backlog on `/status` shows.
     fn on_frame(&mut self, frame: MarkerFrame, arrived: Instant, sink: &FrameSink) {
         self.shared.status.progress.frame_arrived();
         self.count(&frame, sink);
-        if let Some(w) = self.recorder.as_mut() {
-            w.write_frame(&frame);
-        }
         let now = frame.time_s;
         let seen = self.follower.update(&frame);
         if !self.follower.is_empty() {
             self.follow(&frame, &seen.tips);
         }
-        self.window.push(&frame);
-        self.maybe_analyse(now);
-        self.show(frame, seen);
         let us = arrived.elapsed().as_micros() as u64;
         let status = &self.shared.status;
         status.latency_us_last.store(us, Ordering::Relaxed);
         status.latency_us_max.fetch_max(us, Ordering::Relaxed);
+        status.latency_us_sum.fetch_add(us, Ordering::Relaxed);
         status.latency_hist.record(us);
+        if let Some(w) = self.recorder.as_mut() {
+            w.write_frame(&frame);
+        }
+        self.window.push(&frame);
+        self.maybe_analyse(now);
+        self.show(frame, seen);
     }
 
     /// The viewers' frame, built at most `MAX_FRAMES_PER_S` times a second

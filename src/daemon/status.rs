@@ -67,12 +67,14 @@ pub struct Status {
     pub source_state: std::sync::OnceLock<SourceState>,
     /// The last failed config reload (SIGHUP), cleared by a good one.
     pub config_error: Mutex<Option<String>>,
-    /// Per-frame latency in microseconds, from the frame's arrival (stamped
-    /// by the source as it hands the decoded datagram over, so time queued
-    /// in the channel counts) to its tips published.
+    /// Per-frame latency in microseconds, from the frame's arrival (the
+    /// NatNet client stamps it when `recv` returns the datagram, so decoding
+    /// and time queued in the channel count) to its tips published.
     pub latency_us_last: AtomicU64,
     /// The largest of those latencies since the start (µs).
     pub latency_us_max: AtomicU64,
+    /// Their sum (µs), for the Prometheus histogram's `_sum`.
+    pub latency_us_sum: AtomicU64,
     /// Latency histogram: bucket k counts frames of k×10 to (k+1)×10 µs; the
     /// last bucket everything slower. Fixed size, so percentiles cost no
     /// memory however long the daemon runs.
@@ -85,8 +87,8 @@ pub struct Status {
     pub backlog_frames: AtomicU64,
     /// The largest backlog seen.
     pub backlog_max: AtomicU64,
-    /// How long the frame just taken waited in the channel, and the longest
-    /// wait seen (µs).
+    /// How long the frame just taken waited since it arrived (decoding and
+    /// the channel), and the longest wait seen (µs).
     pub queue_us_last: AtomicU64,
     /// The longest wait seen (µs).
     pub queue_us_max: AtomicU64,
@@ -115,6 +117,48 @@ impl LatencyHistogram {
     pub fn record(&self, us: u64) {
         let k = ((us / BUCKET_US) as usize).min(BUCKETS - 1);
         self.0[k].fetch_add(1, Ordering::Relaxed);
+    }
+
+    /// Frames at or below each of `edges_us` (cumulative, as Prometheus
+    /// buckets count), and all frames. An edge falls on a 10 µs bucket
+    /// edge, so the counts are exact.
+    fn cumulative(&self, edges_us: &[u64]) -> (Vec<u64>, u64) {
+        let mut out = Vec::with_capacity(edges_us.len());
+        let mut seen = 0;
+        let mut k = 0;
+        for &edge in edges_us {
+            let last = ((edge / BUCKET_US) as usize).min(BUCKETS - 1);
+            while k < last {
+                seen += get(&self.0[k]);
+                k += 1;
+            }
+            out.push(seen);
+        }
+        let total = seen + self.0[k..].iter().map(get).sum::<u64>();
+        (out, total)
+    }
+
+    /// The histogram as Prometheus exposition text: buckets every 100 µs up
+    /// to 2 ms (where a 1 ms target is decided), then 5, 10 and 20 ms. A
+    /// scraper takes the latency of any period from two scrapes' difference,
+    /// `histogram_quantile(0.99, rate(..._bucket[5m]))` in PromQL.
+    fn to_prometheus(&self, sum_us: u64, out: &mut String) {
+        let edges: Vec<u64> = (1..=20)
+            .map(|k| k * 100)
+            .chain([5000, 10_000, 20_000])
+            .collect();
+        let (counts, total) = self.cumulative(&edges);
+        let name = "treemocap_frame_latency_seconds";
+        out.push_str(&format!(
+            "# HELP {name} Time from a frame's arrival to its tips published.\n# TYPE {name} histogram\n"
+        ));
+        for (edge, count) in edges.iter().zip(&counts) {
+            let le = *edge as f64 / 1e6;
+            out.push_str(&format!("{name}_bucket{{le=\"{le}\"}} {count}\n"));
+        }
+        out.push_str(&format!("{name}_bucket{{le=\"+Inf\"}} {total}\n"));
+        out.push_str(&format!("{name}_sum {}\n", sum_us as f64 * 1e-6));
+        out.push_str(&format!("{name}_count {total}\n"));
     }
 
     /// The latency (µs, upper bucket edge) below which a fraction `q` of frames fell.
@@ -309,6 +353,8 @@ impl Status {
                 "# HELP treemocap_{name} {help}\n# TYPE treemocap_{name} {kind}\ntreemocap_{name} {value}\n"
             ));
         }
+        self.latency_hist
+            .to_prometheus(get(&self.latency_us_sum), &mut out);
         self.bad_input.to_prometheus(&mut out);
         super::counters::recording_prometheus(self.recording.get(), &mut out);
         out
@@ -330,5 +376,30 @@ mod tests {
         assert_eq!(h.quantile_us(0.5), Some(510));
         assert_eq!(h.quantile_us(0.99), Some(1000));
         assert_eq!(h.quantile_us(1.0), Some(20_000));
+    }
+
+    /// `/metrics` buckets count the frames at or below their edge, and the
+    /// last counts them all.
+    #[test]
+    fn prometheus_buckets_are_cumulative() {
+        let h = LatencyHistogram::default();
+        for us in [50, 99, 100, 150, 990, 1000, 1999, 30_000] {
+            h.record(us);
+        }
+        let mut out = String::new();
+        h.to_prometheus(12_345, &mut out);
+        let bucket = |le: &str| -> u64 {
+            let key = format!("treemocap_frame_latency_seconds_bucket{{le=\"{le}\"}} ");
+            let line = out.lines().find(|l| l.starts_with(&key)).expect(le);
+            line[key.len()..].parse().unwrap()
+        };
+        // Buckets hold [k×10, (k+1)×10) µs: 100 µs lies above le=0.0001.
+        assert_eq!(bucket("0.0001"), 2);
+        assert_eq!(bucket("0.001"), 5);
+        assert_eq!(bucket("0.002"), 7);
+        assert_eq!(bucket("0.02"), 7);
+        assert_eq!(bucket("+Inf"), 8);
+        assert!(out.contains("treemocap_frame_latency_seconds_sum 0.012345\n"));
+        assert!(out.contains("treemocap_frame_latency_seconds_count 8\n"));
     }
 }

@@ -127,18 +127,23 @@ impl Skin {
         animate_skins(b, &[(self, tree, motion)])
     }
 
-    /// The moving joints' local translations (to their parent), joint after
-    /// joint, as little-endian floats, with each joint's index and byte
-    /// offset; joints that never leave their rest translation are left out.
+    /// Appends the moving joints' local translations (to their parent),
+    /// joint after joint, as little-endian floats, to `out`; returns each
+    /// joint's index and byte offset from where `out` started. Joints that
+    /// never leave their rest translation are left out.
     fn moving_translations(
         &self,
         tree: &Tree,
         motion: &TreeMotion,
-    ) -> (Vec<(usize, usize)>, Vec<u8>) {
+        out: &mut Vec<u8>,
+    ) -> Vec<(usize, usize)> {
         let keys = motion.keys();
+        let start = out.len();
         let mut moving = Vec::new();
-        let mut out: Vec<u8> = Vec::new();
         let mut local = Vec::with_capacity(keys);
+        // At most every joint: reserved once, so the chunk is not copied
+        // while it grows (pages never written are never resident).
+        out.reserve(tree.nodes.len() * keys * 12);
         for (i, node) in tree.nodes.iter().enumerate() {
             local.clear();
             for k in 0..keys {
@@ -150,10 +155,10 @@ impl Skin {
             if local.iter().all(|l| *l == self.rest_local[i]) {
                 continue;
             }
-            moving.push((i, out.len()));
+            moving.push((i, out.len() - start));
             out.extend(local.iter().flatten().flat_map(|v| v.to_le_bytes()));
         }
-        (moving, out)
+        moving
     }
 
     /// The channel that drives joint `i`'s translation from sampler `s`.
@@ -244,12 +249,14 @@ pub(super) fn animate_skins(b: &mut Builder, skins: &[(&Skin, &Tree, &TreeMotion
     let mut samplers = Vec::new();
     let mut channels = Vec::new();
     for &(skin, tree, motion) in skins {
-        let (moving, translations) = skin.moving_translations(tree, motion);
-        if moving.is_empty() {
-            // A glTF buffer view may not be empty.
+        let mut moving = Vec::new();
+        let view = b.view_written(None, |bin| {
+            moving = skin.moving_translations(tree, motion, bin);
+        });
+        let Some(view) = view else {
+            // Nothing of this tree moves (a buffer view may not be empty).
             continue;
-        }
-        let view = b.view(translations, None);
+        };
         for &(i, offset) in &moving {
             let output = b.accessor(view, offset, keys, ComponentType::F32, Type::Vec3, None);
             channels.push(skin.translation_channel(samplers.len(), i));

@@ -164,6 +164,40 @@ impl Builder {
         let offset = self.bin.len();
         let len = bytes.len();
         self.bin.extend(bytes);
+        self.push_view(offset, len, target)
+    }
+
+    /// A buffer view of what `write` appends to the binary chunk (4-byte
+    /// aligned), written there directly: the animation's keys are most of
+    /// an animated file, and building them apart first would hold them
+    /// twice. `None`, and the chunk as it was, when `write` appends nothing
+    /// (a glTF buffer view may not be empty).
+    pub(super) fn view_written(
+        &mut self,
+        target: Option<json::buffer::Target>,
+        write: impl FnOnce(&mut Vec<u8>),
+    ) -> Option<json::Index<json::buffer::View>> {
+        let before = self.bin.len();
+        while !self.bin.len().is_multiple_of(4) {
+            self.bin.push(0);
+        }
+        let offset = self.bin.len();
+        write(&mut self.bin);
+        let len = self.bin.len() - offset;
+        if len == 0 {
+            self.bin.truncate(before);
+            return None;
+        }
+        Some(self.push_view(offset, len, target))
+    }
+
+    /// Records the view of `len` bytes at `offset` in the binary chunk.
+    fn push_view(
+        &mut self,
+        offset: usize,
+        len: usize,
+        target: Option<json::buffer::Target>,
+    ) -> json::Index<json::buffer::View> {
         self.root.push(json::buffer::View {
             buffer: json::Index::new(0),
             byte_length: USize64::from(len),
@@ -384,16 +418,20 @@ impl Builder {
         let total = u32::try_from(total).map_err(|_| {
             RenderError::TooLarge("the tree is too large for one .glb file (4 GiB)")
         })?;
-        let mut out = Vec::with_capacity(total as usize);
-        out.extend_from_slice(&GLB_MAGIC.to_le_bytes());
-        out.extend_from_slice(&2u32.to_le_bytes());
-        out.extend_from_slice(&total.to_le_bytes());
-        out.extend_from_slice(&(text.len() as u32).to_le_bytes());
-        out.extend_from_slice(&CHUNK_JSON.to_le_bytes());
-        out.extend_from_slice(&text);
-        out.extend_from_slice(&(self.bin.len() as u32).to_le_bytes());
-        out.extend_from_slice(&CHUNK_BIN.to_le_bytes());
-        out.extend_from_slice(&self.bin);
+        let mut head = Vec::with_capacity(total as usize - self.bin.len());
+        head.extend_from_slice(&GLB_MAGIC.to_le_bytes());
+        head.extend_from_slice(&2u32.to_le_bytes());
+        head.extend_from_slice(&total.to_le_bytes());
+        head.extend_from_slice(&(text.len() as u32).to_le_bytes());
+        head.extend_from_slice(&CHUNK_JSON.to_le_bytes());
+        head.extend_from_slice(&text);
+        head.extend_from_slice(&(self.bin.len() as u32).to_le_bytes());
+        head.extend_from_slice(&CHUNK_BIN.to_le_bytes());
+        // The header and JSON go in front of the binary chunk where it
+        // lies (moved up in place), not into a copy of it: an animated
+        // file's chunk is tens of megabytes.
+        let mut out = std::mem::take(&mut self.bin);
+        out.splice(0..0, head);
         Ok(out)
     }
 }

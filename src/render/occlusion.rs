@@ -6,8 +6,8 @@
 //! that lie mostly under one another (every branch of the crown inside its
 //! parents' width), so painting bottom first wrote each pixel of the crown
 //! hundreds of times. From the top down each pixel is written once, and a
-//! row that is already final across a capsule's whole width is skipped
-//! before its arithmetic. The spans are the very ones `Canvas::line`
+//! stripe of rows, then a row, that is already final wherever a capsule
+//! could reach is skipped before the row's exact arithmetic. The spans are the very ones `Canvas::line`
 //! computes, and rows do not depend on one another, so the pixels are the
 //! same as painting bottom first, whichever thread paints which rows.
 
@@ -16,7 +16,7 @@ use crate::render::raster::{fill, line_into, Canvas, Rgb, Spans};
 /// Rows per stripe: the rows are dealt to the threads in stripes this
 /// tall, taken in turn (the crown at the top and the trunk below cost
 /// differently, so halves would not share the work evenly), and each
-/// stripe keeps which pixels are final on all its rows.
+/// stripe keeps which 64-pixel words are final on all its rows.
 const STRIPE: usize = 16;
 
 /// Threads painting: the machines this runs on have 2 cores or more, and
@@ -71,37 +71,46 @@ struct Band<'a> {
     index: usize,
     /// This band's stripes of the canvas's pixels, in order.
     stripes: Vec<&'a mut [u8]>,
-    /// One bit per pixel of the canvas (other bands' rows stay clear),
-    /// set once the pixel is final, [`Band::words`] words a row: a span's
-    /// test and its gaps are a few words, where a list of runs per row
-    /// cost a search and a splice in memory the cache did not hold.
+    /// One bit per pixel, [`Band::words`] words a row, set once the pixel
+    /// is final; the bits past the canvas's right edge and the rows past
+    /// its bottom (up to a whole stripe) are set from the start, so a full
+    /// word is `u64::MAX` everywhere. Other bands' rows stay clear. A
+    /// span's test and its gaps are a few words, where a list of runs per
+    /// row cost a search and a splice in memory the cache did not hold.
     done: Vec<u64>,
     /// Words of `done` per row.
     words: usize,
-    /// Per row, a run of pixels known final (empty as (1, 0)), as long
-    /// as the spans painted allow: most rows of a crown are one long run
-    /// and a few specks, and this flat array answers most "hidden?"
-    /// before the bits.
-    widest: Vec<(i64, i64)>,
-    /// Per stripe, the pixels final on every row of it (the intersection
-    /// of their `widest`): a tall capsule deep under the crown skips a
-    /// stripe a test.
-    solid: Vec<(i64, i64)>,
+    /// Per stripe, one bit per word of a row: set once that word is full
+    /// on every row of the stripe, so a capsule deep under the crown is
+    /// skipped a stripe at a time, mostly without reading `done`.
+    tiles: Vec<u64>,
+    /// Words of `tiles` per stripe.
+    tile_words: usize,
 }
 
 impl<'a> Band<'a> {
     /// The band `index` of a `width` × `height` canvas, nothing drawn.
     fn new(width: u32, height: u32, index: usize) -> Self {
-        let rows = height as usize;
+        let rows = (height as usize).div_ceil(STRIPE) * STRIPE;
         let words = (width as usize).div_ceil(64);
+        let mut done = vec![0; rows * words];
+        let past_edge = match width % 64 {
+            0 => 0,
+            used => u64::MAX << used,
+        };
+        for row in done.chunks_exact_mut(words) {
+            row[words - 1] = past_edge;
+        }
+        done[height as usize * words..].fill(u64::MAX);
+        let tile_words = words.div_ceil(64);
         Band {
             size: (width, height),
             index,
             stripes: Vec::new(),
-            done: vec![0; rows * words],
+            done,
             words,
-            widest: vec![(1, 0); rows],
-            solid: vec![(1, 0); rows.div_ceil(STRIPE)],
+            tiles: vec![0; rows / STRIPE * tile_words],
+            tile_words,
         }
     }
 
@@ -117,50 +126,28 @@ impl<'a> Band<'a> {
         &mut stripe[(y % STRIPE) * bytes..][..bytes]
     }
 
-    /// The whole run of final pixels on row `y` around `x0..=x1` (final
-    /// itself): where the first clear bit lies on each side.
-    fn run_around(&self, y: usize, x0: i64, x1: i64) -> (i64, i64) {
-        let bits = &self.done[y * self.words..][..self.words];
-        let end = (self.words * 64) as i64;
-        let mut right = x1 + 1;
-        while right < end {
-            let (k, b) = ((right / 64) as usize, right % 64);
-            // Set bits from b upwards.
-            let ones = i64::from((!(bits[k] >> b)).trailing_zeros());
-            right += ones;
-            if ones < 64 - b {
-                break;
-            }
-        }
-        let mut left = x0 - 1;
-        while left >= 0 {
-            let (k, b) = ((left / 64) as usize, left % 64);
-            // Set bits from b downwards.
-            let ones = i64::from((!(bits[k] << (63 - b))).leading_zeros());
-            left -= ones;
-            if ones < b + 1 {
-                break;
-            }
-        }
-        (left + 1, right - 1)
+    /// Whether word `k` is full on every row of `y`'s stripe.
+    fn tile(&self, y: usize, k: usize) -> bool {
+        self.tiles[y / STRIPE * self.tile_words + k / 64] >> (k % 64) & 1 == 1
     }
 
-    /// Notes that `x0..=x1` of row `y` is final: the row's known run
-    /// becomes the whole run around it when that is longer, and its
-    /// stripe's common part follows.
-    fn widen(&mut self, y: usize, x0: i64, x1: i64) {
-        let widest = self.widest[y];
-        let run = self.run_around(y, x0, x1);
-        if run.1 - run.0 <= widest.1 - widest.0 {
-            return;
-        }
-        self.widest[y] = run;
+    /// Notes that word `k` of row `y` just filled: its tile is full once
+    /// the word is full on the stripe's other rows too.
+    fn word_filled(&mut self, y: usize, k: usize) {
         let start = y - y % STRIPE;
-        let rows = start..(start + STRIPE).min(self.widest.len());
-        self.solid[y / STRIPE] = self.widest[rows]
-            .iter()
-            .fold((i64::MIN, i64::MAX), |s, w| (s.0.max(w.0), s.1.min(w.1)));
+        let full = (start..start + STRIPE).all(|row| self.done[row * self.words + k] == u64::MAX);
+        if full {
+            self.tiles[y / STRIPE * self.tile_words + k / 64] |= 1 << (k % 64);
+        }
     }
+}
+
+/// The bits of pixels `x0..=x1` in word `k` of a row whose pixels from
+/// `first`*64 to `last`*64+63 are asked about.
+fn word_mask(k: usize, (first, last): (usize, usize), x0: i64, x1: i64) -> u64 {
+    let lo = if k == first { x0 as u32 % 64 } else { 0 };
+    let hi = if k == last { x1 as u32 % 64 } else { 63 };
+    (u64::MAX >> (63 - hi)) & (u64::MAX << lo)
 }
 
 impl Spans for Band<'_> {
@@ -168,36 +155,60 @@ impl Spans for Band<'_> {
         self.size
     }
 
-    fn hidden_until(&self, y: i64, x0: i64, x1: i64) -> i64 {
-        let holds = |(a, b): (i64, i64)| a <= x0 && x1 <= b;
+    fn next_row(&self, y: i64) -> i64 {
         let mut y = y as usize;
-        while y < self.widest.len() {
-            if !self.owns(y) || (y.is_multiple_of(STRIPE) && holds(self.solid[y / STRIPE])) {
-                y += STRIPE - y % STRIPE;
-            } else if holds(self.widest[y]) {
-                y += 1;
-            } else {
-                break;
-            }
+        while y < self.size.1 as usize && !self.owns(y) {
+            y += STRIPE - y % STRIPE;
         }
         y as i64
     }
 
+    fn block_end(&self, y: i64) -> i64 {
+        y - y % STRIPE as i64 + STRIPE as i64 - 1
+    }
+
+    fn covered_block(&self, y0: i64, y1: i64, x0: i64, x1: i64) -> bool {
+        if x0 > x1 {
+            return true;
+        }
+        let ends = (x0 as usize / 64, x1 as usize / 64);
+        (ends.0..=ends.1).all(|k| {
+            let mask = word_mask(k, ends, x0, x1);
+            self.tile(y0 as usize, k)
+                || (y0..=y1).all(|y| self.done[y as usize * self.words + k] & mask == mask)
+        })
+    }
+
+    fn covered(&self, y: i64, x0: i64, x1: i64) -> bool {
+        if x0 > x1 {
+            return true;
+        }
+        let ends = (x0 as usize / 64, x1 as usize / 64);
+        let row = &self.done[y as usize * self.words..];
+        (ends.0..=ends.1).all(|k| {
+            let mask = word_mask(k, ends, x0, x1);
+            row[k] & mask == mask
+        })
+    }
+
     fn span(&mut self, y: i64, x0: i64, x1: i64, color: Rgb) {
         let yu = y as usize;
-        let (a, b) = self.widest[yu];
-        if !self.owns(yu) || (a <= x0 && x1 <= b) {
+        if !self.owns(yu) {
             return;
         }
-        let (first, last) = (x0 as usize / 64, x1 as usize / 64);
-        for k in first..=last {
+        let ends = (x0 as usize / 64, x1 as usize / 64);
+        for k in ends.0..=ends.1 {
             // The bits of x0..=x1 in this word that are not final yet.
-            let lo = if k == first { x0 as u32 % 64 } else { 0 };
-            let hi = if k == last { x1 as u32 % 64 } else { 63 };
-            let mask = (u64::MAX >> (63 - hi)) & (u64::MAX << lo);
+            let mask = word_mask(k, ends, x0, x1);
             let word = &mut self.done[yu * self.words + k];
             let mut open = mask & !*word;
+            if open == 0 {
+                continue;
+            }
             *word |= mask;
+            if *word == u64::MAX {
+                self.word_filled(yu, k);
+            }
             while open != 0 {
                 let start = open.trailing_zeros();
                 let len = (!(open >> start)).trailing_zeros();
@@ -206,7 +217,6 @@ impl Spans for Band<'_> {
                 open &= !(u64::MAX >> (64 - len) << start);
             }
         }
-        self.widen(yu, x0, x1);
     }
 }
 
@@ -253,6 +263,59 @@ mod tests {
             .filter(|&(x, y)| painter.pixel(x, y) == Some(WHITE))
             .count();
         assert!(white < 200 * 120 / 2, "{white} white pixels");
+    }
+
+    /// A random tree like a reconstructed crown (each branch splits into
+    /// thinner ones, most lying under their neighbours), drawn thickest
+    /// last through the layer, gives the canvas that painting it thickest
+    /// first gives: the skipped blocks and rows (whole stripes full,
+    /// words full, rows' reach full) hide nothing that would show.
+    #[test]
+    fn a_dense_random_crown_top_down_is_the_painters_crown() {
+        let mut rng = crate::rng::Rng::new(0x5EED_CAFE);
+        let mut random = move || rng.f64();
+        // (x0, y0, x1, y1, width): a trunk, then branches from the ends.
+        let mut segments = vec![(150.0, 235.0, 151.3, 150.0, 24.0)];
+        let mut k = 0;
+        while segments.len() < 4000 {
+            let (_, _, x, y, w): (f64, f64, f64, f64, f64) = segments[k];
+            k += 1;
+            for _ in 0..3 {
+                let angle = -std::f64::consts::FRAC_PI_2 + (random() - 0.5) * 2.4;
+                let len = 8.0 + random() * 30.0;
+                let (ex, ey) = (x + len * angle.cos(), y + len * angle.sin());
+                segments.push((x, y, ex, ey, (w * (0.5 + 0.3 * random())).max(1.0)));
+            }
+        }
+        // Thickest first, as picture.rs sorts them (ties in order).
+        let mut order: Vec<usize> = (0..segments.len()).collect();
+        order.sort_by(|&a, &b| segments[b].4.total_cmp(&segments[a].4).then(a.cmp(&b)));
+        let colour = |i: usize| [(i * 7 % 200) as u8, (i * 13 % 200) as u8, 90];
+        let mut painter = Canvas::new(300, 250);
+        for &i in &order {
+            let (x0, y0, x1, y1, w) = segments[i];
+            painter.line(x0, y0, x1, y1, w, colour(i));
+        }
+        let strokes: Vec<Stroke> = order
+            .iter()
+            .rev()
+            .map(|&i| {
+                let (x0, y0, x1, y1, width) = segments[i];
+                Stroke {
+                    ends: [x0, y0, x1, y1],
+                    width,
+                    color: colour(i),
+                }
+            })
+            .collect();
+        let mut top_down = Canvas::new(300, 250);
+        draw_top_down(&mut top_down, &strokes);
+        assert_eq!(painter, top_down);
+        let drawn = (0..250)
+            .flat_map(|y| (0..300).map(move |x| (x, y)))
+            .filter(|&(x, y)| painter.pixel(x, y) != Some(WHITE))
+            .count();
+        assert!(drawn > 300 * 250 / 4, "{drawn} pixels drawn");
     }
 
     /// What the layer paints goes over what the canvas held before it;

@@ -180,20 +180,50 @@ impl Canvas {
 
 /// Where a line's pixels go, as runs of one row: straight onto a
 /// [`Canvas`], or through a layer that keeps what is already drawn on top
-/// (`occlusion::TopDown`). Every run handed over is clipped to the canvas.
+/// (`occlusion`). Every run handed over is clipped to the canvas. The
+/// rows come in blocks (a layer's stripes; a whole canvas is one block) so
+/// a shape can ask once whether a block is hidden before any row's
+/// arithmetic.
 pub(crate) trait Spans {
     /// Width and height of the canvas, in pixels.
     fn size(&self) -> (u32, u32);
-    /// The first row from `y` on that `span` wants and whose pixels
-    /// `x0..=x1` are not all known to be final already (`y` itself when
-    /// unknown): a shape skips the rows before it without their
-    /// arithmetic. May be past the last row.
-    fn hidden_until(&self, y: i64, _x0: i64, _x1: i64) -> i64 {
+    /// The first row from `y` on that `span` paints (`y` itself when it
+    /// paints every row). May be past the last row.
+    fn next_row(&self, y: i64) -> i64 {
         y
+    }
+    /// The last row of `y`'s block.
+    fn block_end(&self, _y: i64) -> i64 {
+        i64::MAX
+    }
+    /// Whether pixels `x0..=x1` (clipped to the canvas) are final on every
+    /// row `y0..=y1` of one block: nothing drawn there would show.
+    fn covered_block(&self, _y0: i64, _y1: i64, _x0: i64, _x1: i64) -> bool {
+        false
+    }
+    /// Whether pixels `x0..=x1` (clipped to the canvas) of row `y` are all
+    /// final.
+    fn covered(&self, _y: i64, _x0: i64, _x1: i64) -> bool {
+        false
     }
     /// Paints pixels `x0..=x1` of row `y` (a layer that paints only some
     /// rows ignores the others).
     fn span(&mut self, y: i64, x0: i64, x1: i64, color: Rgb);
+}
+
+/// Whether the pixels `left..=right` of rows `top..=bottom` (clipped to
+/// the canvas) that `out` paints are all final: a shape inside them would
+/// change nothing.
+fn hidden(out: &impl Spans, top: i64, bottom: i64, left: i64, right: i64) -> bool {
+    let mut y = out.next_row(top);
+    while y <= bottom {
+        let end = out.block_end(y).min(bottom);
+        if !out.covered_block(y, end, left, right) {
+            return false;
+        }
+        y = out.next_row(end + 1);
+    }
+    true
 }
 
 impl Spans for Canvas {
@@ -229,8 +259,11 @@ pub(crate) fn line_into(out: &mut impl Spans, ends: [f64; 4], width: f64, color:
     // A pixel of margin: a step's rounding may land one past an end.
     let (top, bottom) = (y0.min(y1).round() as i64 - 1, y0.max(y1).round() as i64 + 1);
     let (left, right) = (x0.min(x1).round() as i64 - 1, x0.max(x1).round() as i64 + 1);
-    if out.hidden_until(top.max(0), left.max(0), right.min(i64::from(w) - 1)) > bottom {
-        // Every row it would touch is final, or not `out`'s to paint.
+    let (top_c, bottom_c) = (top.max(0), bottom.min(i64::from(h) - 1));
+    let (left_c, right_c) = (left.max(0), right.min(i64::from(w) - 1));
+    if left_c > right_c || hidden(out, top_c, bottom_c, left_c, right_c) {
+        // Off the canvas, or every row it would touch is final or not
+        // `out`'s to paint.
         return;
     }
     let steps = (x1 - x0).abs().max((y1 - y0).abs()).ceil().max(1.0) as i64;
@@ -262,16 +295,18 @@ pub(crate) fn line_into(out: &mut impl Spans, ends: [f64; 4], width: f64, color:
 /// with round ends, filled row by row. Why not discs along the line: a
 /// disc per pixel step costs length × width², which made the picture of
 /// a large tree (thick trunk, 100 000 segments) slower than building it;
-/// rows cost the pixels they fill. A row that `out` already has final
-/// across the capsule's whole width is skipped before any arithmetic.
+/// rows cost the pixels they fill. Most of a large crown's capsules lie
+/// under others: a block of rows whose [`Reach`] `out` already has final
+/// is skipped at once, then a row whose reach is final, before the row's
+/// own arithmetic (square roots, divisions), which alone decides pixels.
 fn capsule(out: &mut impl Spans, [x0, y0, x1, y1]: [f64; 4], r: f64, color: Rgb) {
     let (w, h) = out.size();
     let (w, h) = (f64::from(w), f64::from(h));
     let r = r.min(1e5);
-    let top = (y0.min(y1) - r).floor().max(0.0) as i64;
-    let bottom = (y0.max(y1) + r).ceil().min(h - 1.0) as i64;
-    // The widest the capsule gets on any row, clipped: the cheap test,
-    // with a pixel of margin for the rows' rounding.
+    let top = floor(y0.min(y1) - r).max(0.0) as i64;
+    let bottom = ceil(y0.max(y1) + r).min(h - 1.0) as i64;
+    // The widest the capsule gets on any row, clipped, with a pixel of
+    // margin for the rows' rounding.
     let left = (floor(x0.min(x1) - r) - 1.0).max(0.0) as i64;
     let right = (ceil(x0.max(x1) + r) + 1.0).min(w - 1.0) as i64;
     if left > right {
@@ -280,28 +315,109 @@ fn capsule(out: &mut impl Spans, [x0, y0, x1, y1]: [f64; 4], r: f64, color: Rgb)
     let (dx, dy) = (x1 - x0, y1 - y0);
     let len2 = dx * dx + dy * dy;
     let len = len2.sqrt();
-    let mut yy = top;
+    let reach = Reach::new([x0, y0, x1, y1], r, (left, right));
+    let mut yy = out.next_row(top);
     while yy <= bottom {
-        let next = out.hidden_until(yy, left, right);
-        if next > yy {
-            yy = next;
-            continue;
-        }
-        let y = yy as f64;
-        let mut span = disc_span(x0, y0, r, y);
-        span = union(span, disc_span(x1, y1, r, y));
-        // Below a nanopixel the discs are the whole shape, and the band's
-        // tests lose their meaning (both slopes vanish: every x passes).
-        if len > 1e-9 {
-            span = union(span, band_span([x0, y0, dx, dy], len2, r * len, y));
-        }
-        if let Some((lo, hi)) = span {
-            let (lo, hi) = (ceil(lo).max(0.0), floor(hi).min(w - 1.0));
-            if !lo.is_nan() && !hi.is_nan() && lo <= hi {
-                out.span(yy, lo as i64, hi as i64, color);
+        let end = out.block_end(yy).min(bottom);
+        let (bl, br) = reach.columns(yy, end);
+        if !out.covered_block(yy, end, bl, br) {
+            for y in yy..=end {
+                let (rl, rr) = reach.columns(y, y);
+                if !out.covered(y, rl, rr) {
+                    capsule_row(out, [x0, y0, x1, y1], (len2, len), r, y, color);
+                }
             }
         }
-        yy += 1;
+        yy = out.next_row(end + 1);
+    }
+}
+
+/// Row `yy` of the capsule of radius `r` around (x0, y0)–(x1, y1), whose
+/// |d|² and |d| are `lens`, into `out`.
+fn capsule_row(
+    out: &mut impl Spans,
+    [x0, y0, x1, y1]: [f64; 4],
+    (len2, len): (f64, f64),
+    r: f64,
+    yy: i64,
+    color: Rgb,
+) {
+    let w = f64::from(out.size().0);
+    let y = yy as f64;
+    let mut span = disc_span(x0, y0, r, y);
+    span = union(span, disc_span(x1, y1, r, y));
+    // Below a nanopixel the discs are the whole shape, and the band's
+    // tests lose their meaning (both slopes vanish: every x passes).
+    if len > 1e-9 {
+        span = union(
+            span,
+            band_span([x0, y0, x1 - x0, y1 - y0], len2, r * len, y),
+        );
+    }
+    if let Some((lo, hi)) = span {
+        let (lo, hi) = (ceil(lo).max(0.0), floor(hi).min(w - 1.0));
+        if !lo.is_nan() && !hi.is_nan() && lo <= hi {
+            out.span(yy, lo as i64, hi as i64, color);
+        }
+    }
+}
+
+/// Columns a capsule may touch on a range of rows, a little wider than
+/// it does: every point of the capsule lies within `r` of a point of the
+/// segment, so on rows `ya..=yb` it lies within `r` across of the part
+/// of the segment between heights `ya − r` and `yb + r`, whose ends are
+/// linear in the rows. No square root, no division per row: the cheap
+/// test of whether anything on the rows can show. A pixel of margin
+/// (`r` + 1) covers the rounding, so the columns always hold the row's
+/// exact span.
+struct Reach {
+    /// The segment's first end, (x0, y0).
+    start: (f64, f64),
+    /// From the first end to the second, (dx, dy).
+    d: (f64, f64),
+    /// 1 / dy, or 0 for a segment (nearly) level, which every row's
+    /// reach takes whole.
+    inv_dy: f64,
+    /// The capsule's radius plus the pixel of margin.
+    r: f64,
+    /// The capsule's columns on the canvas (its bounding box, clipped).
+    clip: (i64, i64),
+}
+
+impl Reach {
+    /// The reach of the capsule of radius `r` around (x0, y0)–(x1, y1),
+    /// within the columns `clip`.
+    fn new([x0, y0, x1, y1]: [f64; 4], r: f64, clip: (i64, i64)) -> Self {
+        let dy = y1 - y0;
+        Reach {
+            start: (x0, y0),
+            d: (x1 - x0, dy),
+            inv_dy: if dy.abs() > 1e-9 { 1.0 / dy } else { 0.0 },
+            r: r + 1.0,
+            clip,
+        }
+    }
+
+    /// The columns rows `ya..=yb` may touch, clipped (empty as `a > b`).
+    fn columns(&self, ya: i64, yb: i64) -> (i64, i64) {
+        let ((x0, y0), (dx, _)) = (self.start, self.d);
+        let (mut t0, mut t1) = (0.0, 1.0);
+        if self.inv_dy != 0.0 {
+            let ta = (ya as f64 - self.r - y0) * self.inv_dy;
+            let tb = (yb as f64 + self.r - y0) * self.inv_dy;
+            t0 = ta.min(tb).max(0.0);
+            t1 = ta.max(tb).min(1.0);
+            if t0 > t1 {
+                return (1, 0);
+            }
+        }
+        let (xa, xb) = (x0 + t0 * dx, x0 + t1 * dx);
+        // Truncation moves each end by less than a pixel, inside the
+        // pixel of margin: no floor (a branch and two conversions each).
+        // Finite ends and radius make finite columns.
+        let lo = ((xa.min(xb) - self.r) as i64).max(self.clip.0);
+        let hi = ((xa.max(xb) + self.r) as i64).min(self.clip.1);
+        (lo, hi)
     }
 }
 

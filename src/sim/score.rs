@@ -97,8 +97,9 @@ impl Score {
 }
 
 /// Which true tip (`Some`) or ghost (`None`) each measured sample of a
-/// trace came from, with its internal frame.
-fn owners<'a>(
+/// trace came from, with its internal frame. Public for the diagnosis
+/// example (`track_why`) and the accuracy tests, which ask the same.
+pub fn owners<'a>(
     trace: &'a Trace,
     truth: &'a Truth,
 ) -> impl Iterator<Item = (i64, Option<usize>)> + 'a {

@@ -41,8 +41,16 @@ const HALF_RANGE: i64 = (1 << 20) - 1;
 
 fn coordinate(v: f64, inv: f64) -> i64 {
     // NaN never reaches here (the tracker drops non-finite markers);
-    // `as` saturates infinities, and the clamp does the rest.
-    ((v * inv).floor() as i64).clamp(-HALF_RANGE, HALF_RANGE)
+    // `as` saturates infinities, and the clamp does the rest. The floor is
+    // written out: the baseline x86-64 target has no rounding instruction,
+    // and `f64::floor` was a call into libm for each of the 9 coordinates a
+    // query and a point take (2 % of a live frame at 1 000 markers). The
+    // result is the same: truncation rounds towards zero, so a negative
+    // non-integer moves down by one.
+    let x = v * inv;
+    let t = x as i64;
+    let floor = if (t as f64) > x { t - 1 } else { t };
+    floor.clamp(-HALF_RANGE, HALF_RANGE)
 }
 
 fn pack(x: i64, y: i64, z: i64) -> u64 {

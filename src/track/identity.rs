@@ -30,12 +30,13 @@
 //!   predicted sway, so it is not joined); they stay loose traces and are
 //!   dropped as noise.
 
-use std::collections::{BTreeMap, HashMap, VecDeque};
+use std::collections::{BTreeMap, VecDeque};
 
 use glam::DVec3;
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
 
 use super::assign::{Assigner, Edge};
+use super::id_hash::IdMap;
 
 /// Neighbours kept per identity.
 const NEIGHBOURS: usize = 8;
@@ -133,7 +134,7 @@ enum Owner {
 pub(crate) struct Identities {
     s: IdentitySettings,
     idents: Vec<Ident>,
-    owner: HashMap<usize, Owner>,
+    owner: IdMap<Owner>,
     /// By trace id (ordered, so that ties are broken the same every run).
     candidates: BTreeMap<usize, Candidate>,
     /// Candidates whose trace ended this frame, before they were judged.
@@ -159,7 +160,7 @@ impl Identities {
         Identities {
             s,
             idents: Vec::new(),
-            owner: HashMap::new(),
+            owner: IdMap::default(),
             candidates: BTreeMap::new(),
             dying: Vec::new(),
             lost: Vec::new(),

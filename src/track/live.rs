@@ -10,10 +10,9 @@
 //! a fraction of a millimetre); markers that match no tip (first seen
 //! in the wind, or not on the tree) are not shown.
 
-use std::collections::HashMap;
-
 use glam::DVec3;
 
+use super::id_hash::IdMap;
 use super::tracker::Tracker;
 use super::TrackingSettings;
 use crate::model::frame::MarkerFrame;
@@ -36,11 +35,14 @@ pub struct LiveTips {
     /// The tree's tips: (marker index, rest position).
     tips: Vec<(usize, DVec3)>,
     /// Tracker identity → index into `tips`.
-    label: HashMap<usize, usize>,
+    label: IdMap<usize>,
     /// Which of `tips` are claimed.
     claimed: Vec<bool>,
     /// Identities already tried and not matched (not retried every frame).
-    unmatched: HashMap<usize, usize>,
+    unmatched: IdMap<usize>,
+    /// Per tip, its marker's position and frame index in the frame being
+    /// labelled; reused across frames.
+    slots: Vec<Option<(DVec3, usize)>>,
 }
 
 impl LiveTips {
@@ -51,9 +53,10 @@ impl LiveTips {
             tracker: Tracker::live(settings, frame_rate),
             match_radius: match_radius_m,
             tips: Vec::new(),
-            label: HashMap::new(),
+            label: IdMap::default(),
             claimed: Vec::new(),
-            unmatched: HashMap::new(),
+            unmatched: IdMap::default(),
+            slots: Vec::new(),
         }
     }
 
@@ -77,21 +80,34 @@ impl LiveTips {
     pub fn update(&mut self, frame: &MarkerFrame) -> Seen {
         self.tracker.push(frame);
         let current: Vec<(usize, DVec3, usize)> = self.tracker.current_markers().collect();
-        let mut seen = Seen {
-            tips: Vec::with_capacity(current.len()),
-            frame_markers: Vec::with_capacity(current.len()),
-        };
+        // Each tip is claimed by one identity: the measured tips are put in
+        // their tip's slot and read back in tip (marker) order, instead of
+        // sorting a thousand of them every frame.
+        let mut slots = std::mem::take(&mut self.slots);
+        slots.clear();
+        slots.resize(self.tips.len(), None);
+        let mut measured = 0;
         for (identity, p, index) in current {
             let k = match self.label.get(&identity) {
                 Some(k) => Some(*k),
                 None => self.match_identity(identity),
             };
-            if let Some(&(marker, _)) = k.and_then(|k| self.tips.get(k)) {
-                seen.tips.push((marker, p));
+            if let Some(slot) = k.and_then(|k| slots.get_mut(k)) {
+                *slot = Some((p, index));
+                measured += 1;
+            }
+        }
+        let mut seen = Seen {
+            tips: Vec::with_capacity(measured),
+            frame_markers: Vec::with_capacity(measured),
+        };
+        for (tip, slot) in self.tips.iter().zip(&slots) {
+            if let Some((p, index)) = *slot {
+                seen.tips.push((tip.0, p));
                 seen.frame_markers.push(index);
             }
         }
-        seen.tips.sort_by_key(|s| s.0);
+        self.slots = slots;
         seen
     }
 

@@ -22,6 +22,7 @@ pub mod adopt;
 pub mod assign;
 pub mod gaps;
 mod grid;
+mod id_hash;
 mod identity;
 mod jitter;
 pub mod live;
@@ -169,9 +170,9 @@ fn assemble(
         };
         for &i in iter {
             if let Some(piece) = slots.get_mut(i).and_then(Option::take) {
-                if joined.append(&piece) {
+                let Some(piece) = joined.append(piece) else {
                     continue;
-                }
+                };
                 // A piece judged on line while a later one was alive: it
                 // interleaves; one sharing a frame stays a loose trace.
                 match joined.merged(&piece) {

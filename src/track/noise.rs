@@ -104,7 +104,8 @@ pub fn join_by_rest(
         };
         for i in iter {
             if let Some(piece) = slots[i].take() {
-                joined.append(&piece);
+                // An overlapping piece is dropped, as it always was.
+                let _ = joined.append(piece);
             }
         }
         out.push(joined);
@@ -275,9 +276,13 @@ pub fn join_into_gaps(
 /// A trace's measurements (all of them, or those around a span) with prefix
 /// sums of their positions, so the mean of any run of them costs O(1).
 struct Measured {
-    samples: Vec<(i64, DVec3)>,
+    /// The frames of the measurements kept; their positions are needed
+    /// only as means, which `prefix` gives (32 bytes a sample instead of
+    /// 56: a long fragment and its host around it were the hour-long
+    /// take's largest transient).
+    frames: Vec<i64>,
     /// `prefix[k]`: the sum of every measurement of the trace before
-    /// `samples[k]` (from the trace's first, even when `samples` starts
+    /// `frames[k]` (from the trace's first, even when `frames` starts
     /// later), so that a mean is the same, bit for bit, whichever part of
     /// the trace was kept.
     prefix: Vec<DVec3>,
@@ -294,7 +299,7 @@ impl Measured {
     /// the first hand-over back to it nothing is compared, so the cost is
     /// that of the whole trace.
     fn around(t: &Trace, span: (i64, i64), context: usize) -> Self {
-        let mut samples: std::collections::VecDeque<(i64, DVec3)> = Default::default();
+        let mut frames: std::collections::VecDeque<i64> = Default::default();
         let mut prefix: std::collections::VecDeque<DVec3> = Default::default();
         let mut acc = DVec3::ZERO;
         let mut after = 0usize;
@@ -305,32 +310,32 @@ impl Measured {
                 }
                 after += 1;
             }
-            samples.push_back(s);
+            frames.push_back(s.0);
             prefix.push_back(acc);
             acc += s.1;
-            if s.0 < span.0 && samples.len() > context {
-                samples.pop_front();
+            if s.0 < span.0 && frames.len() > context {
+                frames.pop_front();
                 prefix.pop_front();
             }
         }
         prefix.push_back(acc);
         Measured {
-            samples: samples.into(),
+            frames: frames.into(),
             prefix: prefix.into(),
         }
     }
 
     fn first_frame(&self) -> i64 {
-        self.samples.first().map_or(i64::MAX, |s| s.0)
+        self.frames.first().copied().unwrap_or(i64::MAX)
     }
 
     fn last_frame(&self) -> i64 {
-        self.samples.last().map_or(i64::MIN, |s| s.0)
+        self.frames.last().copied().unwrap_or(i64::MIN)
     }
 
     /// Mean of measurements `[lo, hi)` (clamped; `None` when empty).
     fn mean(&self, lo: usize, hi: usize) -> Option<DVec3> {
-        let hi = hi.min(self.samples.len());
+        let hi = hi.min(self.frames.len());
         (hi > lo).then(|| (self.prefix[hi] - self.prefix[lo]) / (hi - lo) as f64)
     }
 }
@@ -347,14 +352,14 @@ impl Measured {
 /// identities): every hand-over is checked the same way. `None` when both
 /// are measured in one frame (two markers) or there is no hand-over.
 fn switch_cost(host: &Measured, frag: &Measured, context: usize) -> Option<f64> {
-    let (a, b) = (&host.samples, &frag.samples);
+    let (a, b) = (&host.frames, &frag.frames);
     let (mut i, mut j) = (0usize, 0usize);
     let mut last: Option<bool> = None;
     let mut worst: Option<f64> = None;
     loop {
         let from_host = match (a.get(i), b.get(j)) {
-            (Some(x), Some(y)) if x.0 == y.0 => return None,
-            (Some(x), Some(y)) => x.0 < y.0,
+            (Some(x), Some(y)) if x == y => return None,
+            (Some(x), Some(y)) => x < y,
             (Some(_), None) => true,
             (None, Some(_)) => false,
             (None, None) => break,
@@ -490,7 +495,7 @@ mod gap_join_tests {
             for context in [1, 5, 50, 2000] {
                 let near =
                     Measured::around(&host, (frag.first_frame(), frag.last_frame()), context);
-                assert!(near.samples.len() <= whole.samples.len());
+                assert!(near.frames.len() <= whole.frames.len());
                 let (a, b) = (
                     switch_cost(&whole, &frag, context),
                     switch_cost(&near, &frag, context),
@@ -505,6 +510,6 @@ mod gap_join_tests {
         }
         // Far from both ends, only the span and its context are kept.
         let near = Measured::around(&host, (300, 302), 5);
-        assert_eq!(near.samples.len(), 5 + 3 + 5);
+        assert_eq!(near.frames.len(), 5 + 3 + 5);
     }
 }

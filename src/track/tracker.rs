@@ -160,6 +160,8 @@ pub struct Tracker {
     /// the latest frame, by trace: which marker each identity took.
     measured_at: Vec<(usize, usize)>,
     order: Vec<usize>,
+    /// `clean_markers`' sort keys, reused: (x as ordered bits, index).
+    by_x: Vec<(u64, usize)>,
     keep: Vec<bool>,
     edges: Vec<Edge>,
     /// The frame's markers bucketed for the gate search (beyond
@@ -205,6 +207,7 @@ impl Tracker {
             src: Vec::new(),
             measured_at: Vec::new(),
             order: Vec::new(),
+            by_x: Vec::new(),
             keep: Vec::new(),
             edges: Vec::new(),
             grid: Grid::default(),
@@ -398,21 +401,27 @@ impl Tracker {
         // Within a fifth of the gate a marker is always a candidate, however
         // sure the prediction: real markers jitter in ways no model expects.
         let floor2 = r2 / 25.0;
-        let edge = |row: usize, col: usize, l: &Live, d2: f64| -> Option<Edge> {
+        // A trace's variance and its log are the same for all its markers:
+        // taken once per row (the log per edge was 4 % of a live frame).
+        let row_terms = |l: &Live| {
             let s = l.variance.max(r);
+            (s, (s / r).ln().min(LOG_VARIANCE_ALLOWANCE))
+        };
+        let edge = |row: usize, col: usize, (s, log_s): (f64, f64), d2: f64| -> Option<Edge> {
             let m = d2 / s;
             (d2 <= r2 && (m <= g2 || d2 <= floor2)).then(|| Edge {
                 row,
                 col,
-                cost: m.min(g2) + (s / r).ln().min(LOG_VARIANCE_ALLOWANCE),
+                cost: m.min(g2) + log_s,
             })
         };
         if self.points.len() * self.live.len() <= DIRECT_SCAN_MAX {
             // Few markers: comparing every pair is cheaper than building a tree.
             for (row, l) in self.live.iter().enumerate() {
+                let terms = row_terms(l);
                 for (col, p) in self.points.iter().enumerate() {
                     let d2 = l.prediction.distance_squared(DVec3::from_array(*p));
-                    if let Some(e) = edge(row, col, l, d2) {
+                    if let Some(e) = edge(row, col, terms, d2) {
                         self.edges.push(e);
                     }
                 }
@@ -421,8 +430,13 @@ impl Tracker {
             self.grid.build(&self.points, self.gate_m);
             for (row, l) in self.live.iter().enumerate() {
                 let q = l.prediction.to_array();
-                for &(d2, col) in self.grid.within(&self.points, q, self.gate_m) {
-                    if let Some(e) = edge(row, col as usize, l, d2) {
+                let hits = self.grid.within(&self.points, q, self.gate_m);
+                if hits.is_empty() {
+                    continue;
+                }
+                let terms = row_terms(l);
+                for &(d2, col) in hits {
+                    if let Some(e) = edge(row, col as usize, terms, d2) {
                         self.edges.push(e);
                     }
                 }
@@ -523,11 +537,20 @@ impl Tracker {
             return;
         }
         // Sweep along x: only markers within duplicate_m in x can be copies.
+        // Sorted as (x as an ordered integer, index) pairs: the same order
+        // as comparing x by `total_cmp` then the index, without a lookup
+        // into the points for every comparison (a tenth of a live frame).
+        self.by_x.clear();
+        self.by_x.extend(
+            self.points
+                .iter()
+                .enumerate()
+                .map(|(i, p)| (ordered_bits(p[0]), i)),
+        );
+        self.by_x.sort_unstable();
         self.order.clear();
-        self.order.extend(0..self.points.len());
+        self.order.extend(self.by_x.iter().map(|&(_, i)| i));
         let pts = &self.points;
-        self.order
-            .sort_unstable_by(|&a, &b| pts[a][0].total_cmp(&pts[b][0]).then(a.cmp(&b)));
         self.keep.clear();
         self.keep.resize(pts.len(), true);
         let r2 = self.duplicate_m * self.duplicate_m;
@@ -614,6 +637,18 @@ impl Tracker {
     }
 }
 
+/// `x`'s bits as an unsigned integer that sorts as `f64::total_cmp` does.
+fn ordered_bits(x: f64) -> u64 {
+    let b = x.to_bits();
+    // Negative numbers: every bit flipped (larger magnitude sorts first);
+    // positive: the sign bit set, above all negatives.
+    if b >> 63 == 1 {
+        !b
+    } else {
+        b | (1 << 63)
+    }
+}
+
 /// Feeds the third difference of `l`'s last measurements and `p` (frame
 /// `t`) to the noise estimate when they are four frames in a row; keeps the
 /// last three. Returns whether the estimate changed.
@@ -648,6 +683,22 @@ mod tests {
 
     fn cfg() -> TrackingSettings {
         TrackingSettings::default()
+    }
+
+    /// The duplicate sweep's integer keys sort exactly as `total_cmp`.
+    #[test]
+    fn ordered_bits_sort_as_total_cmp() {
+        let mut rng = crate::rng::Rng::new(3);
+        let mut xs: Vec<f64> = (0..2000).map(|_| rng.range(-3.0, 3.0)).collect();
+        xs.extend([0.0, -0.0, 1e-300, -1e-300, f64::MAX, f64::MIN, 2.5, 2.5]);
+        for (i, a) in xs.iter().enumerate() {
+            let b = xs[(i * 7 + 1) % xs.len()];
+            assert_eq!(
+                ordered_bits(*a).cmp(&ordered_bits(b)),
+                a.total_cmp(&b),
+                "{a} against {b}"
+            );
+        }
     }
 
     fn frame(n: i64, pts: &[DVec3]) -> MarkerFrame {

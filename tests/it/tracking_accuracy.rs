@@ -41,15 +41,7 @@ fn score(tips: &Tips, truth: &Truth) -> Score {
     for tip in &tips.tips {
         // Which true marker each measured sample came from, via its column.
         let mut counts: HashMap<Option<usize>, usize> = HashMap::new();
-        let mut runs = tip.trace.sources().iter().peekable();
-        let mut col = None;
-        for (frame, _) in tip.trace.measurements() {
-            while let Some(r) = runs.next_if(|r| r.frame <= frame) {
-                col = r.id;
-            }
-            let who = col
-                .and_then(|c| truth.columns.get(c as usize))
-                .and_then(|c| c.tip);
+        for (_, who) in sim::score::owners(&tip.trace, truth) {
             *counts.entry(who).or_default() += 1;
         }
         let Some((&owner, &n)) = counts

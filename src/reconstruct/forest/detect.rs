@@ -11,9 +11,10 @@
 //! K with the least RMS + `count_penalty_m`·K (one crown of a forest that
 //! fits badly must not make the search give up and take one tree).
 //!
-//! When the take swayed, the sway chooses K instead ([`by_sway`]): the
-//! largest K whose split makes crowns that all sway independently (a tree
-//! cut in two leaves two crowns sharing its trunk's sway).
+//! When the take swayed, the sway and the fit choose K together
+//! ([`by_sway`]): a tree cut in two leaves two crowns sharing its trunk's
+//! sway, two trees sway independently, and a split that fits clearly
+//! better is taken unless its crowns sway as one.
 
 use glam::DVec3;
 
@@ -110,7 +111,9 @@ pub fn candidates(tips: &[DVec3], s: &ForestSettings, sway: &Coherence) -> Vec<C
 /// K less still fits fairly (within [`MERGE_FIT`] × `fit_tolerance_m`:
 /// two trees whose trunks happen to sway alike are not merged into a crown
 /// no surface fits), and take a K more while that split's crowns all sway
-/// independently (no two above [`APART_RATIO`] of their own correlation).
+/// independently (no two above [`APART_RATIO`] of their own correlation),
+/// or it fits clearly better and no two of its crowns sway as one tree
+/// ([`splits`]).
 pub fn by_sway(tips: &[DVec3], s: &ForestSettings, sway: &Coherence) -> Detection {
     let all = candidates(tips, s, sway);
     let rms: Vec<(usize, f64)> = all.iter().map(|c| (c.k, c.rms)).collect();
@@ -121,7 +124,7 @@ pub fn by_sway(tips: &[DVec3], s: &ForestSettings, sway: &Coherence) -> Detectio
     while at > 0 && same_tree(&all[at]) && all[at - 1].rms <= MERGE_FIT * s.fit_tolerance_m {
         at -= 1;
     }
-    while at + 1 < all.len() && all[at + 1].k == all[at].k + 1 && all[at + 1].ratio < APART_RATIO {
+    while at + 1 < all.len() && all[at + 1].k == all[at].k + 1 && splits(&all[at], &all[at + 1]) {
         at += 1;
     }
     let mut centres = all[at].centres.clone();
@@ -142,6 +145,31 @@ pub const MERGE_FIT: f64 = 1.5;
 /// A split whose crowns all correlate below this fraction of their own is
 /// taken over fewer trees.
 pub const APART_RATIO: f64 = 0.3;
+
+/// A crown fitted well enough, its surface still improving by a factor
+/// [`SPLIT_FIT`] or more when cut in two, is two trees unless its halves
+/// sway as one: mean correlation at least this…
+pub const SPLIT_DEPENDENCE: f64 = 0.25;
+/// …or at least this fraction of their own.
+pub const SPLIT_RATIO: f64 = 0.75;
+/// The worst crown's RMS must fall to this fraction of the fewer crowns'
+/// for [`SPLIT_DEPENDENCE`] and [`SPLIT_RATIO`] to decide the split.
+pub const SPLIT_FIT: f64 = 0.8;
+
+/// Whether `more` (one crown more than `fewer`) is taken over `fewer`:
+/// its crowns all sway apart ([`APART_RATIO`]), or it fits clearly better
+/// ([`SPLIT_FIT`]) and none of its pairs sways as one tree. The second
+/// counts the trees whose trunk sways too little against their limbs for
+/// the first (a cut tree's halves share their trunk's sway, so they reach
+/// [`SPLIT_DEPENDENCE`] or [`SPLIT_RATIO`]; a tree cut too far barely fits
+/// better), and undoes a merge of two trees whose trunks happened to sway
+/// alike when the merged crown fits clearly worse than the two.
+fn splits(fewer: &Candidate, more: &Candidate) -> bool {
+    more.ratio < APART_RATIO
+        || (more.rms <= SPLIT_FIT * fewer.rms
+            && more.dependence < SPLIT_DEPENDENCE
+            && more.ratio < SPLIT_RATIO)
+}
 
 /// The index in `all` of the fit's choice (see [`by_fit`]).
 fn fit_choice(all: &[Candidate], s: &ForestSettings) -> Option<usize> {

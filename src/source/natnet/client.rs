@@ -110,6 +110,7 @@ pub async fn run(
         cmd,
         data: None,
         sink,
+        arrived: Instant::now(),
     };
     let mut session = Session::new(settings.session(), server, Instant::now());
     let mut buf = vec![0u8; 65536];
@@ -131,12 +132,14 @@ pub async fn run(
                 // ICMP errors (the server's port closed) surface here; the
                 // session's silence timer deals with a server that is gone.
                 if let Ok((n, from)) = r {
-                    session.handle(Instant::now(), from, Channel::Command, &buf[..n]);
+                    io.arrived = Instant::now();
+                    session.handle(io.arrived, from, Channel::Command, &buf[..n]);
                 }
             }
             r = recv(&io.data, &mut dbuf) => {
                 if let Ok((n, from)) = r {
-                    session.handle(Instant::now(), from, Channel::Data, &dbuf[..n]);
+                    io.arrived = Instant::now();
+                    session.handle(io.arrived, from, Channel::Data, &dbuf[..n]);
                 }
             }
             _ = sleep_until(timeout) => session.on_timeout(Instant::now()),
@@ -151,6 +154,9 @@ struct Io<'a> {
     cmd: UdpSocket,
     data: Option<UdpSocket>,
     sink: FrameSink,
+    /// When the datagram being handled arrived: its frames' latency on
+    /// `/status` counts from there, so the decoding is part of it.
+    arrived: Instant,
 }
 
 impl Io<'_> {
@@ -176,7 +182,7 @@ impl Io<'_> {
                     Err(e) => return Err(e),
                 },
                 Action::Frame(f) => {
-                    if !self.sink.push(f) {
+                    if !self.sink.push_arrived(f, self.arrived) {
                         session.close(Instant::now());
                     }
                 }
