@@ -135,6 +135,7 @@ pub fn fill_gaps(traces: &mut [Trace], timeline: &Timeline, settings: GapSetting
     let reach = one_s.max(3 * max_len) + 2;
     let mut fills: Vec<(usize, Fill)> = Vec::new();
     let mut stats = GapStats::default();
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get().min(2));
     {
         let mut streams: Vec<Stream<'_>> = traces.iter().map(Stream::new).collect();
         let mut pending: Vec<(usize, i64, i64)> = Vec::new();
@@ -148,7 +149,7 @@ pub fn fill_gaps(traces: &mut [Trace], timeline: &Timeline, settings: GapSetting
             let ready = |g: &(usize, i64, i64)| g.2 + reach <= frontier || frontier > last + reach;
             let (now, later): (Vec<_>, Vec<_>) = pending.into_iter().partition(ready);
             pending = later;
-            for (k, a, b) in now {
+            let one = |&(k, a, b): &(usize, i64, i64)| {
                 let ctx = Context {
                     streams: &streams,
                     host: k,
@@ -156,10 +157,12 @@ pub fn fill_gaps(traces: &mut [Trace], timeline: &Timeline, settings: GapSetting
                     b,
                     reach,
                 };
-                let (fill, st) = fill_one(&ctx, timeline, settings, one_s);
+                fill_one(&ctx, timeline, settings, one_s)
+            };
+            for ((k, _, _), (fill, st)) in now.iter().zip(on_cores(&now, cores, one)) {
                 stats.add(&st);
                 if let Some(f) = fill {
-                    fills.push((k, f));
+                    fills.push((*k, f));
                 }
             }
             let keep_from = pending.iter().map(|g| g.1).min().unwrap_or(frontier) - reach;
@@ -176,13 +179,39 @@ pub fn fill_gaps(traces: &mut [Trace], timeline: &Timeline, settings: GapSetting
     stats
 }
 
+/// `f` of every item, on two threads when `cores` allows and there are a
+/// few items, in the items' order whatever the threads did (the gaps of a
+/// batch are independent: each reads the streams and makes its own fill).
+/// The long gaps' model made gap filling the marker stage's largest step.
+fn on_cores<T: Sync, R: Send>(items: &[T], cores: usize, f: impl Fn(&T) -> R + Sync) -> Vec<R> {
+    if cores < 2 || items.len() < 4 {
+        return items.iter().map(&f).collect();
+    }
+    // Alternate items, so the long gaps spread over both threads.
+    let f = &f;
+    let half = |odd: usize| (items.iter().skip(odd).step_by(2)).map(f).collect::<Vec<R>>();
+    let (evens, odds) = std::thread::scope(|scope| {
+        let odds = scope.spawn(|| half(1));
+        let evens = half(0);
+        let odds = odds.join().unwrap_or_else(|e| std::panic::resume_unwind(e));
+        (evens, odds)
+    });
+    let mut out = Vec::with_capacity(items.len());
+    let mut odds = odds.into_iter();
+    for e in evens {
+        out.push(e);
+        out.extend(odds.next());
+    }
+    out
+}
+
 /// One trace read sequentially into a window of frames.
 struct Stream<'a> {
     /// The trace's measurements (frame, position): only they are decoded,
     /// the missing frames between them are written as `None` (reading
     /// every sample, missing ones included, through a boxed iterator of
     /// `Sample`s was a tenth of gap filling's time).
-    it: Box<dyn Iterator<Item = (i64, DVec3)> + 'a>,
+    it: Box<dyn Iterator<Item = (i64, DVec3)> + Sync + 'a>,
     /// The measurement read but not yet placed in `buf`.
     next: Option<(i64, DVec3)>,
     /// Frame of `buf[start]`.
