@@ -189,7 +189,11 @@ fn on_cores<T: Sync, R: Send>(items: &[T], cores: usize, f: impl Fn(&T) -> R + S
     }
     // Alternate items, so the long gaps spread over both threads.
     let f = &f;
-    let half = |odd: usize| (items.iter().skip(odd).step_by(2)).map(f).collect::<Vec<R>>();
+    let half = |odd: usize| {
+        (items.iter().skip(odd).step_by(2))
+            .map(f)
+            .collect::<Vec<R>>()
+    };
     let (evens, odds) = std::thread::scope(|scope| {
         let odds = scope.spawn(|| half(1));
         let evens = half(0);

@@ -468,7 +468,11 @@ fn regress(rows: &Rows, fit: Fit) -> Option<(Vec<f64>, DVec3)> {
     }
     let trace: f64 = (0..k).map(|i| ata[i * k + i]).sum();
     let ridge = fit.ridge * trace / k as f64 + 1e-15;
-    let prior = if fit.towards_mean { 1.0 / k as f64 } else { 0.0 };
+    let prior = if fit.towards_mean {
+        1.0 / k as f64
+    } else {
+        0.0
+    };
     // Minimising |A w − b|² + λ |w − w₀|²: (AᵀA + λ) w = Aᵀb + λ w₀.
     for i in 0..k {
         ata[i * k + i] += ridge;
@@ -520,4 +524,3 @@ fn drift(series: &[Option<DVec3>], lag: usize) -> (f64, usize) {
     }
     (sum, n)
 }
-
