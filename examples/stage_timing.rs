@@ -1,5 +1,7 @@
 //! Where the time of the tips stage goes on one recording: reading,
-//! tracking, cleaning. `cargo run --release --example stage_timing FILE`.
+//! tracking, cleaning. `cargo run --release --example stage_timing FILE
+//! [N]`: with N, cleans N times (the time printed is the mean), for a
+//! profiler to see the clean step (`perf record --call-graph dwarf`).
 
 use std::time::Instant;
 
@@ -27,9 +29,17 @@ fn main() {
     }
     let tracked = tracker.finish();
     let track_time = t1.elapsed();
+    let repeat: u32 = std::env::args()
+        .nth(2)
+        .and_then(|n| n.parse().ok())
+        .unwrap_or(1)
+        .max(1);
     let t2 = Instant::now();
+    for _ in 1..repeat {
+        std::hint::black_box(track::clean(tracked.clone(), &config.tracking, "x", 100.0));
+    }
     let (tips, _) = track::clean(tracked, &config.tracking, "x", 100.0);
-    let clean = t2.elapsed();
+    let clean = t2.elapsed() / repeat;
     println!(
         "{} frames: read {:.1} ms, track {:.1} ms ({:.1} µs/frame), clean {:.1} ms, {} tips",
         frames.len(),

@@ -6,7 +6,10 @@
 //!
 //! `cargo run --release --example track_stress [SEEDS] [WIND_S] [NAMES]`
 //! (defaults: 3 seeds, 20 s of wind after 8 s still, every stress; NAMES
-//! picks some, comma-separated: `all,close`).
+//! picks some, comma-separated: `all,close`). A fourth argument `long`
+//! places a long occlusion (0.25–2 s) on every third tip
+//! ([`stress::long_gaps`]), for the gap-fill columns: the default sessions
+//! hold about one gap of 51 frames–2 s each.
 
 use treemocap::sim::{self, score, stress};
 use treemocap::track::{self, Tracker, TrackingSettings};
@@ -16,6 +19,7 @@ fn main() {
     let seeds: u64 = args.get(1).and_then(|s| s.parse().ok()).unwrap_or(3);
     let wind_s: f64 = args.get(2).and_then(|s| s.parse().ok()).unwrap_or(20.0);
     let only: Option<Vec<&str>> = args.get(3).map(|s| s.split(',').collect());
+    let long = args.get(4).is_some_and(|s| s == "long");
     let cfg = TrackingSettings::default();
     println!(
         "| stress | tips found/placed | wrong samples | fragments | rest error max (mm) | fills bridging two markers | fill error 1–10 f (mm, ours / PCHIP) | 11–50 f | 51 f–2 s | largest sway (mm) | closest tips (mm) |"
@@ -29,7 +33,7 @@ fn main() {
         if only.as_ref().is_some_and(|o| !o.contains(&name)) {
             continue;
         }
-        row(name, k, seeds, wind_s, &cfg);
+        row(name, k, seeds, wind_s, long, &cfg);
     }
     // The combined stress has 1 mm noise: the filters told so hold the
     // tip count (docs/tracking.md, `noise_mm`).
@@ -39,18 +43,24 @@ fn main() {
             ..cfg.clone()
         };
         let k = names.iter().position(|n| *n == "all").unwrap_or(0);
-        row("all, noise_mm 1.5", k, seeds, wind_s, &noisy);
+        row("all, noise_mm 1.5", k, seeds, wind_s, long, &noisy);
     }
 }
 
-/// Runs stress `k` over `seeds` seeds and prints its row.
-fn row(name: &str, k: usize, seeds: u64, wind_s: f64, cfg: &TrackingSettings) {
+/// Runs stress `k` over `seeds` seeds (with many long gaps if `long`) and
+/// prints its row.
+fn row(name: &str, k: usize, seeds: u64, wind_s: f64, long: bool, cfg: &TrackingSettings) {
     let bins = score::fill_bins(240.0);
     let mut total = score::Score::default();
     let (mut sway, mut spacing) = (0.0f64, f64::INFINITY);
     for seed in 0..seeds {
         let st = stress::all(&stress::base(100 + seed, 70, 8.0, wind_s)).swap_remove(k);
-        let syn = sim::generate(&st.options).expect("stress options are valid");
+        let opts = if long {
+            stress::long_gaps(st.options)
+        } else {
+            st.options
+        };
+        let syn = sim::generate(&opts).expect("stress options are valid");
         let mut tracker = Tracker::new(cfg, Some(240.0));
         for f in &syn.frames {
             tracker.push(f);

@@ -117,6 +117,23 @@ pub fn all(base: &SynthOptions) -> Vec<Stress> {
     ]
 }
 
+/// Long occlusions placed by [`long_gaps`]: one per this many tips.
+const LONG_GAP_EVERY: usize = 3;
+
+/// `opts` with many more long occlusions, all 0.25–2 s (the fill targets'
+/// longest bin is 51 frames–2 s at 240 Hz): the default places one per 12
+/// tips of 1–4 s, about one gap of that bin per session, too few for a
+/// mean error that means anything. The gap-fill columns of the sweep
+/// (`track_stress … long`) and tests/it/gaps_fill.rs use it.
+pub fn long_gaps(opts: SynthOptions) -> SynthOptions {
+    SynthOptions {
+        long_gaps: Some(opts.tips.div_ceil(LONG_GAP_EVERY)),
+        long_gap_min_s: 0.25,
+        long_gap_max_s: 2.0,
+        ..opts
+    }
+}
+
 /// `opts` with its `sway_scale` lowered (or raised) so that the largest
 /// sway of its session lies within 3 % below [`MAX_SWAY_M`]. The
 /// displacement grows about linearly with the scale (the twigs' modes with

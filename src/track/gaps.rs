@@ -28,7 +28,7 @@ use glam::DVec3;
 use serde::Serialize;
 
 use super::jitter::third_difference;
-use crate::model::trace::{Curve, Fill, Sample, SampleKind, Timeline, Trace};
+use crate::model::trace::{Curve, Fill, Timeline, Trace};
 
 mod model;
 use model::Model;
@@ -109,6 +109,12 @@ const NOISY_END_FIT_S: f64 = 0.15;
 /// row among 0.05, 0.1, 0.15, 0.2 and 0.3 s: 51 f–2 s 0.78, 0.75, 0.72,
 /// 0.69 and 0.65 × PCHIP, three gaps).
 const NOISY_SMOOTH_S: f64 = 0.3;
+/// Seconds each side of a long gap (over `MAX_OWN_S`) on which its model
+/// is fitted (at least the gap's length): a 1 s window saw a limb's
+/// 0.3–0.75 Hz sway over less than a period, and the weights followed
+/// the twigs (long-gap sweep, 51 f–2 s, `base`: 0.74 → 0.71 × PCHIP
+/// with the six nearest neighbours; see `model::LONG`).
+const LONG_WINDOW_S: f64 = 2.0;
 /// Gap length (s) at which the residual's end slopes are half faded
 /// towards the secant (to the 4th power): across a long gap the
 /// residual's own swing is unknown, and an extrapolated slope would carry
@@ -129,6 +135,7 @@ pub fn fill_gaps(traces: &mut [Trace], timeline: &Timeline, settings: GapSetting
     let reach = one_s.max(3 * max_len) + 2;
     let mut fills: Vec<(usize, Fill)> = Vec::new();
     let mut stats = GapStats::default();
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get().min(2));
     {
         let mut streams: Vec<Stream<'_>> = traces.iter().map(Stream::new).collect();
         let mut pending: Vec<(usize, i64, i64)> = Vec::new();
@@ -142,7 +149,7 @@ pub fn fill_gaps(traces: &mut [Trace], timeline: &Timeline, settings: GapSetting
             let ready = |g: &(usize, i64, i64)| g.2 + reach <= frontier || frontier > last + reach;
             let (now, later): (Vec<_>, Vec<_>) = pending.into_iter().partition(ready);
             pending = later;
-            for (k, a, b) in now {
+            let one = |&(k, a, b): &(usize, i64, i64)| {
                 let ctx = Context {
                     streams: &streams,
                     host: k,
@@ -150,10 +157,12 @@ pub fn fill_gaps(traces: &mut [Trace], timeline: &Timeline, settings: GapSetting
                     b,
                     reach,
                 };
-                let (fill, st) = fill_one(&ctx, timeline, settings, one_s);
+                fill_one(&ctx, timeline, settings, one_s)
+            };
+            for ((k, _, _), (fill, st)) in now.iter().zip(on_cores(&now, cores, one)) {
                 stats.add(&st);
                 if let Some(f) = fill {
-                    fills.push((k, f));
+                    fills.push((*k, f));
                 }
             }
             let keep_from = pending.iter().map(|g| g.1).min().unwrap_or(frontier) - reach;
@@ -170,9 +179,45 @@ pub fn fill_gaps(traces: &mut [Trace], timeline: &Timeline, settings: GapSetting
     stats
 }
 
+/// `f` of every item, on two threads when `cores` allows and there are a
+/// few items, in the items' order whatever the threads did (the gaps of a
+/// batch are independent: each reads the streams and makes its own fill).
+/// The long gaps' model made gap filling the marker stage's largest step.
+fn on_cores<T: Sync, R: Send>(items: &[T], cores: usize, f: impl Fn(&T) -> R + Sync) -> Vec<R> {
+    if cores < 2 || items.len() < 4 {
+        return items.iter().map(&f).collect();
+    }
+    // Alternate items, so the long gaps spread over both threads.
+    let f = &f;
+    let half = |odd: usize| {
+        (items.iter().skip(odd).step_by(2))
+            .map(f)
+            .collect::<Vec<R>>()
+    };
+    let (evens, odds) = std::thread::scope(|scope| {
+        let odds = scope.spawn(|| half(1));
+        let evens = half(0);
+        let odds = odds.join().unwrap_or_else(|e| std::panic::resume_unwind(e));
+        (evens, odds)
+    });
+    let mut out = Vec::with_capacity(items.len());
+    let mut odds = odds.into_iter();
+    for e in evens {
+        out.push(e);
+        out.extend(odds.next());
+    }
+    out
+}
+
 /// One trace read sequentially into a window of frames.
 struct Stream<'a> {
-    it: Box<dyn Iterator<Item = Sample> + 'a>,
+    /// The trace's measurements (frame, position): only they are decoded,
+    /// the missing frames between them are written as `None` (reading
+    /// every sample, missing ones included, through a boxed iterator of
+    /// `Sample`s was a tenth of gap filling's time).
+    it: Box<dyn Iterator<Item = (i64, DVec3)> + Sync + 'a>,
+    /// The measurement read but not yet placed in `buf`.
+    next: Option<(i64, DVec3)>,
     /// Frame of `buf[start]`.
     base: i64,
     /// The window's frames from `start` on (measured positions); a plain
@@ -187,7 +232,8 @@ struct Stream<'a> {
 impl<'a> Stream<'a> {
     fn new(t: &'a Trace) -> Self {
         Stream {
-            it: Box::new(t.samples()),
+            it: Box::new(t.measurements()),
+            next: None,
             base: t.first_frame(),
             buf: Vec::new(),
             start: 0,
@@ -197,13 +243,23 @@ impl<'a> Stream<'a> {
     }
 
     fn ensure(&mut self, upto: i64) {
-        while self.base + ((self.buf.len() - self.start) as i64) <= upto {
-            match self.it.next() {
-                Some(s) => self
-                    .buf
-                    .push((s.kind == SampleKind::Measured).then_some(s.position)),
-                None => break,
+        loop {
+            let end = self.base + (self.buf.len() - self.start) as i64;
+            if end > upto {
+                break;
             }
+            let Some((f, p)) = self.next.take().or_else(|| self.it.next()) else {
+                break;
+            };
+            if f > upto {
+                // Missing frames up to `upto`; the measurement waits.
+                self.buf
+                    .resize(self.buf.len() + (upto + 1 - end) as usize, None);
+                self.next = Some((f, p));
+                break;
+            }
+            self.buf.resize(self.buf.len() + (f - end) as usize, None);
+            self.buf.push(Some(p));
         }
     }
 
@@ -286,7 +342,15 @@ fn fill_one(
     }
     let dt = (timeline.time(b) - timeline.time(a)) / (b - a) as f64;
     let duration = missing as f64 * dt;
-    let window = one_s.max(b - a).min(ctx.reach - 2);
+    // A long gap's model is fitted as `model::LONG` says, over 2 s each
+    // side; the others' (their plausibility) as `model::CHECK`, over 1 s.
+    let long = duration > MAX_OWN_S;
+    let (fit, window) = if long {
+        (model::LONG, (LONG_WINDOW_S * one_s as f64).round() as i64)
+    } else {
+        (model::CHECK, one_s)
+    };
+    let window = window.max(b - a).min(ctx.reach - 2);
     let base_span = ((END_FIT_S / dt).round() as i64).max(4);
     // Under noise of a millimetre the ends are fitted over longer spans and
     // the neighbours smoothed (their noise would pass into the fill).
@@ -298,7 +362,7 @@ fn fill_one(
         (base_span, 0)
     };
     let model = if settings.neighbours && duration <= settings.max_fill_s + 1e-9 {
-        Model::fit(ctx, window, smooth)
+        Model::fit(ctx, window, smooth, fit)
     } else {
         None
     };
@@ -555,6 +619,7 @@ fn pchip_slope(d1: DVec3, h1: f64, d2: DVec3, h2: f64) -> DVec3 {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::model::trace::SampleKind;
 
     fn timeline(n: usize) -> Timeline {
         Timeline {

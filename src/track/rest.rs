@@ -70,10 +70,17 @@ fn block_sums(trace: &Trace, block: i64) -> BlockSums {
     let first_block = (trace.first_frame() / block) as usize;
     let last_block = (trace.last_frame() / block) as usize;
     let mut per_block = vec![(0.0, DVec3::ZERO, 0.0); last_block - first_block + 1];
-    let origin = trace.measurements().next().map_or(DVec3::ZERO, |m| m.1);
+    let mut origin = None;
+    // The block of each frame followed along, not divided out per sample
+    // (the division was most of this loop's time).
+    let (mut slot_at, mut block_end) = (0usize, (first_block as i64 + 1) * block);
     for (f, p) in trace.measurements() {
-        let d = p - origin;
-        if let Some(slot) = per_block.get_mut((f / block) as usize - first_block) {
+        let d = p - *origin.get_or_insert(p);
+        while f >= block_end {
+            slot_at += 1;
+            block_end += block;
+        }
+        if let Some(slot) = per_block.get_mut(slot_at) {
             slot.0 += 1.0;
             slot.1 += d;
             slot.2 += d.length_squared();
