@@ -134,6 +134,7 @@ impl Pipeline {
         sink: &FrameSink,
         tips_rx: Receiver<Vec<(usize, DVec3)>>,
     ) {
+        self.shared.placement.pin_pipeline();
         let stop = self.shared.shutdown.gate();
         let frames = rx.receiver();
         loop {

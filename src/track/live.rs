@@ -71,6 +71,12 @@ impl LiveTips {
         self.claimed = vec![false; tips.len()];
     }
 
+    /// What the tracker counted so far (frames, markers, traces started):
+    /// `examples/frame_cost` compares the work of two runs with it.
+    pub fn stats(&self) -> &super::tracker::TrackStats {
+        self.tracker.stats()
+    }
+
     /// Whether there is a tree to label with.
     pub fn is_empty(&self) -> bool {
         self.tips.is_empty()
@@ -79,18 +85,26 @@ impl LiveTips {
     /// Tracks one frame; returns the tree's tips measured in it.
     pub fn update(&mut self, frame: &MarkerFrame) -> Seen {
         self.tracker.push(frame);
-        let current: Vec<(usize, DVec3, usize)> = self.tracker.current_markers().collect();
         // Each tip is claimed by one identity: the measured tips are put in
         // their tip's slot and read back in tip (marker) order, instead of
-        // sorting a thousand of them every frame.
+        // sorting a thousand of them every frame. The tracker's identities
+        // are read in place (they were copied into a fresh 40 KB vector
+        // every frame at 1 000 markers); only the labels change meanwhile.
         let mut slots = std::mem::take(&mut self.slots);
         slots.clear();
         slots.resize(self.tips.len(), None);
+        let mut labels = Labels {
+            tips: &self.tips,
+            match_radius: self.match_radius,
+            label: &mut self.label,
+            claimed: &mut self.claimed,
+            unmatched: &mut self.unmatched,
+        };
         let mut measured = 0;
-        for (identity, p, index) in current {
-            let k = match self.label.get(&identity) {
+        for (identity, p, index) in self.tracker.current_markers() {
+            let k = match labels.label.get(&identity) {
                 Some(k) => Some(*k),
-                None => self.match_identity(identity),
+                None => labels.match_identity(&self.tracker, identity),
             };
             if let Some(slot) = k.and_then(|k| slots.get_mut(k)) {
                 *slot = Some((p, index));
@@ -121,12 +135,25 @@ impl LiveTips {
             Some(*p - self.tips[k].1)
         })
     }
+}
 
-    fn match_identity(&mut self, identity: usize) -> Option<usize> {
+/// The labelling state `update` changes while it reads the tracker's
+/// identities: the fields of [`LiveTips`] apart from the tracker, borrowed
+/// on their own.
+struct Labels<'a> {
+    tips: &'a [(usize, DVec3)],
+    match_radius: f64,
+    label: &'a mut IdMap<usize>,
+    claimed: &'a mut Vec<bool>,
+    unmatched: &'a mut IdMap<usize>,
+}
+
+impl Labels<'_> {
+    fn match_identity(&mut self, tracker: &Tracker, identity: usize) -> Option<usize> {
         if self.unmatched.get(&identity) == Some(&self.tips.len()) {
             return None;
         }
-        let (first, _) = self.tracker.first_position(identity)?;
+        let (first, _) = tracker.first_position(identity)?;
         let best = self
             .tips
             .iter()
