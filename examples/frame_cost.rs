@@ -7,7 +7,7 @@
 //! that daemon's latency p99 is made of.
 //!
 //! `cargo run --release --example frame_cost -- [SECONDS] [RATE] [MARKERS]
-//! [--paced] [--natnet] [--evict-kb N] [--cpu N]`
+//! [--paced] [--natnet] [--evict-kb N] [--cpu N] [--warm]`
 //! (defaults: 90 s at 360 Hz with 1 000 markers, frames back to back).
 //!
 //! The options reproduce, one at a time, what differs inside the daemon:
@@ -20,7 +20,10 @@
 //! - `--evict-kb N`: after each frame the thread reads and writes N KB of
 //!   other memory, as the pipeline's own work (window, recording) and the
 //!   other threads sharing its core do between two frames;
-//! - `--cpu N`: the thread is pinned to CPU N.
+//! - `--cpu N`: the thread is pinned to CPU N;
+//! - `--warm`: just before each frame the tracker's state is prefetched
+//!   (`LiveTips::warm`, what `daemon.warm_us` does before a frame is due);
+//!   its cost is printed apart, it is not in the frame's.
 //!
 //! Besides the wall time of each `LiveTips::update` it prints the thread's
 //! CPU time for it (time the thread was preempted is not in it), and what
@@ -52,6 +55,7 @@ struct Options {
     natnet: bool,
     evict_kb: usize,
     cpu: Option<usize>,
+    warm: bool,
 }
 
 impl Options {
@@ -65,6 +69,7 @@ impl Options {
             natnet: false,
             evict_kb: 0,
             cpu: None,
+            warm: false,
         };
         let mut args = std::env::args().skip(1);
         while let Some(a) = args.next() {
@@ -76,6 +81,7 @@ impl Options {
             match a.as_str() {
                 "--paced" => o.paced = true,
                 "--natnet" => o.natnet = true,
+                "--warm" => o.warm = true,
                 "--evict-kb" => o.evict_kb = value("--evict-kb"),
                 "--cpu" => o.cpu = Some(value("--cpu")),
                 _ => numbers.push(a.parse::<f64>().expect("SECONDS RATE MARKERS are numbers")),
@@ -97,6 +103,9 @@ impl Options {
         }
         if let Some(c) = self.cpu {
             l.push(format!("pinned to CPU {c}"));
+        }
+        if self.warm {
+            l.push("state prefetched before each frame".into());
         }
         l.join(", ")
     }
@@ -177,7 +186,7 @@ fn main() {
     let mut live = LiveTips::new(&TrackingSettings::default(), None, 0.05);
     live.set_tips(&rest);
     let mut evict = vec![0u8; o.evict_kb * 1024];
-    let (mut wall, mut cpu) = (Vec::new(), Vec::new());
+    let (mut wall, mut cpu, mut warm) = (Vec::new(), Vec::new(), Vec::new());
     let mut seen_total = 0usize;
     let mut started_before = None;
     let mut clock: Option<(Instant, f64)> = None;
@@ -194,6 +203,13 @@ fn main() {
             let due = t0 + Duration::from_secs_f64(frame.time_s - s0);
             if let Some(wait) = due.checked_duration_since(Instant::now()) {
                 std::thread::sleep(wait);
+            }
+        }
+        if o.warm {
+            let t0 = Instant::now();
+            live.warm();
+            if measured {
+                warm.push(t0.elapsed().as_secs_f64() * 1e6);
             }
         }
         if measured && started_before.is_none() {
@@ -217,6 +233,9 @@ fn main() {
     let frames = wall.len().max(1);
     let stats = live.stats();
     let started = stats.traces_started - started_before.unwrap_or(0);
+    if o.warm {
+        println!("prefetch before each frame: {}", percentiles(warm));
+    }
     println!(
         "{} frames at {} Hz × {} markers, swaying, {}:\n  wall {}\n  cpu  {}\n  {:.1} tips seen a frame; traces started while measured {started}, in all {}; markers {}, duplicates {}",
         wall.len(),

@@ -77,6 +77,18 @@ impl LiveTips {
         self.tracker.stats()
     }
 
+    /// Prefetches the tracker's and the labels' state before a frame is
+    /// due (`track::warm`): off the latency path, the frame then finds it
+    /// in the caches. Reads and changes nothing.
+    pub fn warm(&self) {
+        use super::warm::{prefetch, prefetch_one};
+        self.tracker.warm();
+        prefetch(&self.tips);
+        prefetch(&self.slots);
+        prefetch(&self.claimed);
+        self.label.values().for_each(prefetch_one);
+    }
+
     /// Whether there is a tree to label with.
     pub fn is_empty(&self) -> bool {
         self.tips.is_empty()
