@@ -130,13 +130,17 @@ fn run_with(
     let handoff = Arc::new(handoff::AnalysisHandoff::default());
     let (tips_tx, tips_rx) = bounded(4);
     let (s, h) = (shared.clone(), handoff.clone());
-    threads.push(spawn_background("treemocap-analysis", placement, move || {
-        analysis::Analysis::new(s).run(&h)
-    }));
+    threads.push(spawn_background(
+        "treemocap-analysis",
+        placement,
+        move || analysis::Analysis::new(s).run(&h),
+    ));
     let s = shared.clone();
-    threads.push(spawn_background("treemocap-builder", placement, move || {
-        builder::run(&s, tips_tx)
-    }));
+    threads.push(spawn_background(
+        "treemocap-builder",
+        placement,
+        move || builder::run(&s, tips_tx),
+    ));
     let result =
         pipeline::Pipeline::new(shared.clone(), handoff.clone()).map(|p| p.run(rx, &sink, tips_rx));
     // The analysis ends once it has nothing more to read.

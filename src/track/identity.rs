@@ -302,7 +302,9 @@ impl Identities {
         prefetch(&self.cur);
         self.owner.values().for_each(prefetch_one);
         for &i in &self.active {
-            let Some(id) = self.idents.get(i) else { continue };
+            let Some(id) = self.idents.get(i) else {
+                continue;
+            };
             prefetch_one(id);
             prefetch(&id.neighbours);
             if let Some(g) = &id.gap {

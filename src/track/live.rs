@@ -187,3 +187,51 @@ impl Labels<'_> {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::frame::Marker;
+    use crate::rng::Rng;
+
+    /// Prefetching the state before a frame (`warm`, what the daemon does
+    /// with `daemon.warm_us`) changes nothing: the same tips, positions and
+    /// frame markers as without, frame by frame, through births, occlusions
+    /// and a new tree.
+    #[test]
+    fn warming_the_state_before_each_frame_changes_no_output() {
+        let mut rng = Rng::new(3);
+        let rest: Vec<DVec3> = (0..300)
+            .map(|i| DVec3::new(i as f64 * 0.03, 1.0 + rng.f64(), rng.f64()))
+            .collect();
+        let tips: Vec<(usize, DVec3)> = rest.iter().copied().enumerate().collect();
+        let settings = TrackingSettings::default();
+        let (mut plain, mut warmed) = (
+            LiveTips::new(&settings, Some(100.0), 0.05),
+            LiveTips::new(&settings, Some(100.0), 0.05),
+        );
+        plain.set_tips(&tips);
+        warmed.set_tips(&tips);
+        let mut shown = 0;
+        for f in 0..400 {
+            let t = f as f64 / 100.0;
+            let markers = rest
+                .iter()
+                .enumerate()
+                .filter(|_| !rng.chance(0.05))
+                .map(|(i, p)| Marker::new(*p + DVec3::X * 0.01 * (t + i as f64).sin()))
+                .collect();
+            let frame = MarkerFrame::new(f, t, markers);
+            if f == 250 {
+                plain.set_tips(&tips[..200]);
+                warmed.set_tips(&tips[..200]);
+            }
+            warmed.warm();
+            let (a, b) = (plain.update(&frame), warmed.update(&frame));
+            assert_eq!(a.tips, b.tips, "frame {f}");
+            assert_eq!(a.frame_markers, b.frame_markers, "frame {f}");
+            shown += a.tips.len();
+        }
+        assert!(shown > 100 * 250, "the tips were followed: {shown}");
+    }
+}

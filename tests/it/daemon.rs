@@ -749,8 +749,9 @@ fn allowed(status: &str) -> Vec<usize> {
 /// daemon. The pipeline (the main thread of `treemocap run`) may run on that
 /// CPU only; the analysis, the tree builder and the live sway (and the
 /// threads they start) on every other CPU, never on it. Frames still flow
-/// and trees are built. A CPU the process may not run on is refused with
-/// the key named.
+/// and trees are built, with `daemon.warm_us` prefetching the tracker's
+/// state before each frame. A CPU the process may not run on, and a
+/// prefetch lead out of range, are refused with the key named.
 #[test]
 fn pipeline_cpu_pins_the_pipeline_and_keeps_the_background_threads_off_it() {
     let mine = allowed(&std::fs::read_to_string("/proc/self/status").unwrap());
@@ -763,6 +764,7 @@ fn pipeline_cpu_pins_the_pipeline_and_keeps_the_background_threads_off_it() {
         &[
             "daemon.replay_speed=4".into(),
             format!("daemon.pipeline_cpu={cpu}"),
+            "daemon.warm_us=500".into(),
         ],
     );
     wait_status(http_port, "a tree", 60, |v| v["trees"].as_u64() >= Some(1));
@@ -778,7 +780,10 @@ fn pipeline_cpu_pins_the_pipeline_and_keeps_the_background_threads_off_it() {
             assert_eq!(cpus, vec![cpu], "the pipeline (main thread) on CPU {cpu}");
         } else if name.starts_with("treemocap-") {
             if mine.len() > 1 {
-                assert!(!cpus.contains(&cpu), "{name} on {cpus:?}, the pipeline's CPU {cpu} among them");
+                assert!(
+                    !cpus.contains(&cpu),
+                    "{name} on {cpus:?}, the pipeline's CPU {cpu} among them"
+                );
             }
             seen.push(name);
         }
@@ -793,7 +798,13 @@ fn pipeline_cpu_pins_the_pipeline_and_keeps_the_background_threads_off_it() {
     drop(d);
 
     let refused = Command::new(env!("CARGO_BIN_EXE_treemocap"))
-        .args(["run", "--set", "daemon.pipeline_cpu=1023", "--set", "daemon.http="])
+        .args([
+            "run",
+            "--set",
+            "daemon.pipeline_cpu=1023",
+            "--set",
+            "daemon.http=",
+        ])
         .arg("--out")
         .arg(out_dir.path())
         .current_dir(root())
@@ -804,4 +815,20 @@ fn pipeline_cpu_pins_the_pipeline_and_keeps_the_background_threads_off_it() {
         assert!(!refused.status.success());
         assert!(err.contains("daemon.pipeline_cpu"), "{err}");
     }
+    let refused = Command::new(env!("CARGO_BIN_EXE_treemocap"))
+        .args([
+            "run",
+            "--set",
+            "daemon.warm_us=200000",
+            "--set",
+            "daemon.http=",
+        ])
+        .arg("--out")
+        .arg(out_dir.path())
+        .current_dir(root())
+        .output()
+        .unwrap();
+    assert_eq!(refused.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&refused.stderr);
+    assert!(err.contains("daemon.warm_us"), "{err}");
 }
