@@ -154,8 +154,8 @@ fn pin(cpu: usize) {
 
 /// Reads and writes every cache line of `buf`.
 fn touch(buf: &mut [u8]) {
-    for i in (0..buf.len()).step_by(64) {
-        buf[i] = buf[i].wrapping_add(1);
+    for b in buf.iter_mut().step_by(64) {
+        *b = b.wrapping_add(1);
     }
     std::hint::black_box(&buf);
 }
