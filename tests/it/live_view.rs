@@ -632,7 +632,7 @@ fn the_tree_sways_with_the_poses(
         .max()
         .expect("pose events on /live for the tree shown");
     let expr = format!("treemocap.lastPoseFrame === {last}");
-    if page.wait(&expr, 5_000).is_none() {
+    if page.wait(&expr, 15_000).is_none() {
         let applied = page.state()["lastPoseFrame"].as_i64().unwrap_or(0);
         assert!(
             applied >= last - 100,
