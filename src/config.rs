@@ -125,6 +125,13 @@ pub struct DaemonConfig {
     pub channel_frames: u32,
     /// Record every frame to `OUT/session.log.csv`.
     pub record: bool,
+    /// CPU the pipeline thread is pinned to, with the analysis, builder and
+    /// live-sway threads kept off it; -1 leaves them all to the kernel
+    /// (`daemon::affinity`).
+    pub pipeline_cpu: i32,
+    /// Microseconds before the next frame is due at which the pipeline
+    /// prefetches the live tracker's state (`track::warm`); 0 = never.
+    pub warm_us: u32,
     /// HTTP and WebSocket address; `""` in the config (None) turns it off.
     #[serde(with = "optional_addr")]
     pub http: Option<SocketAddr>,
@@ -396,6 +403,13 @@ fn validate_daemon(d: &DaemonConfig) -> Result<()> {
     check_range("daemon.wind_turn_deg", d.wind_turn_deg, 1.0, 180.0)?;
     check_range("daemon.period_s", d.period_s, 0.0, 86_400.0)?;
     check_range("daemon.follow_gate_mm", d.follow_gate_mm, 5.0, 500.0)?;
+    check_range(
+        "daemon.pipeline_cpu",
+        f64::from(d.pipeline_cpu),
+        -1.0,
+        1023.0,
+    )?;
+    check_range("daemon.warm_us", f64::from(d.warm_us), 0.0, 100_000.0)?;
     check_range(
         "daemon.channel_frames",
         d.channel_frames as f64,

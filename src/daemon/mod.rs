@@ -19,6 +19,7 @@
 //! down the channels — the analysis ends when the pipeline's sender goes, the
 //! builder when the analysis closes its requests.
 
+mod affinity;
 mod analysis;
 mod builder;
 mod console;
@@ -98,7 +99,8 @@ fn run_with(
     console: bool,
 ) -> Result<()> {
     std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
-    let shared = new_shared(config, out, shutdown.clone());
+    let placement = affinity::Placement::from_setting(config.daemon.pipeline_cpu)?;
+    let shared = new_shared(config, out, shutdown.clone(), placement);
     if let Some(reload) = reload {
         let s = shared.clone();
         rt.spawn(async move { reload_on_hangup(s, reload).await });
@@ -128,13 +130,17 @@ fn run_with(
     let handoff = Arc::new(handoff::AnalysisHandoff::default());
     let (tips_tx, tips_rx) = bounded(4);
     let (s, h) = (shared.clone(), handoff.clone());
-    threads.push(spawn_background("treemocap-analysis", move || {
-        analysis::Analysis::new(s).run(&h)
-    }));
+    threads.push(spawn_background(
+        "treemocap-analysis",
+        placement,
+        move || analysis::Analysis::new(s).run(&h),
+    ));
     let s = shared.clone();
-    threads.push(spawn_background("treemocap-builder", move || {
-        builder::run(&s, tips_tx)
-    }));
+    threads.push(spawn_background(
+        "treemocap-builder",
+        placement,
+        move || builder::run(&s, tips_tx),
+    ));
     let result =
         pipeline::Pipeline::new(shared.clone(), handoff.clone()).map(|p| p.run(rx, &sink, tips_rx));
     // The analysis ends once it has nothing more to read.
@@ -149,7 +155,12 @@ fn run_with(
     result
 }
 
-fn new_shared(config: Config, out: &Path, shutdown: Shutdown) -> Arc<Shared> {
+fn new_shared(
+    config: Config,
+    out: &Path,
+    shutdown: Shutdown,
+    placement: affinity::Placement,
+) -> Arc<Shared> {
     let wind_log = WindLog::create(&out.join("wind.csv"))
         .map_err(|e| tracing::warn!("{e}"))
         .ok();
@@ -169,6 +180,7 @@ fn new_shared(config: Config, out: &Path, shutdown: Shutdown) -> Arc<Shared> {
         hub: Arc::new(LiveHub::default()),
         tree_tx: watch::channel(None).0,
         requests: LatestRequest::default(),
+        placement,
         recon_config: Mutex::new(config.clone()),
         config,
     })
@@ -243,10 +255,16 @@ fn osc_sender(targets: &[SocketAddr]) -> Result<Option<OscSender>> {
 /// lower priority (nice +[`BACKGROUND_NICE`]), so that on a machine with
 /// few cores the pipeline thread, which stamps every frame's latency, gets
 /// the CPU first whenever both want it. The background work still gets
-/// every cycle the pipeline leaves; it is only ever late, never lost.
-fn spawn_background(name: &str, f: impl FnOnce() + Send + 'static) -> JoinHandle<()> {
+/// every cycle the pipeline leaves; it is only ever late, never lost. With
+/// `daemon.pipeline_cpu` set it also runs off the pipeline's CPU.
+fn spawn_background(
+    name: &str,
+    placement: affinity::Placement,
+    f: impl FnOnce() + Send + 'static,
+) -> JoinHandle<()> {
     spawn(name, move || {
         lower_priority();
+        placement.keep_off_pipeline();
         f()
     })
 }

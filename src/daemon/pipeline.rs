@@ -55,6 +55,9 @@ pub(crate) struct Pipeline {
     /// Where the window goes for analysis: a snapshot (shared chunks, no
     /// copy), offered only when the analysis is free.
     handoff: Arc<AnalysisHandoff>,
+    /// When to prefetch the tracker's state for the next frame
+    /// (`daemon.warm_us` before it is due), until done.
+    warm_at: Option<Instant>,
 }
 
 /// A smoothed estimate of the source's frame rate. Until two frames have
@@ -122,6 +125,7 @@ impl Pipeline {
             osc: super::osc_sender(&d.osc_targets)?,
             recorder,
             handoff,
+            warm_at: None,
             shared,
         })
     }
@@ -134,6 +138,7 @@ impl Pipeline {
         sink: &FrameSink,
         tips_rx: Receiver<Vec<(usize, DVec3)>>,
     ) {
+        self.shared.placement.pin_pipeline();
         let stop = self.shared.shutdown.gate();
         let frames = rx.receiver();
         loop {
@@ -151,13 +156,47 @@ impl Pipeline {
                     }
                 }
                 recv(stop) -> _ => break,
-                default(TICK) => self.on_quiet(),
+                default(self.wait()) => self.on_timeout(),
             }
             self.flush_recording();
         }
         if let Some(w) = self.recorder.take() {
             super::counters::finish_recording(w);
         }
+    }
+
+    /// How long to wait for a frame: until the tracker's state is to be
+    /// prefetched, at most `TICK`.
+    fn wait(&self) -> Duration {
+        self.warm_at
+            .map_or(TICK, |at| at.saturating_duration_since(Instant::now()))
+            .min(TICK)
+    }
+
+    /// No frame came in time: prefetch the tracker's state if the next
+    /// frame is about due, else the source is quiet.
+    fn on_timeout(&mut self) {
+        match self.warm_at.take() {
+            Some(_) => self.follower.warm(),
+            None => self.on_quiet(),
+        }
+    }
+
+    /// Sets when to prefetch for the frame after the one that arrived at
+    /// `arrived`: `daemon.warm_us` before it is due at the source's rate.
+    /// Not when that moment has passed (this frame's work ran long, the
+    /// next may be waiting already) or the rate is not known yet.
+    fn plan_warm(&mut self, arrived: Instant) {
+        let lead = self.shared.config.daemon.warm_us;
+        self.warm_at = None;
+        if lead == 0 || !self.rate.known {
+            return;
+        }
+        let period = Duration::from_secs_f64(1.0 / self.rate.hz.max(1.0));
+        let lead = Duration::from_micros(u64::from(lead));
+        self.warm_at = (arrived + period)
+            .checked_sub(lead)
+            .filter(|&at| at > Instant::now());
     }
 
     /// The tips of a new tree: the live follower starts from them.
@@ -217,6 +256,7 @@ impl Pipeline {
         self.window.push(&frame);
         self.maybe_analyse(now);
         self.show(frame, seen);
+        self.plan_warm(arrived);
     }
 
     /// The viewers' frame, built at most `MAX_FRAMES_PER_S` times a second

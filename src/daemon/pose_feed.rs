@@ -52,8 +52,10 @@ impl PoseFeed {
         let s = shared.clone();
         let mut pose = LivePose::new();
         let has_osc = osc.is_some();
-        let worker =
-            super::spawn_background("treemocap-pose", move || work(&s, &mut pose, osc, &rx));
+        let placement = shared.placement;
+        let worker = super::spawn_background("treemocap-pose", placement, move || {
+            work(&s, &mut pose, osc, &rx)
+        });
         Ok(PoseFeed {
             shared,
             tx: Some(tx),

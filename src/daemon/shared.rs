@@ -119,6 +119,9 @@ pub(crate) struct Shared {
     pub(crate) tree_tx: watch::Sender<Option<Arc<TreeSnapshot>>>,
     /// Tree requests from the analysis to the builder.
     pub(crate) requests: LatestRequest,
+    /// Which CPUs the pipeline and the background threads run on
+    /// (`daemon.pipeline_cpu`).
+    pub(crate) placement: super::affinity::Placement,
 }
 
 impl Shared {

@@ -112,6 +112,14 @@ impl Grid {
         }
     }
 
+    /// Prefetches the grid's buffers (`track::warm`).
+    pub(crate) fn warm(&self) {
+        use super::warm::prefetch;
+        prefetch(&self.entries);
+        prefetch(&self.table);
+        prefetch(&self.occupied);
+    }
+
     /// The cell's points (a run of `entries`), empty if none.
     fn run(&self, key: u64) -> std::ops::Range<usize> {
         let b = filter_bit(key);

@@ -331,6 +331,25 @@ impl Identities {
         self.idents.iter().map(|i| i.pieces.clone()).collect()
     }
 
+    /// Prefetches what a frame reads of the active identities
+    /// (`track::warm`; reads and changes nothing).
+    pub(crate) fn warm(&self) {
+        use super::warm::{prefetch, prefetch_one};
+        prefetch(&self.active);
+        prefetch(&self.cur);
+        self.owner.values().for_each(prefetch_one);
+        for &i in &self.active {
+            let Some(id) = self.idents.get(i) else {
+                continue;
+            };
+            prefetch_one(id);
+            prefetch(&id.neighbours);
+            if let Some(g) = &id.gap {
+                prefetch(&g.snap);
+            }
+        }
+    }
+
     /// Mean and spread of identity `i`'s first measurements.
     pub(crate) fn first_position(&self, i: usize) -> Option<(DVec3, f64)> {
         self.idents.get(i).map(|id| id.first)

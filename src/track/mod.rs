@@ -31,6 +31,7 @@ pub mod noise;
 pub mod rest;
 pub mod settings;
 pub mod tracker;
+mod warm;
 
 use crate::model::trace::{Timeline, Trace};
 pub use settings::TrackingSettings;

@@ -262,6 +262,24 @@ impl Tracker {
         self.identities.first_position(i)
     }
 
+    /// Prefetches the state the next frame reads: the live traces, the
+    /// identities, the per-frame buffers (`track::warm`). The daemon calls
+    /// it just before a frame is due; it reads and changes nothing.
+    pub fn warm(&self) {
+        use super::warm::prefetch;
+        prefetch(&self.live);
+        self.identities.warm();
+        prefetch(&self.measured_at);
+        prefetch(&self.points);
+        prefetch(&self.src);
+        prefetch(&self.edges);
+        prefetch(&self.out);
+        prefetch(&self.taken);
+        prefetch(&self.by_x);
+        prefetch(&self.order);
+        self.grid.warm();
+    }
+
     /// Ends the session and hands over the traces.
     pub fn finish(mut self) -> Tracked {
         self.stats.greedy_components = self.assigner.greedy_components;

@@ -723,3 +723,112 @@ fn a_burst_faster_than_the_pipeline_drops_oldest_frames_and_counts_them() {
         "the pipeline kept up with an unthrottled replay? {v}"
     );
 }
+
+/// The CPUs in a `Cpus_allowed_list` of /proc (`0-3,6`).
+fn cpu_list(text: &str) -> Vec<usize> {
+    text.trim()
+        .split(',')
+        .filter(|s| !s.is_empty())
+        .flat_map(|part| {
+            let (a, b) = part.split_once('-').unwrap_or((part, part));
+            a.parse::<usize>().unwrap()..=b.parse::<usize>().unwrap()
+        })
+        .collect()
+}
+
+/// A thread's `Cpus_allowed_list`, from /proc/PID/task/TID/status.
+fn allowed(status: &str) -> Vec<usize> {
+    let line = status
+        .lines()
+        .find_map(|l| l.strip_prefix("Cpus_allowed_list:"))
+        .expect("Cpus_allowed_list in /proc status");
+    cpu_list(line)
+}
+
+/// `daemon.pipeline_cpu`: what `taskset -p` shows a user of a running
+/// daemon. The pipeline (the main thread of `treemocap run`) may run on that
+/// CPU only; the analysis, the tree builder and the live sway (and the
+/// threads they start) on every other CPU, never on it. Frames still flow
+/// and trees are built, with `daemon.warm_us` prefetching the tracker's
+/// state before each frame. A CPU the process may not run on, and a
+/// prefetch lead out of range, are refused with the key named.
+#[test]
+fn pipeline_cpu_pins_the_pipeline_and_keeps_the_background_threads_off_it() {
+    let mine = allowed(&std::fs::read_to_string("/proc/self/status").unwrap());
+    let cpu = *mine.last().unwrap();
+    let out_dir = tempfile::tempdir().unwrap();
+    let http_port = free_tcp();
+    let d = start_daemon(
+        out_dir.path(),
+        http_port,
+        &[
+            "daemon.replay_speed=4".into(),
+            format!("daemon.pipeline_cpu={cpu}"),
+            "daemon.warm_us=500".into(),
+        ],
+    );
+    wait_status(http_port, "a tree", 60, |v| v["trees"].as_u64() >= Some(1));
+    let pid = d.0.id();
+    let mut seen = Vec::new();
+    for task in std::fs::read_dir(format!("/proc/{pid}/task")).unwrap() {
+        let task = task.unwrap().path();
+        let name = std::fs::read_to_string(task.join("comm")).unwrap();
+        let name = name.trim().to_string();
+        let cpus = allowed(&std::fs::read_to_string(task.join("status")).unwrap());
+        let tid: u32 = task.file_name().unwrap().to_str().unwrap().parse().unwrap();
+        if tid == pid {
+            assert_eq!(cpus, vec![cpu], "the pipeline (main thread) on CPU {cpu}");
+        } else if name.starts_with("treemocap-") {
+            if mine.len() > 1 {
+                assert!(
+                    !cpus.contains(&cpu),
+                    "{name} on {cpus:?}, the pipeline's CPU {cpu} among them"
+                );
+            }
+            seen.push(name);
+        }
+    }
+    // /proc keeps 15 bytes of a thread's name.
+    for want in ["treemocap-analysis", "treemocap-builder", "treemocap-pose"] {
+        let short = &want[..want.len().min(15)];
+        assert!(seen.iter().any(|n| n == short), "{want} among {seen:?}");
+    }
+    let v = status_of(http_port).unwrap();
+    assert!(v["frames"].as_u64().unwrap() > 100, "{v}");
+    drop(d);
+
+    let refused = Command::new(env!("CARGO_BIN_EXE_treemocap"))
+        .args([
+            "run",
+            "--set",
+            "daemon.pipeline_cpu=1023",
+            "--set",
+            "daemon.http=",
+        ])
+        .arg("--out")
+        .arg(out_dir.path())
+        .current_dir(root())
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&refused.stderr);
+    if !mine.contains(&1023) {
+        assert!(!refused.status.success());
+        assert!(err.contains("daemon.pipeline_cpu"), "{err}");
+    }
+    let refused = Command::new(env!("CARGO_BIN_EXE_treemocap"))
+        .args([
+            "run",
+            "--set",
+            "daemon.warm_us=200000",
+            "--set",
+            "daemon.http=",
+        ])
+        .arg("--out")
+        .arg(out_dir.path())
+        .current_dir(root())
+        .output()
+        .unwrap();
+    assert_eq!(refused.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&refused.stderr);
+    assert!(err.contains("daemon.warm_us"), "{err}");
+}
