@@ -118,8 +118,12 @@ fn nesting_beyond_any_stack_is_refused_on_every_daemon_osc_port() {
     // Still there, and still working: a frame in, a rebuild request taken.
     send_all(osc, &[frame(1), frame(2)]);
     send_all(control, &[message("/treemocap/rebuild", vec![])]);
-    let s = d.wait_status(10, "the frames after the attack", |s| {
+    // The control port is its own thread: wait for its count too, not only
+    // for the frames (under load its last datagrams were still queued).
+    let s = d.wait_status(10, "the frames and the refusals after the attack", |s| {
         s["frames"].as_u64() >= Some(2)
+            && bad(s, "osc", "failed_decode") >= 3
+            && bad(s, "osc_control", "failed_decode") >= 3
     });
     assert!(d.alive(), "{}", d.log());
     assert_eq!(bad(&s, "osc", "failed_decode"), 3, "{s:#}");
