@@ -802,37 +802,23 @@ fn pipeline_cpu_pins_the_pipeline_and_keeps_the_background_threads_off_it() {
     assert!(v["frames"].as_u64().unwrap() > 100, "{v}");
     drop(d);
 
-    let refused = Command::new(env!("CARGO_BIN_EXE_treemocap"))
-        .args([
-            "run",
-            "--set",
-            "daemon.pipeline_cpu=1023",
-            "--set",
-            "daemon.http=",
-        ])
-        .arg("--out")
-        .arg(out_dir.path())
-        .current_dir(root())
-        .output()
-        .unwrap();
+    // `treemocap run` with one bad setting: refused before it starts.
+    let run_with = |setting: &str| {
+        Command::new(env!("CARGO_BIN_EXE_treemocap"))
+            .args(["run", "--set", setting, "--set", "daemon.http="])
+            .arg("--out")
+            .arg(out_dir.path())
+            .current_dir(root())
+            .output()
+            .unwrap()
+    };
+    let refused = run_with("daemon.pipeline_cpu=1023");
     let err = String::from_utf8_lossy(&refused.stderr);
     if !mine.contains(&1023) {
         assert!(!refused.status.success());
         assert!(err.contains("daemon.pipeline_cpu"), "{err}");
     }
-    let refused = Command::new(env!("CARGO_BIN_EXE_treemocap"))
-        .args([
-            "run",
-            "--set",
-            "daemon.warm_us=200000",
-            "--set",
-            "daemon.http=",
-        ])
-        .arg("--out")
-        .arg(out_dir.path())
-        .current_dir(root())
-        .output()
-        .unwrap();
+    let refused = run_with("daemon.warm_us=200000");
     assert_eq!(refused.status.code(), Some(2));
     let err = String::from_utf8_lossy(&refused.stderr);
     assert!(err.contains("daemon.warm_us"), "{err}");

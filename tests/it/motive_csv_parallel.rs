@@ -227,21 +227,7 @@ fn parallel_values_are_the_standard_parse_bit_for_bit() {
     write_lines(&path, &lines, true);
     let out = read_with(&path, 2, 4096);
     assert!(out.error.is_none(), "{:?}", out.error);
-    // Read independently: split on commas, `str::parse`, millimetres to metres.
-    let mut want = Vec::new();
-    for l in &lines[7..] {
-        let cells: Vec<&str> = l.split(',').collect();
-        let mut markers = Vec::new();
-        for m in 0..3 {
-            let xyz = &cells[2 + 3 * m..5 + 3 * m];
-            if xyz.iter().all(|c| !c.is_empty()) {
-                let p: [u64; 3] =
-                    std::array::from_fn(|k| (xyz[k].parse::<f64>().unwrap() * 0.001).to_bits());
-                markers.push((Some(m as i64), p));
-            }
-        }
-        want.push((cells[0].parse::<i64>().unwrap(), markers));
-    }
+    let want = read_independently(&lines);
     let got: Vec<_> = out.frames.iter().map(|f| (f.0, f.2.clone())).collect();
     assert_eq!(got, want);
 }
@@ -417,20 +403,7 @@ fn every_form_of_number_is_the_standard_parse_bit_for_bit() {
         let path = dir.path().join("forms.csv");
         let lines = every_form(2000);
         write_lines(&path, &lines, crlf);
-        let mut want = Vec::new();
-        for l in &lines[7..] {
-            let cells: Vec<&str> = l.split(',').collect();
-            let mut markers = Vec::new();
-            for m in 0..3 {
-                let xyz = &cells[2 + 3 * m..5 + 3 * m];
-                if xyz.iter().all(|c| !c.is_empty()) {
-                    let p: [u64; 3] =
-                        std::array::from_fn(|k| (xyz[k].parse::<f64>().unwrap() * 0.001).to_bits());
-                    markers.push((Some(m as i64), p));
-                }
-            }
-            want.push((cells[0].parse::<i64>().unwrap(), markers));
-        }
+        let want = read_independently(&lines);
         for (workers, block) in [(0, 1 << 30), (2, 1000), (2, 4096)] {
             let out = read_with(&path, workers, block);
             assert!(out.error.is_none(), "{:?}", out.error);
@@ -441,4 +414,25 @@ fn every_form_of_number_is_the_standard_parse_bit_for_bit() {
             );
         }
     }
+}
+
+/// The frames of a three-marker export read independently of the reader:
+/// split on commas, `str::parse`, millimetres to metres, as f64 bits.
+#[allow(clippy::type_complexity)]
+fn read_independently(lines: &[String]) -> Vec<(i64, Vec<(Option<i64>, [u64; 3])>)> {
+    let mut want = Vec::new();
+    for l in &lines[7..] {
+        let cells: Vec<&str> = l.split(',').collect();
+        let mut markers = Vec::new();
+        for m in 0..3 {
+            let xyz = &cells[2 + 3 * m..5 + 3 * m];
+            if xyz.iter().all(|c| !c.is_empty()) {
+                let p: [u64; 3] =
+                    std::array::from_fn(|k| (xyz[k].parse::<f64>().unwrap() * 0.001).to_bits());
+                markers.push((Some(m as i64), p));
+            }
+        }
+        want.push((cells[0].parse::<i64>().unwrap(), markers));
+    }
+    want
 }
