@@ -15,10 +15,28 @@
 //! relative distance of any deciding number from its threshold, so that an
 //! operator sees a close call (margin near 0) and pins the trees.
 
+use glam::DVec3;
 use serde::Serialize;
 
-use super::detect::Candidate;
 use super::settings::ForestSettings;
+
+/// One number of trees tried, with how well its split fits and sways.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Candidate {
+    /// The number of crowns.
+    pub k: usize,
+    /// The worst crown's RMS surface distance (m).
+    pub rms: f64,
+    /// The largest mean sway correlation between two of its crowns
+    /// ([`super::sway::Coherence::dependence`]; −∞ for one crown or a still take).
+    pub dependence: f64,
+    /// The same pair's correlation over the geometric mean of the two
+    /// crowns' own (1 for two halves of one tree's sway, near 0 for two
+    /// trees).
+    pub ratio: f64,
+    /// Axis foot of every crown.
+    pub centres: Vec<DVec3>,
+}
 
 /// Two crowns whose mean sway correlation is at least this fraction of
 /// their own (geometric mean) are two parts of one tree.

@@ -13,7 +13,7 @@
 
 use glam::DVec3;
 
-use super::count::{self, CountChoice};
+use super::count::{self, Candidate, CountChoice};
 use super::crown::{Crown, FitOptions};
 use super::settings::ForestSettings;
 use super::sway::Coherence;
@@ -65,24 +65,6 @@ pub fn find(tips: &[DVec3], s: &ForestSettings, sway: Option<&Coherence>) -> Det
         fits: chosen.rms <= s.fit_tolerance_m,
         count: choice.count,
     }
-}
-
-/// One number of trees tried, with how well its split fits and sways.
-#[derive(Debug, Clone, PartialEq)]
-pub struct Candidate {
-    /// The number of crowns.
-    pub k: usize,
-    /// The worst crown's RMS surface distance (m).
-    pub rms: f64,
-    /// The largest mean sway correlation between two of its crowns
-    /// ([`Coherence::dependence`]; −∞ for one crown or a still take).
-    pub dependence: f64,
-    /// The same pair's correlation over the geometric mean of the two
-    /// crowns' own (1 for two halves of one tree's sway, near 0 for two
-    /// trees).
-    pub ratio: f64,
-    /// Axis foot of every crown.
-    pub centres: Vec<DVec3>,
 }
 
 /// Every valid split for K = 1 ..= `max_trees` (the least RMS over the
