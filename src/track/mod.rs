@@ -28,6 +28,7 @@ mod jitter;
 pub mod live;
 mod motion;
 pub mod noise;
+mod rejoin;
 pub mod rest;
 pub mod settings;
 pub mod tracker;
@@ -80,6 +81,10 @@ pub struct Summary {
     /// Long fragments without a rest position put into a gap of the marker
     /// whose neighbourhood they occupy.
     pub joined_into_gaps: usize,
+    /// Pieces the tracker joined across a gap that were given to another
+    /// tip afterwards, from their offset to the neighbours over the whole
+    /// take (`rejoin`).
+    pub rejoined: usize,
     /// Traces dropped as noise (measured in fewer than `noise_fraction` of
     /// the frames), longest first.
     pub dropped: Vec<DroppedTrace>,
@@ -231,6 +236,7 @@ pub fn clean(
     let window = rest_window(cfg, &traces, &timeline, &mut warnings);
     let (ghosts, adopted) = adopt::adopt_ghosts(&mut traces, ghosts, cfg.gate_mm / 1000.0);
     let ghosts = ghosts.len();
+    let (traces, rejoined) = rejoin::rejoin(traces, window, one_second(&timeline));
     let (traces, joined_by_rest, joined_into_gaps) = join_pieces(traces, window, &timeline, cfg);
     let (mut kept, mut dropped) = noise::drop_noise(traces, frames, cfg.noise_fraction);
     dropped.sort_by(|a, b| b.measured.cmp(&a.measured).then(a.id.cmp(&b.id)));
@@ -258,6 +264,7 @@ pub fn clean(
         adopted,
         joined_by_rest,
         joined_into_gaps,
+        rejoined,
         dropped,
         noise_fraction: cfg.noise_fraction,
         gaps: gap_stats,
@@ -374,9 +381,7 @@ fn join_pieces(
                 .any(|p| rest_by_id.get(p).copied().unwrap_or(false))
         })
         .collect();
-    let one_second = timeline
-        .frame_interval()
-        .map_or(100, |dt| (1.0 / dt).round().max(1.0) as i64);
+    let one_second = one_second(timeline);
     let mut assigner = assign::Assigner::default();
     let (traces, joined_into_gaps) = noise::join_into_gaps(
         traces,
@@ -387,6 +392,13 @@ fn join_pieces(
         &mut assigner,
     );
     (traces, joined_by_rest, joined_into_gaps)
+}
+
+/// Frames in one second (100 when the timeline cannot say).
+fn one_second(timeline: &Timeline) -> i64 {
+    timeline
+        .frame_interval()
+        .map_or(100, |dt| (1.0 / dt).round().max(1.0) as i64)
 }
 
 /// One tip per kept trace, in order of first appearance: its mean over the

@@ -1,0 +1,408 @@
+//! Identities decided again after the session, with both sides of every
+//! gap in view (replay only; ours).
+//!
+//! On line a marker hidden in a gust is joined at the moment it comes back,
+//! by how well its first tenth of a second follows its neighbours' motion
+//! since the gap began. A tip swings relative to its neighbours by tens of
+//! millimetres in a gust, so the join fails (the marker becomes a second
+//! tip) or takes another marker (docs/tracking.md §4a). Afterwards the
+//! whole take is known, and every tip has a rest position from the still
+//! phase. A tip's offset from where its neighbours' displacements put it,
+//! `o(t) = p(t) − r − Σ wₖ (pₖ(t) − rₖ) / Σ wₖ` (rest positions `r`), stays
+//! near the same value for the whole wind phase: its own twig swings around
+//! it. A piece of another tip has an offset near the difference of the two
+//! rest positions instead.
+//!
+//! So every trace is cut where it was not measured for more than
+//! [`CUT_S`] after the still phase (the joins the tracker made across a
+//! gap), and each piece is given, longest first, to the tip whose mean
+//! offset it matches, among the tips not measured during the piece: the
+//! tip the tracker gave it to when it fits there, else the tip it fits
+//! clearly best, else it stays a piece of its own (judged by the later
+//! steps as before). The live daemon shows the tracker's identities frame
+//! by frame; this pass changes only pieces the tracker joined across a gap.
+
+use glam::DVec3;
+
+use super::rest::{self, RestSource, RestWindow};
+use crate::model::trace::Trace;
+
+/// A trace is cut where it was not measured for longer than this (s).
+const CUT_S: f64 = 0.1;
+/// Offsets are sampled this often (per second): enough to average a twig's
+/// swing, few enough to keep for an hour's markers.
+const PROBES_PER_S: f64 = 20.0;
+/// Neighbours whose displacements give a tip's expected displacement.
+const NEIGHBOURS: usize = 8;
+/// Independent samples per second of a tip's own swing around its mean
+/// offset (its twig modes are 1–3 Hz).
+const SWING_HZ: f64 = 2.0;
+/// Floor of a tip's offset spread and of the mean's error (m).
+const SPREAD_MIN: f64 = 0.003;
+/// Farthest a tip is compared with a piece: its rest position from the
+/// piece's first position (m; sways of up to 150 mm, plus the spacing).
+const REACH: f64 = 0.3;
+/// A piece fits a tip when its mean offset is within this many standard
+/// errors (squared: 3²).
+const FIT: f64 = 9.0;
+/// A piece moves from the tip the tracker gave it to only when that tip
+/// does not fit it, and to another only when no third fits nearly as well
+/// (cost difference, squared standard errors).
+const CLEAR: f64 = 9.0;
+
+/// A stretch of a trace measured without a gap longer than [`CUT_S`].
+struct Piece {
+    trace: Trace,
+    /// Index of the trace it was cut from.
+    from: usize,
+    /// Its positions at the probe frames.
+    probes: Vec<(i64, DVec3)>,
+    /// Whether it may move (it starts after the still phase).
+    movable: bool,
+}
+
+/// A tip: a piece holding the still phase.
+struct Anchor {
+    piece: usize,
+    rest: DVec3,
+    /// (anchor, weight) of its nearest anchors by rest position.
+    near: Vec<(usize, f64)>,
+    /// Median offset over its own wind-phase probes and its spread (m).
+    mean: DVec3,
+    spread: f64,
+}
+
+/// Re-decides which pieces after the still phase belong to which tip;
+/// returns the traces and the number of pieces moved to another tip.
+pub(crate) fn rejoin(traces: Vec<Trace>, window: RestWindow, one_second: i64) -> (Vec<Trace>, usize) {
+    if window.source == RestSource::WholeRecording || traces.len() < 3 {
+        return (traces, 0);
+    }
+    let cut = ((CUT_S * one_second as f64).round() as i64).max(1);
+    let step = ((one_second as f64 / PROBES_PER_S).round() as i64).max(1);
+    let mut pieces = Vec::new();
+    let n_traces = traces.len();
+    let ids: Vec<(usize, Vec<usize>)> = traces.iter().map(|t| (t.id, t.pieces.clone())).collect();
+    for (k, t) in traces.into_iter().enumerate() {
+        cut_trace(t, k, window.end, cut, step, &mut pieces);
+    }
+    let anchors = anchors(&pieces, window, step);
+    if anchors.len() < 3 {
+        return (rebuild(pieces, &[], &vec![None; 0], n_traces, &ids), 0);
+    }
+    let owner = assign(&pieces, &anchors, step, one_second);
+    let moved = pieces
+        .iter()
+        .enumerate()
+        .filter(|(p, piece)| {
+            piece.movable && owner[*p].map(|a| pieces[anchors[a].piece].from) != Some(piece.from)
+        })
+        .count();
+    (rebuild(pieces, &anchors, &owner, n_traces, &ids), moved)
+}
+
+/// Cuts trace `t` (index `k`) at its gaps longer than `cut` frames that end
+/// after frame `after`, into `out`.
+fn cut_trace(t: Trace, k: usize, after: i64, cut: i64, step: i64, out: &mut Vec<Piece>) {
+    let mut runs = t.sources().iter().peekable();
+    let mut source = None;
+    let mut cur: Option<Piece> = None;
+    let mut last = i64::MIN;
+    for (f, p) in t.measurements() {
+        while let Some(r) = runs.next_if(|r| r.frame <= f) {
+            source = r.id;
+        }
+        if f - last > cut && f > after {
+            out.extend(cur.take());
+        }
+        last = f;
+        match cur.as_mut() {
+            Some(c) => c.trace.push(f, p, source),
+            None => {
+                cur = Some(Piece {
+                    trace: Trace::new(t.id, f, p, source),
+                    from: k,
+                    probes: Vec::new(),
+                    movable: f >= after,
+                })
+            }
+        }
+        if f % step == 0 {
+            if let Some(c) = cur.as_mut() {
+                c.probes.push((f, p));
+            }
+        }
+    }
+    out.extend(cur);
+}
+
+/// The pieces holding the still phase, with their neighbours and offsets.
+fn anchors(pieces: &[Piece], window: RestWindow, step: i64) -> Vec<Anchor> {
+    let mut out: Vec<Anchor> = pieces
+        .iter()
+        .enumerate()
+        .filter_map(|(i, p)| {
+            let (rest, _, n) = rest::rest_of(&p.trace, window.start, window.end)?;
+            (n >= rest::MIN_REST_SAMPLES).then_some(Anchor {
+                piece: i,
+                rest,
+                near: Vec::new(),
+                mean: DVec3::ZERO,
+                spread: SPREAD_MIN,
+            })
+        })
+        .collect();
+    for a in 0..out.len() {
+        let mut d: Vec<(f64, usize)> = (0..out.len())
+            .filter(|&b| b != a)
+            .map(|b| (out[a].rest.distance_squared(out[b].rest), b))
+            .collect();
+        d.sort_by(|x, y| x.0.total_cmp(&y.0).then(x.1.cmp(&y.1)));
+        out[a].near = d
+            .iter()
+            .take(NEIGHBOURS)
+            .map(|&(d2, b)| (b, 1.0 / (d2.sqrt() + 0.01)))
+            .collect();
+    }
+    let field = Field::new(pieces, &out, step);
+    for a in 0..out.len() {
+        let from = pieces[out[a].piece].from;
+        let offs: Vec<DVec3> = pieces
+            .iter()
+            .filter(|p| p.from == from)
+            .flat_map(|p| p.probes.iter())
+            .filter(|(f, _)| *f >= window.end)
+            .filter_map(|&(f, p)| field.offset(pieces, &out, a, from, f, p))
+            .collect();
+        if offs.len() >= 5 {
+            let mean = median3(&offs);
+            let mut dev: Vec<f64> = offs.iter().map(|o| o.distance(mean)).collect();
+            let spread = median(&mut dev) * 1.2;
+            out[a].mean = mean;
+            out[a].spread = spread.max(SPREAD_MIN);
+        }
+    }
+    out
+}
+
+/// Where each anchor's trace (as the tracker made it) was at the probes.
+struct Field {
+    /// Per anchor, its trace's position at each probe frame (`k * step`).
+    at: Vec<Vec<Option<DVec3>>>,
+    step: i64,
+}
+
+impl Field {
+    fn new(pieces: &[Piece], anchors: &[Anchor], step: i64) -> Self {
+        let frames = pieces.iter().map(|p| p.trace.last_frame() + 1).max().unwrap_or(0);
+        let n = (frames / step + 1).max(0) as usize;
+        let mut of_trace: std::collections::HashMap<usize, usize> = std::collections::HashMap::new();
+        for (a, an) in anchors.iter().enumerate() {
+            of_trace.insert(pieces[an.piece].from, a);
+        }
+        let mut at = vec![vec![None; n]; anchors.len()];
+        for p in pieces {
+            if let Some(&a) = of_trace.get(&p.from) {
+                for &(f, q) in &p.probes {
+                    if let Some(slot) = at[a].get_mut((f / step) as usize) {
+                        *slot = Some(q);
+                    }
+                }
+            }
+        }
+        Field { at, step }
+    }
+
+    /// Anchor `a`'s trace at probe frame `f`.
+    fn at(&self, a: usize, f: i64) -> Option<DVec3> {
+        self.at[a].get((f / self.step) as usize).copied().flatten()
+    }
+
+    /// The offset of position `p` at probe `f` from where anchor `a`'s
+    /// neighbours put it, leaving out the neighbours whose trace is `own`
+    /// (the trace `p` came from); `None` with too few neighbours measured.
+    fn offset(
+        &self,
+        pieces: &[Piece],
+        anchors: &[Anchor],
+        a: usize,
+        own: usize,
+        f: i64,
+        p: DVec3,
+    ) -> Option<DVec3> {
+        let an = &anchors[a];
+        let (mut sum, mut w, mut total) = (DVec3::ZERO, 0.0, 0.0);
+        for &(b, wb) in &an.near {
+            total += wb;
+            if pieces[anchors[b].piece].from == own {
+                continue;
+            }
+            if let Some(q) = self.at(b, f) {
+                sum += (q - anchors[b].rest) * wb;
+                w += wb;
+            }
+        }
+        (w >= 0.3 * total && w > 0.0).then(|| p - an.rest - sum / w)
+    }
+}
+
+/// The anchor each piece goes to (`None`: a piece of its own).
+fn assign(pieces: &[Piece], anchors: &[Anchor], step: i64, one_second: i64) -> Vec<Option<usize>> {
+    let field = Field::new(pieces, anchors, step);
+    let mut owner: Vec<Option<usize>> = vec![None; pieces.len()];
+    // Spans taken, per anchor.
+    let mut taken: Vec<Vec<(i64, i64)>> = vec![Vec::new(); anchors.len()];
+    let anchor_of_trace = |from: usize| anchors.iter().position(|a| pieces[a.piece].from == from);
+    for (a, an) in anchors.iter().enumerate() {
+        owner[an.piece] = Some(a);
+        let t = &pieces[an.piece].trace;
+        taken[a].push((t.first_frame(), t.last_frame()));
+    }
+    // Pieces before the still phase ended stay where the tracker put them.
+    for (i, p) in pieces.iter().enumerate() {
+        if owner[i].is_none() && !p.movable {
+            owner[i] = anchor_of_trace(p.from);
+            if let Some(a) = owner[i] {
+                taken[a].push((p.trace.first_frame(), p.trace.last_frame()));
+            }
+        }
+    }
+    let mut order: Vec<usize> = (0..pieces.len())
+        .filter(|&i| pieces[i].movable && owner[i].is_none())
+        .collect();
+    order.sort_by_key(|&i| (std::cmp::Reverse(pieces[i].trace.measured()), i));
+    for i in order {
+        let p = &pieces[i];
+        let span = (p.trace.first_frame(), p.trace.last_frame());
+        let free = |a: usize| taken[a].iter().all(|&(s, e)| e < span.0 || s > span.1);
+        let near = p.probes.first().map_or(p.trace.last_position(), |x| x.1);
+        let costs: Vec<(f64, usize)> = (0..anchors.len())
+            .filter(|&a| free(a) && anchors[a].rest.distance(near) <= REACH)
+            .filter_map(|a| cost(pieces, anchors, &field, i, a, one_second).map(|c| (c, a)))
+            .collect();
+        let was = anchor_of_trace(p.from).filter(|&a| free(a));
+        let choice = choose(&costs, was);
+        if let Some(a) = choice {
+            owner[i] = Some(a);
+            taken[a].push(span);
+        }
+    }
+    owner
+}
+
+/// The tracker's anchor `was` when it fits, else the best when it fits
+/// and no other comes within [`CLEAR`].
+fn choose(costs: &[(f64, usize)], was: Option<usize>) -> Option<usize> {
+    let of = |a: usize| costs.iter().find(|c| c.1 == a).map(|c| c.0);
+    let mut sorted = costs.to_vec();
+    sorted.sort_by(|x, y| x.0.total_cmp(&y.0).then(x.1.cmp(&y.1)));
+    let best = sorted.first().copied();
+    let second = sorted.get(1).map_or(f64::INFINITY, |c| c.0);
+    if let Some(w) = was {
+        match (of(w), best) {
+            (Some(c), Some((cb, b))) if c <= FIT && (b == w || c <= cb + CLEAR) => return Some(w),
+            (None, _) => {}
+            _ => {}
+        }
+    }
+    let (cb, b) = best?;
+    (cb <= FIT && second - cb >= CLEAR).then_some(b)
+}
+
+/// How far piece `i`'s mean offset is from anchor `a`'s, in squared
+/// standard errors; `None` without probes to judge.
+fn cost(
+    pieces: &[Piece],
+    anchors: &[Anchor],
+    field: &Field,
+    i: usize,
+    a: usize,
+    one_second: i64,
+) -> Option<f64> {
+    let p = &pieces[i];
+    let offs: Vec<DVec3> = p
+        .probes
+        .iter()
+        .filter_map(|&(f, q)| field.offset(pieces, anchors, a, p.from, f, q))
+        .collect();
+    if offs.is_empty() {
+        return None;
+    }
+    let mean = offs.iter().copied().sum::<DVec3>() / offs.len() as f64;
+    let span_s = (p.trace.len() as f64 / one_second.max(1) as f64).max(0.0);
+    let n_eff = (span_s * SWING_HZ).clamp(1.0, offs.len() as f64);
+    let an = &anchors[a];
+    let var = an.spread * an.spread / n_eff + SPREAD_MIN * SPREAD_MIN;
+    Some(mean.distance_squared(an.mean) / var)
+}
+
+/// One trace per anchor (its pieces in time order) and one per group of
+/// unassigned pieces cut from the same trace.
+fn rebuild(
+    pieces: Vec<Piece>,
+    anchors: &[Anchor],
+    owner: &[Option<usize>],
+    n_traces: usize,
+    ids: &[(usize, Vec<usize>)],
+) -> Vec<Trace> {
+    let mut groups: Vec<Vec<(i64, Trace)>> = (0..anchors.len() + n_traces).map(|_| Vec::new()).collect();
+    for (i, p) in pieces.into_iter().enumerate() {
+        let g = match owner.get(i).copied().flatten() {
+            Some(a) => a,
+            None => anchors.len() + p.from,
+        };
+        groups[g].push((p.trace.first_frame(), p.trace));
+    }
+    let mut next_id = ids.iter().map(|x| x.0).max().unwrap_or(0) + 1;
+    let mut used = std::collections::HashSet::new();
+    let mut out = Vec::new();
+    for mut parts in groups {
+        parts.sort_by_key(|x| x.0);
+        let mut iter = parts.into_iter().map(|x| x.1);
+        let Some(mut t) = iter.next() else { continue };
+        let mut apart = Vec::new();
+        for piece in iter {
+            if let Some(back) = t.append(piece) {
+                match t.merged(&back) {
+                    Some(m) => t = m,
+                    // Never lost: a piece sharing a frame stays a trace.
+                    None => apart.push(back),
+                }
+            }
+        }
+        if !used.insert(t.id) {
+            t.id = next_id;
+            next_id += 1;
+        }
+        if let Some((_, pcs)) = ids.iter().find(|x| x.0 == t.id) {
+            t.pieces = pcs.clone();
+        } else {
+            t.pieces = vec![t.id];
+        }
+        out.push(t);
+        for mut b in apart {
+            b.id = next_id;
+            b.pieces = vec![next_id];
+            next_id += 1;
+            out.push(b);
+        }
+    }
+    out
+}
+
+/// Per-axis median.
+fn median3(v: &[DVec3]) -> DVec3 {
+    let mut x: Vec<f64> = v.iter().map(|p| p.x).collect();
+    let mut y: Vec<f64> = v.iter().map(|p| p.y).collect();
+    let mut z: Vec<f64> = v.iter().map(|p| p.z).collect();
+    DVec3::new(median(&mut x), median(&mut y), median(&mut z))
+}
+
+fn median(v: &mut [f64]) -> f64 {
+    if v.is_empty() {
+        return 0.0;
+    }
+    let k = v.len() / 2;
+    v.select_nth_unstable_by(k, f64::total_cmp);
+    v[k]
+}
