@@ -38,13 +38,19 @@ const NEIGHBOURS: usize = 8;
 /// offset (its twig modes are 1–3 Hz).
 const SWING_HZ: f64 = 2.0;
 /// Floor of a tip's offset spread and of the mean's error (m).
-const SPREAD_MIN: f64 = 0.003;
+const SPREAD_MIN: f64 = 0.005;
 /// Farthest a tip is compared with a piece: its rest position from the
 /// piece's first position (m; sways of up to 150 mm, plus the spacing).
 const REACH: f64 = 0.3;
+/// Wind-phase probes of the piece holding the still phase enough to tell
+/// a tip's offset (else its whole trace's, by their median).
+const TRUSTED_PROBES: usize = 20;
 /// A piece fits a tip when its mean offset is within this many standard
 /// errors (squared: 3²).
 const FIT: f64 = 9.0;
+/// A piece no tip fits clearly stays with the tip the tracker gave it to
+/// unless it is this far from it (squared standard errors).
+const LOOSE: f64 = 36.0;
 /// A piece moves from the tip the tracker gave it to only when that tip
 /// does not fit it, and to another only when no third fits nearly as well
 /// (cost difference, squared standard errors).
@@ -167,13 +173,19 @@ fn anchors(pieces: &[Piece], window: RestWindow, step: i64) -> Vec<Anchor> {
     let field = Field::new(pieces, &out, step);
     for a in 0..out.len() {
         let from = pieces[out[a].piece].from;
-        let offs: Vec<DVec3> = pieces
-            .iter()
-            .filter(|p| p.from == from)
-            .flat_map(|p| p.probes.iter())
-            .filter(|(f, _)| *f >= window.end)
-            .filter_map(|&(f, p)| field.offset(pieces, &out, a, from, f, p))
-            .collect();
+        let wind = |p: &Piece| -> Vec<DVec3> {
+            p.probes
+                .iter()
+                .filter(|(f, _)| *f >= window.end)
+                .filter_map(|&(f, q)| field.offset(pieces, &out, a, from, f, q))
+                .collect()
+        };
+        // The piece holding the still phase is the tip's own; the pieces
+        // joined to it later may be another tip's (what is being judged).
+        let mut offs = wind(&pieces[out[a].piece]);
+        if offs.len() < TRUSTED_PROBES {
+            offs = pieces.iter().filter(|p| p.from == from).flat_map(wind).collect();
+        }
         if offs.len() >= 5 {
             let mean = median3(&offs);
             let mut dev: Vec<f64> = offs.iter().map(|o| o.distance(mean)).collect();
@@ -282,6 +294,19 @@ fn assign(pieces: &[Piece], anchors: &[Anchor], step: i64, one_second: i64) -> V
             .collect();
         let was = anchor_of_trace(p.from).filter(|&a| free(a));
         let choice = choose(&costs, was);
+        if std::env::var_os("REJOIN_DEBUG").is_some() {
+            let mut c = costs.clone();
+            c.sort_by(|x, y| x.0.total_cmp(&y.0));
+            c.truncate(3);
+            let show: Vec<String> = c
+                .iter()
+                .map(|(v, a)| format!("a{}(t{}) {:.1} sp {:.1}mm", a, pieces[anchors[*a].piece].trace.id, v, anchors[*a].spread * 1000.0))
+                .collect();
+            eprintln!(
+                "piece of trace {} {}..{} n {} was {:?} -> {:?}: {}",
+                p.trace.id, span.0, span.1, p.trace.measured(), was.map(|a| pieces[anchors[a].piece].trace.id), choice.map(|a| pieces[anchors[a].piece].trace.id), show.join(", ")
+            );
+        }
         if let Some(a) = choice {
             owner[i] = Some(a);
             taken[a].push(span);
@@ -298,15 +323,23 @@ fn choose(costs: &[(f64, usize)], was: Option<usize>) -> Option<usize> {
     sorted.sort_by(|x, y| x.0.total_cmp(&y.0).then(x.1.cmp(&y.1)));
     let best = sorted.first().copied();
     let second = sorted.get(1).map_or(f64::INFINITY, |c| c.0);
-    if let Some(w) = was {
-        match (of(w), best) {
-            (Some(c), Some((cb, b))) if c <= FIT && (b == w || c <= cb + CLEAR) => return Some(w),
-            (None, _) => {}
-            _ => {}
+    let was_cost = was.map(|w| of(w).unwrap_or(f64::NAN));
+    if let (Some(w), Some(c)) = (was, was_cost) {
+        if c <= FIT && best.is_none_or(|(cb, b)| b == w || c <= cb + CLEAR) {
+            return Some(w);
         }
     }
-    let (cb, b) = best?;
-    (cb <= FIT && second - cb >= CLEAR).then_some(b)
+    if let Some((cb, b)) = best {
+        if cb <= FIT && second - cb >= CLEAR {
+            return Some(b);
+        }
+    }
+    // Nothing clearly better: the tracker's choice stands unless the
+    // piece is far from its tip (then it is judged by the later steps).
+    match (was, was_cost) {
+        (Some(w), Some(c)) if c.is_nan() || c <= LOOSE => Some(w),
+        _ => None,
+    }
 }
 
 /// How far piece `i`'s mean offset is from anchor `a`'s, in squared
