@@ -5,7 +5,9 @@
 //! error by gap length beside PCHIP with perfect identity.
 //!
 //! `cargo run --release --example track_stress [SEEDS] [WIND_S] [NAMES]`
-//! (defaults: 3 seeds, 20 s of wind after 8 s still, every stress; NAMES
+//! (defaults: 3 seeds, 100–102, 20 s of wind after 8 s still, every stress;
+//! SEEDS is a count from 100 or a range `200..210` for seeds held out of
+//! the tuning; NAMES
 //! picks some, comma-separated: `all,close`). A fourth argument `long`
 //! places a long occlusion (0.25–2 s) on every third tip
 //! ([`stress::long_gaps`]), for the gap-fill columns: the default sessions
@@ -16,7 +18,10 @@ use treemocap::track::{self, Tracker, TrackingSettings};
 
 fn main() {
     let args: Vec<String> = std::env::args().collect();
-    let seeds: u64 = args.get(1).and_then(|s| s.parse().ok()).unwrap_or(3);
+    let seeds: std::ops::Range<u64> = match args.get(1).map(|s| s.split_once("..")) {
+        Some(Some((a, b))) => a.parse().unwrap_or(100)..b.parse().unwrap_or(103),
+        _ => 100..100 + args.get(1).and_then(|s| s.parse().ok()).unwrap_or(3),
+    };
     let wind_s: f64 = args.get(2).and_then(|s| s.parse().ok()).unwrap_or(20.0);
     let only: Option<Vec<&str>> = args.get(3).map(|s| s.split(',').collect());
     let long = args.get(4).is_some_and(|s| s == "long");
@@ -33,7 +38,7 @@ fn main() {
         if only.as_ref().is_some_and(|o| !o.contains(&name)) {
             continue;
         }
-        row(name, k, seeds, wind_s, long, &cfg);
+        row(name, k, seeds.clone(), wind_s, long, &cfg);
     }
     // The combined stress has 1 mm noise: the filters told so hold the
     // tip count (docs/tracking.md, `noise_mm`).
@@ -47,14 +52,17 @@ fn main() {
     }
 }
 
-/// Runs stress `k` over `seeds` seeds (with many long gaps if `long`) and
+/// Runs stress `k` over the seeds `seeds` (with many long gaps if `long`) and
 /// prints its row.
-fn row(name: &str, k: usize, seeds: u64, wind_s: f64, long: bool, cfg: &TrackingSettings) {
+fn row(
+    name: &str,
+    k: usize,
+    seeds: std::ops::Range<u64>, wind_s: f64, long: bool, cfg: &TrackingSettings) {
     let bins = score::fill_bins(240.0);
     let mut total = score::Score::default();
     let (mut sway, mut spacing) = (0.0f64, f64::INFINITY);
-    for seed in 0..seeds {
-        let st = stress::all(&stress::base(100 + seed, 70, 8.0, wind_s)).swap_remove(k);
+    for seed in seeds {
+        let st = stress::all(&stress::base(seed, 70, 8.0, wind_s)).swap_remove(k);
         let opts = if long {
             stress::long_gaps(st.options)
         } else {

@@ -48,6 +48,9 @@ const TRUSTED_PROBES: usize = 20;
 /// A piece fits a tip when its mean offset is within this many standard
 /// errors (squared: 3²).
 const FIT: f64 = 9.0;
+/// Longest gap (s) across which a piece's ends are compared with its
+/// neighbours in time on one tip.
+const SEAM_S: f64 = 0.5;
 /// A piece no tip fits clearly stays with the tip the tracker gave it to
 /// unless it is this far from it (squared standard errors).
 const LOOSE: f64 = 36.0;
@@ -263,19 +266,19 @@ fn assign(pieces: &[Piece], anchors: &[Anchor], step: i64, one_second: i64) -> V
     let field = Field::new(pieces, anchors, step);
     let mut owner: Vec<Option<usize>> = vec![None; pieces.len()];
     // Spans taken, per anchor.
-    let mut taken: Vec<Vec<(i64, i64)>> = vec![Vec::new(); anchors.len()];
+    let mut taken: Vec<Vec<(i64, i64, usize)>> = vec![Vec::new(); anchors.len()];
     let anchor_of_trace = |from: usize| anchors.iter().position(|a| pieces[a.piece].from == from);
     for (a, an) in anchors.iter().enumerate() {
         owner[an.piece] = Some(a);
         let t = &pieces[an.piece].trace;
-        taken[a].push((t.first_frame(), t.last_frame()));
+        taken[a].push((t.first_frame(), t.last_frame(), an.piece));
     }
     // Pieces before the still phase ended stay where the tracker put them.
     for (i, p) in pieces.iter().enumerate() {
         if owner[i].is_none() && !p.movable {
             owner[i] = anchor_of_trace(p.from);
             if let Some(a) = owner[i] {
-                taken[a].push((p.trace.first_frame(), p.trace.last_frame()));
+                taken[a].push((p.trace.first_frame(), p.trace.last_frame(), i));
             }
         }
     }
@@ -286,11 +289,15 @@ fn assign(pieces: &[Piece], anchors: &[Anchor], step: i64, one_second: i64) -> V
     for i in order {
         let p = &pieces[i];
         let span = (p.trace.first_frame(), p.trace.last_frame());
-        let free = |a: usize| taken[a].iter().all(|&(s, e)| e < span.0 || s > span.1);
+        let free = |a: usize| taken[a].iter().all(|&(s, e, _)| e < span.0 || s > span.1);
         let near = p.probes.first().map_or(p.trace.last_position(), |x| x.1);
-        let costs: Vec<(f64, usize)> = (0..anchors.len())
+        let costs: Vec<(f64, f64, usize)> = (0..anchors.len())
             .filter(|&a| free(a) && anchors[a].rest.distance(near) <= REACH)
-            .filter_map(|a| cost(pieces, anchors, &field, i, a, one_second).map(|c| (c, a)))
+            .filter_map(|a| {
+                let c = cost(pieces, anchors, &field, i, a, one_second)?;
+                let seam = seams(pieces, anchors, &field, &taken[a], i, a, one_second);
+                Some((c + seam, c, a))
+            })
             .collect();
         let was = anchor_of_trace(p.from).filter(|&a| free(a));
         let choice = choose(&costs, was);
@@ -300,7 +307,7 @@ fn assign(pieces: &[Piece], anchors: &[Anchor], step: i64, one_second: i64) -> V
             c.truncate(3);
             let show: Vec<String> = c
                 .iter()
-                .map(|(v, a)| format!("a{}(t{}) {:.1} sp {:.1}mm", a, pieces[anchors[*a].piece].trace.id, v, anchors[*a].spread * 1000.0))
+                .map(|(v, m, a)| format!("a{}(t{}) {:.1} ({:.1}) sp {:.1}mm", a, pieces[anchors[*a].piece].trace.id, v, m, anchors[*a].spread * 1000.0))
                 .collect();
             eprintln!(
                 "piece of trace {} {}..{} n {} was {:?} -> {:?}: {}",
@@ -309,35 +316,37 @@ fn assign(pieces: &[Piece], anchors: &[Anchor], step: i64, one_second: i64) -> V
         }
         if let Some(a) = choice {
             owner[i] = Some(a);
-            taken[a].push(span);
+            taken[a].push((span.0, span.1, i));
         }
     }
     owner
 }
 
-/// The tracker's anchor `was` when it fits, else the best when it fits
-/// and no other comes within [`CLEAR`].
-fn choose(costs: &[(f64, usize)], was: Option<usize>) -> Option<usize> {
-    let of = |a: usize| costs.iter().find(|c| c.1 == a).map(|c| c.0);
+/// The tracker's anchor `was` when its mean offset fits and no other
+/// continues the piece clearly better (`(cost with seams, cost of the mean
+/// alone, anchor)`), else the one that does, when its mean fits.
+fn choose(costs: &[(f64, f64, usize)], was: Option<usize>) -> Option<usize> {
+    let of = |a: usize| costs.iter().find(|c| c.2 == a).copied();
     let mut sorted = costs.to_vec();
-    sorted.sort_by(|x, y| x.0.total_cmp(&y.0).then(x.1.cmp(&y.1)));
+    sorted.sort_by(|x, y| x.0.total_cmp(&y.0).then(x.2.cmp(&y.2)));
     let best = sorted.first().copied();
     let second = sorted.get(1).map_or(f64::INFINITY, |c| c.0);
-    let was_cost = was.map(|w| of(w).unwrap_or(f64::NAN));
-    if let (Some(w), Some(c)) = (was, was_cost) {
-        if c <= FIT && best.is_none_or(|(cb, b)| b == w || c <= cb + CLEAR) {
+    let mine = was.and_then(of);
+    if let (Some(w), Some((total, mean, _))) = (was, mine) {
+        if mean <= FIT && best.is_none_or(|(tb, _, b)| b == w || total <= tb + CLEAR) {
             return Some(w);
         }
     }
-    if let Some((cb, b)) = best {
-        if cb <= FIT && second - cb >= CLEAR {
+    if let Some((tb, mb, b)) = best {
+        if mb <= FIT && second - tb >= CLEAR {
             return Some(b);
         }
     }
     // Nothing clearly better: the tracker's choice stands unless the
     // piece is far from its tip (then it is judged by the later steps).
-    match (was, was_cost) {
-        (Some(w), Some(c)) if c.is_nan() || c <= LOOSE => Some(w),
+    match (was, mine) {
+        (Some(w), None) => Some(w),
+        (Some(w), Some((_, mean, _))) if mean <= LOOSE => Some(w),
         _ => None,
     }
 }
@@ -367,6 +376,71 @@ fn cost(
     let an = &anchors[a];
     let var = an.spread * an.spread / n_eff + SPREAD_MIN * SPREAD_MIN;
     Some(mean.distance_squared(an.mean) / var)
+}
+
+/// How badly piece `i` continues the pieces of anchor `a` next to it in
+/// time (`taken`), across gaps of up to [`SEAM_S`]: the offsets on each side,
+/// extrapolated linearly to the middle of the gap, in squared expected
+/// errors (a tip swinging relative to its neighbours at [`SWING_HZ`] drifts
+/// from a straight line by half its acceleration times the time squared).
+fn seams(
+    pieces: &[Piece],
+    anchors: &[Anchor],
+    field: &Field,
+    taken: &[(i64, i64, usize)],
+    i: usize,
+    a: usize,
+    one_second: i64,
+) -> f64 {
+    let p = &pieces[i];
+    let (s, e) = (p.trace.first_frame(), p.trace.last_frame());
+    let before = taken.iter().filter(|t| t.1 < s).max_by_key(|t| t.1);
+    let after = taken.iter().filter(|t| t.0 > e).min_by_key(|t| t.0);
+    let ends = |k: usize, last: bool| -> Vec<(i64, DVec3)> {
+        let q = &pieces[k];
+        let pr: Vec<&(i64, DVec3)> = if last {
+            q.probes.iter().rev().take(3).collect()
+        } else {
+            q.probes.iter().take(3).collect()
+        };
+        pr.into_iter()
+            .filter_map(|&(f, x)| Some((f, field.offset(pieces, anchors, a, q.from, f, x)?)))
+            .collect()
+    };
+    let sec = one_second.max(1) as f64;
+    let spread = anchors[a].spread;
+    let mut total = 0.0;
+    for (left, right) in [
+        before.map(|b| (ends(b.2, true), ends(i, false))),
+        after.map(|n| (ends(i, true), ends(n.2, false))),
+    ]
+    .into_iter()
+    .flatten()
+    {
+        let (Some(l), Some(r)) = (left.first(), right.first()) else {
+            continue;
+        };
+        let gap_s = (r.0 - l.0) as f64 / sec;
+        if gap_s > SEAM_S {
+            continue;
+        }
+        let mid = (l.0 + r.0) as f64 / 2.0;
+        let at = |side: &[(i64, DVec3)]| -> DVec3 {
+            match side {
+                [x, .., y] if x.0 != y.0 => {
+                    let v = (x.1 - y.1) / (x.0 - y.0) as f64;
+                    x.1 + v * (mid - x.0 as f64)
+                }
+                [x, ..] => x.1,
+                [] => DVec3::ZERO,
+            }
+        };
+        let h = gap_s / 2.0;
+        let w = std::f64::consts::TAU * SWING_HZ * h;
+        let sigma = SPREAD_MIN + spread * (0.5 * w * w).min(2.0);
+        total += at(&left).distance_squared(at(&right)) / (sigma * sigma);
+    }
+    total
 }
 
 /// One trace per anchor (its pieces in time order) and one per group of
