@@ -42,9 +42,9 @@ const SPREAD_MIN: f64 = 0.005;
 /// Farthest a tip is compared with a piece: its rest position from the
 /// piece's first position (m; sways of up to 150 mm, plus the spacing).
 const REACH: f64 = 0.3;
-/// Wind-phase probes of the piece holding the still phase enough to tell
-/// a tip's offset (else its whole trace's, by their median).
-const TRUSTED_PROBES: usize = 20;
+/// Wind-phase probes that tell a tip's offset (its median) and spread: 2 s
+/// from the piece holding the still phase and the pieces after it.
+const TRUSTED_PROBES: usize = 40;
 /// A piece fits a tip when its mean offset is within this many standard
 /// errors (squared: 3²).
 const FIT: f64 = 9.0;
@@ -83,7 +83,11 @@ struct Anchor {
 
 /// Re-decides which pieces after the still phase belong to which tip;
 /// returns the traces and the number of pieces moved to another tip.
-pub(crate) fn rejoin(traces: Vec<Trace>, window: RestWindow, one_second: i64) -> (Vec<Trace>, usize) {
+pub(crate) fn rejoin(
+    traces: Vec<Trace>,
+    window: RestWindow,
+    one_second: i64,
+) -> (Vec<Trace>, usize) {
     if window.source == RestSource::WholeRecording || traces.len() < 3 {
         return (traces, 0);
     }
@@ -97,7 +101,7 @@ pub(crate) fn rejoin(traces: Vec<Trace>, window: RestWindow, one_second: i64) ->
     }
     let anchors = anchors(&pieces, window, step);
     if anchors.len() < 3 {
-        return (rebuild(pieces, &[], &vec![None; 0], n_traces, &ids), 0);
+        return (rebuild(pieces, &[], &[], n_traces, &ids), 0);
     }
     let owner = assign(&pieces, &anchors, step, one_second);
     let moved = pieces
@@ -184,10 +188,18 @@ fn anchors(pieces: &[Piece], window: RestWindow, step: i64) -> Vec<Anchor> {
                 .collect()
         };
         // The piece holding the still phase is the tip's own; the pieces
-        // joined to it later may be another tip's (what is being judged).
-        let mut offs = wind(&pieces[out[a].piece]);
-        if offs.len() < TRUSTED_PROBES {
-            offs = pieces.iter().filter(|p| p.from == from).flat_map(wind).collect();
+        // joined to it later may be another tip's (what is being judged):
+        // the earliest are the surest (a wrong join stays), so a tip whose
+        // first piece ends soon after the still phase is judged by the
+        // pieces right after it (one held-out seed of `occlusion`: by its
+        // whole trace, more than half another tip's, a piece of its own
+        // marker did not fit it).
+        let mut offs = Vec::new();
+        for p in pieces.iter().filter(|p| p.from == from) {
+            if offs.len() >= TRUSTED_PROBES {
+                break;
+            }
+            offs.extend(wind(p));
         }
         if offs.len() >= 5 {
             let mean = median3(&offs);
@@ -209,9 +221,14 @@ struct Field {
 
 impl Field {
     fn new(pieces: &[Piece], anchors: &[Anchor], step: i64) -> Self {
-        let frames = pieces.iter().map(|p| p.trace.last_frame() + 1).max().unwrap_or(0);
+        let frames = pieces
+            .iter()
+            .map(|p| p.trace.last_frame() + 1)
+            .max()
+            .unwrap_or(0);
         let n = (frames / step + 1).max(0) as usize;
-        let mut of_trace: std::collections::HashMap<usize, usize> = std::collections::HashMap::new();
+        let mut of_trace: std::collections::HashMap<usize, usize> =
+            std::collections::HashMap::new();
         for (a, an) in anchors.iter().enumerate() {
             of_trace.insert(pieces[an.piece].from, a);
         }
@@ -307,11 +324,26 @@ fn assign(pieces: &[Piece], anchors: &[Anchor], step: i64, one_second: i64) -> V
             c.truncate(3);
             let show: Vec<String> = c
                 .iter()
-                .map(|(v, m, a)| format!("a{}(t{}) {:.1} ({:.1}) sp {:.1}mm", a, pieces[anchors[*a].piece].trace.id, v, m, anchors[*a].spread * 1000.0))
+                .map(|(v, m, a)| {
+                    format!(
+                        "a{}(t{}) {:.1} ({:.1}) sp {:.1}mm",
+                        a,
+                        pieces[anchors[*a].piece].trace.id,
+                        v,
+                        m,
+                        anchors[*a].spread * 1000.0
+                    )
+                })
                 .collect();
             eprintln!(
                 "piece of trace {} {}..{} n {} was {:?} -> {:?}: {}",
-                p.trace.id, span.0, span.1, p.trace.measured(), was.map(|a| pieces[anchors[a].piece].trace.id), choice.map(|a| pieces[anchors[a].piece].trace.id), show.join(", ")
+                p.trace.id,
+                span.0,
+                span.1,
+                p.trace.measured(),
+                was.map(|a| pieces[anchors[a].piece].trace.id),
+                choice.map(|a| pieces[anchors[a].piece].trace.id),
+                show.join(", ")
             );
         }
         if let Some(a) = choice {
@@ -452,7 +484,8 @@ fn rebuild(
     n_traces: usize,
     ids: &[(usize, Vec<usize>)],
 ) -> Vec<Trace> {
-    let mut groups: Vec<Vec<(i64, Trace)>> = (0..anchors.len() + n_traces).map(|_| Vec::new()).collect();
+    let mut groups: Vec<Vec<(i64, Trace)>> =
+        (0..anchors.len() + n_traces).map(|_| Vec::new()).collect();
     for (i, p) in pieces.into_iter().enumerate() {
         let g = match owner.get(i).copied().flatten() {
             Some(a) => a,
