@@ -8,7 +8,10 @@
 //!    from its neighbours' motion; traces never confirmed are ghosts;
 //! 2. [`rest`]: the still phase is found (or taken from the config);
 //! 3. [`adopt`]: ghosts that are pieces of a marker (a marker seen as two
-//!    blobs, a trace broken before it was confirmed) join it; [`noise`]:
+//!    blobs, a trace broken before it was confirmed) join it; `rejoin`:
+//!    the joins across gaps are decided again with the whole take in view
+//!    (each piece's offset from its neighbours, relative to the rest
+//!    positions); [`noise`]:
 //!    pieces of one marker still apart are joined by rest position;
 //! 4. [`noise`]: traces measured in fewer than 1/4 of the frames are dropped;
 //! 5. [`gaps`]: gaps are filled from the neighbours' motion, or by PCHIP,
