@@ -32,6 +32,9 @@ const CUT_S: f64 = 0.1;
 /// Offsets are sampled this often (per second): enough to average a twig's
 /// swing, few enough to keep for an hour's markers.
 const PROBES_PER_S: f64 = 20.0;
+/// Most probes kept for a take (32 bytes each, plus 12 per tip and probe
+/// frame).
+const MAX_PROBES: usize = 1_000_000;
 /// Neighbours whose displacements give a tip's expected displacement.
 const NEIGHBOURS: usize = 8;
 /// Independent samples per second of a tip's own swing around its mean
@@ -92,7 +95,12 @@ pub(crate) fn rejoin(
         return (traces, 0);
     }
     let cut = ((CUT_S * one_second as f64).round() as i64).max(1);
-    let step = ((one_second as f64 / PROBES_PER_S).round() as i64).max(1);
+    // At most `MAX_PROBES` in all: an hour of 70 markers at 240 Hz keeps
+    // 4 a second, not 20 (memory: docs/tracking.md §3).
+    let samples: usize = traces.iter().map(Trace::measured).sum();
+    let step = ((one_second as f64 / PROBES_PER_S).round() as i64)
+        .max(samples.div_ceil(MAX_PROBES) as i64)
+        .max(1);
     let mut pieces = Vec::new();
     let n_traces = traces.len();
     let ids: Vec<(usize, Vec<usize>)> = traces.iter().map(|t| (t.id, t.pieces.clone())).collect();
@@ -214,8 +222,9 @@ fn anchors(pieces: &[Piece], window: RestWindow, step: i64) -> Vec<Anchor> {
 
 /// Where each anchor's trace (as the tracker made it) was at the probes.
 struct Field {
-    /// Per anchor, its trace's position at each probe frame (`k * step`).
-    at: Vec<Vec<Option<DVec3>>>,
+    /// Per anchor, its trace's position at each probe frame (`k * step`;
+    /// single precision, NaN where not measured: 12 bytes a slot).
+    at: Vec<Vec<[f32; 3]>>,
     step: i64,
 }
 
@@ -232,12 +241,12 @@ impl Field {
         for (a, an) in anchors.iter().enumerate() {
             of_trace.insert(pieces[an.piece].from, a);
         }
-        let mut at = vec![vec![None; n]; anchors.len()];
+        let mut at = vec![vec![[f32::NAN; 3]; n]; anchors.len()];
         for p in pieces {
             if let Some(&a) = of_trace.get(&p.from) {
                 for &(f, q) in &p.probes {
                     if let Some(slot) = at[a].get_mut((f / step) as usize) {
-                        *slot = Some(q);
+                        *slot = q.as_vec3().to_array();
                     }
                 }
             }
@@ -247,7 +256,8 @@ impl Field {
 
     /// Anchor `a`'s trace at probe frame `f`.
     fn at(&self, a: usize, f: i64) -> Option<DVec3> {
-        self.at[a].get((f / self.step) as usize).copied().flatten()
+        let q = self.at[a].get((f / self.step) as usize)?;
+        (!q[0].is_nan()).then(|| DVec3::new(q[0] as f64, q[1] as f64, q[2] as f64))
     }
 
     /// The offset of position `p` at probe `f` from where anchor `a`'s
