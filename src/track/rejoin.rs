@@ -133,7 +133,7 @@ fn cut_trace(t: Trace, k: usize, after: i64, cut: i64, step: i64, out: &mut Vec<
         while let Some(r) = runs.next_if(|r| r.frame <= f) {
             source = r.id;
         }
-        if f - last > cut && f > after {
+        if f.saturating_sub(last) > cut && f > after {
             out.extend(cur.take());
         }
         last = f;
