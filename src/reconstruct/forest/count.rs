@@ -27,6 +27,10 @@ pub struct Candidate {
     pub k: usize,
     /// The worst crown's RMS surface distance (m).
     pub rms: f64,
+    /// Every crown's RMS surface distance (m), by crown.
+    pub crown_rms: Vec<f64>,
+    /// The crown of every tip.
+    pub labels: Vec<usize>,
     /// The largest mean sway correlation between two of its crowns
     /// ([`super::sway::Coherence::dependence`]; −∞ for one crown or a still take).
     pub dependence: f64,
@@ -320,6 +324,8 @@ mod tests {
         Candidate {
             k,
             rms,
+            crown_rms: vec![rms; k],
+            labels: Vec::new(),
             dependence,
             ratio,
             centres: vec![DVec3::ZERO; k],
