@@ -260,7 +260,9 @@ fn dump_candidates(
         if let Ok(detail) = std::env::var("CANDIDATE_DETAIL") {
             // Per crown: RMS, tips, own mean correlation; per pair: mean.
             let k = cand.k;
-            let own: Vec<f64> = (0..k).map(|x| c.mean_between(&cand.labels, x, x).0).collect();
+            let own: Vec<f64> = (0..k)
+                .map(|x| c.mean_between(&cand.labels, x, x).0)
+                .collect();
             let tips_of: Vec<usize> = (0..k)
                 .map(|x| cand.labels.iter().filter(|&&l| l == x).count())
                 .collect();

@@ -102,6 +102,7 @@ fn search(
             out.push(Candidate {
                 k,
                 rms: split.rms(),
+                rms_all: split.rms_all(),
                 crown_rms: split.crown_rms.clone(),
                 labels: split.labels.clone(),
                 dependence,
@@ -293,6 +294,22 @@ impl Split {
     /// would hide.
     fn rms(&self) -> f64 {
         self.crown_rms.iter().copied().fold(0.0, f64::max)
+    }
+
+    /// The RMS surface distance over all tips, each from its own crown
+    /// (m): where cutting one crown in two helps that crown, this shows it
+    /// though another crown stays the worst.
+    fn rms_all(&self) -> f64 {
+        let mut count = vec![0usize; self.crown_rms.len()];
+        for &l in &self.labels {
+            count[l] += 1;
+        }
+        let sum: f64 = count
+            .iter()
+            .zip(&self.crown_rms)
+            .map(|(&n, r)| n as f64 * r * r)
+            .sum();
+        (sum / self.labels.len().max(1) as f64).sqrt()
     }
 }
 
