@@ -563,8 +563,10 @@ fn the_tree_sways_with_the_poses(
     // and loading take seconds on a busy machine).
     let start = Instant::now();
     while status(base)["last_tree"]["reason"]["trigger"] == "first_tree" {
+        // A deadline, not a measure: the analysis runs at nice +10 and
+        // took over 30 s under load 9.
         assert!(
-            start.elapsed() < Duration::from_secs(30),
+            start.elapsed() < Duration::from_secs(90),
             "no tree with the wind"
         );
         std::thread::sleep(Duration::from_millis(100));
