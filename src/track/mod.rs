@@ -24,6 +24,7 @@ pub mod gaps;
 mod grid;
 mod id_hash;
 mod identity;
+mod inline_vec;
 mod jitter;
 pub mod live;
 mod motion;
