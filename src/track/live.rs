@@ -142,13 +142,23 @@ impl LiveTips {
         seen
     }
 
-    /// Displacements from rest of the tips seen (for the sway PCA).
+    /// Displacements from rest of the tips seen (for the sway PCA), in
+    /// the order of `seen`. Both are by marker (`update` returns its tips
+    /// so), so the tips are found by walking the two together, not by a
+    /// search each; a tip out of order is still found, by a search.
     pub fn displacements<'a>(
         &'a self,
         seen: &'a [(usize, DVec3)],
     ) -> impl Iterator<Item = DVec3> + 'a {
-        seen.iter().filter_map(|(m, p)| {
-            let k = self.tips.binary_search_by_key(m, |t| t.0).ok()?;
+        let mut at = 0;
+        seen.iter().filter_map(move |(m, p)| {
+            while self.tips.get(at).is_some_and(|t| t.0 < *m) {
+                at += 1;
+            }
+            let k = match self.tips.get(at) {
+                Some(t) if t.0 == *m => at,
+                _ => self.tips.binary_search_by_key(m, |t| t.0).ok()?,
+            };
             Some(*p - self.tips[k].1)
         })
     }

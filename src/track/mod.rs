@@ -26,6 +26,7 @@ mod id_hash;
 mod identity;
 mod inline_vec;
 mod jitter;
+mod radix;
 pub mod live;
 mod motion;
 pub mod noise;
