@@ -227,10 +227,10 @@ fn an_unchanged_session_gives_one_tree_and_rebuild_gives_the_same_tree() {
     wait_status(http_port, "the end of the replay", 60, |v| {
         v["frames"] == 4000
     });
-    // The analysis runs behind the frames at a lower priority: on a busy
-    // machine (the whole test suite on two cores) the first tree can come
-    // seconds after the last frame.
-    wait_status(http_port, "the first tree", 60, |v| {
+    // The analysis runs behind the frames at a lower priority (nice +10):
+    // on a busy machine (the whole test suite on two cores) the first tree
+    // came more than 60 s after the last frame. A deadline, not a measure.
+    wait_status(http_port, "the first tree", 180, |v| {
         v["trees"].as_u64().unwrap_or(0) >= 1
     });
     std::thread::sleep(Duration::from_millis(1500));
@@ -244,7 +244,9 @@ fn an_unchanged_session_gives_one_tree_and_rebuild_gives_the_same_tree() {
     // now; a second request on unchanged data must give the very same tree.
     let rebuild = || post_rebuild(http_port);
     let wait_trees = |n: u64| {
-        wait_status(http_port, &format!("tree {n}"), 20, |v| v["trees"] == n);
+        // A deadline, not a measure: a rebuild in a test build on a
+        // machine running the whole suite can take tens of seconds.
+        wait_status(http_port, &format!("tree {n}"), 90, |v| v["trees"] == n);
     };
     rebuild();
     wait_trees(trees + 1);
@@ -369,7 +371,7 @@ fn a_marker_that_falls_off_in_a_still_phase_triggers_a_new_tree() {
             "daemon.window_s=8".into(),
         ],
     );
-    let first = wait_status(http_port, "the first tree", 30, |v| v["trees"] == 1);
+    let first = wait_status(http_port, "the first tree", 90, |v| v["trees"] == 1);
     assert_eq!(first["tips"], 24);
     let second = wait_status(http_port, "a second tree", 30, |v| v["trees"] == 2);
     assert_eq!(
@@ -392,7 +394,7 @@ fn an_output_folder_that_refuses_writes_is_reported_and_ingest_goes_on() {
     let out = dir.path().join("out");
     let http_port = free_tcp();
     let _d = start_daemon(&out, http_port, &["daemon.replay_speed=4".into()]);
-    wait_status(http_port, "the first tree", 30, |v| v["trees"] == 1);
+    wait_status(http_port, "the first tree", 90, |v| v["trees"] == 1);
     assert!(status_of(http_port).unwrap()["output_error"].is_null());
     // The folder goes away and a file takes its place: every write fails.
     std::fs::remove_dir_all(&out).unwrap();
@@ -473,7 +475,7 @@ fn a_serial_wind_sensor_feeds_the_daemon_and_a_wind_turn_rebuilds() {
             "wind.sensor_baud=4800".into(),
         ],
     );
-    let first = wait_status(http_port, "the first tree", 30, |v| v["trees"] == 1);
+    let first = wait_status(http_port, "the first tree", 90, |v| v["trees"] == 1);
     assert_eq!(first["wind"]["source"], "sensor", "{first}");
     // From 0° (the sensor's mark points to azimuth 0): blows towards 180°.
     assert!((first["wind"]["azimuth_deg"].as_f64().unwrap() - 180.0).abs() < 1e-6);
@@ -525,7 +527,7 @@ fn sighup_reloads_the_config_and_osc_asks_for_a_rebuild() {
             "daemon.replay_speed=4".into(),
         ],
     );
-    let first = wait_status(http_port, "the first tree", 30, |v| v["trees"] == 1);
+    let first = wait_status(http_port, "the first tree", 90, |v| v["trees"] == 1);
     let pid = d.0.id().to_string();
 
     // A good edit: more random tips, so more nodes.

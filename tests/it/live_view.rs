@@ -644,12 +644,22 @@ fn the_tree_sways_with_the_poses(
         .max();
     let expr = format!("treemocap.lastPoseFrame === {last}");
     if page.wait(&expr, 15_000).is_none() {
-        let applied = page.state()["lastPoseFrame"].as_i64().unwrap_or(0);
+        let state = page.state();
+        let applied = state["lastPoseFrame"].as_i64().unwrap_or(0);
+        // Received but not applied, or never received: the page's side
+        // or the server's.
+        let seen = &state["lastPoseSeen"];
+        let tree = &state["tree"];
+        let connects = &state["connects"];
         assert!(
             applied >= last - 300 || before.is_some_and(|b| applied >= b - 300),
-            "last pose sent {last} (tree {shown_tree:?}; before it {before:?}), applied {applied}"
+            "last pose sent {last} (tree {shown_tree:?}; before it {before:?}), applied {applied}, \
+             last received {seen}, tree shown {tree}, connections {connects}"
         );
-        eprintln!("sway: last pose sent {last}, last applied {applied}");
+        eprintln!(
+            "sway: last pose sent {last} (tree {shown_tree:?}), last applied {applied}, \
+             last received {seen}, tree shown {tree}, connections {connects}"
+        );
     }
     // Every probe against the pose the test received for its frame.
     let got = poses.lock().unwrap().clone();

@@ -40,16 +40,42 @@ fn tcpdump(out: &Path, ports: [u16; 2]) -> Child {
     child
 }
 
-/// Waits until `path` has not grown for 300 ms (at most 5 s).
-fn settle(path: &Path) {
-    let size = || std::fs::metadata(path).map_or(0, |m| m.len());
-    let (mut last, mut still) = (size(), 0);
-    let deadline = Instant::now() + Duration::from_secs(5);
-    while still < 6 && Instant::now() < deadline {
+/// The FRAMEOFDATA datagrams in the complete records of a legacy pcap of
+/// loopback (Ethernet, IPv4, UDP) being written: a record still being
+/// written ends the count.
+fn frames_captured(bytes: &[u8]) -> usize {
+    let le = |at: usize| {
+        bytes
+            .get(at..at + 4)
+            .map(|b| u32::from_le_bytes(b.try_into().unwrap()))
+    };
+    let mut at = 24;
+    let mut n = 0;
+    while let Some(len) = le(at + 8).map(|l| l as usize) {
+        let Some(record) = bytes.get(at + 16..at + 16 + len) else {
+            break;
+        };
+        // Ethernet header 14 bytes, then IPv4 with its own header length.
+        let ihl = record.get(14).map_or(0, |b| usize::from(b & 0x0f) * 4);
+        let payload = 14 + ihl + 8;
+        if record.get(payload..payload + 2) == Some(&7u16.to_le_bytes()[..]) {
+            n += 1;
+        }
+        at += 16 + len;
+    }
+    n
+}
+
+/// Waits until tcpdump has written `n` frames to `path` (at most 30 s).
+/// On a loaded machine tcpdump can be seconds behind the kernel's ring;
+/// stopping it earlier loses what it has not read yet.
+fn settle(path: &Path, n: usize) {
+    let deadline = Instant::now() + Duration::from_secs(30);
+    while Instant::now() < deadline {
+        if frames_captured(&std::fs::read(path).unwrap_or_default()) >= n {
+            return;
+        }
         std::thread::sleep(Duration::from_millis(50));
-        let now = size();
-        still = if now == last { still + 1 } else { 0 };
-        last = now;
     }
 }
 
@@ -80,7 +106,7 @@ fn capture(dir: &Path, path: &Path, version: Version, n: usize) -> (PathBuf, Vec
             bind: "127.0.0.1".parse().unwrap(),
             command_port: cmd,
             data_port: data,
-            stats,
+            stats: stats.clone(),
             ..Default::default()
         };
         let (stop_server, shutdown) = tokio::sync::watch::channel(false);
@@ -95,8 +121,10 @@ fn capture(dir: &Path, path: &Path, version: Version, n: usize) -> (PathBuf, Vec
             command_port: cmd,
             ..Default::default()
         };
-        let status = NatNetStatus::default();
-        let cli = tokio::spawn(async move { client::run(&settings, &status, sink, cshut).await });
+        let status = Arc::new(NatNetStatus::default());
+        let cli_status = status.clone();
+        let cli =
+            tokio::spawn(async move { client::run(&settings, &cli_status, sink, cshut).await });
         let deadline = Instant::now() + Duration::from_secs(10);
         let mut got = Vec::new();
         while got.len() < n && Instant::now() < deadline {
@@ -107,11 +135,27 @@ fn capture(dir: &Path, path: &Path, version: Version, n: usize) -> (PathBuf, Vec
         cli.await.unwrap().unwrap();
         let _ = stop_server.send(true);
         let _ = srv.await;
+        if got.len() != n {
+            // What each side counted, to tell a frame never sent from one
+            // lost on the way or held by the client.
+            let numbers: Vec<i64> = got.iter().map(|f| f.frame).collect();
+            let c = status.snapshot();
+            eprintln!(
+                "NatNet {version}: client got frames {numbers:?}; client state {:?} rate {:?} \
+                 counters {:?}; server sent {} frames in {} datagrams, {} connects, {} requests",
+                c.state,
+                c.frame_rate,
+                c.counters,
+                stats.frames.load(std::sync::atomic::Ordering::Relaxed),
+                stats.datagrams.load(std::sync::atomic::Ordering::Relaxed),
+                stats.connects.load(std::sync::atomic::Ordering::Relaxed),
+                stats.requests.load(std::sync::atomic::Ordering::Relaxed),
+            );
+        }
         got
     });
-    // Let the last datagrams reach tcpdump's file: on a loaded machine
-    // tcpdump may not have read them yet; wait until the file stops growing.
-    settle(&out);
+    // Every frame the client got must reach tcpdump's file first.
+    settle(&out, got.len());
     stop(dump);
     (out, got)
 }

@@ -161,6 +161,7 @@ const windLabel = pin('', new THREE.Vector3(), 'wind', 'wind');
 const tm = {
   mode: 'live',
   connected: false,
+  connects: 0,          // WebSocket connections opened (more than one: the page reconnected)
   frames: 0,            // frames received (live) or shown (view)
   firstFrameAt: null,   // performance.now() of the first frame drawn
   last: null,           // { frame, time, markers, tips, noise, states }
@@ -174,6 +175,7 @@ const tm = {
   pose: null,           // the live pose on the tree: { tree, frame, time }; null = rest pose
   poses: 0,             // pose events applied
   lastPoseFrame: null,  // frame of the last pose applied (kept after the rest pose returns)
+  lastPoseSeen: null,   // { tree, frame } of the last pose event received, applied or not
   swayFrames: {},       // per tree swaying ('' for a tree alone): the frame of its pose shown
   decodeFrame,
 };
@@ -559,7 +561,7 @@ function connect() {
   url.protocol = location.protocol === 'https:' ? 'wss:' : 'ws:';
   const ws = new WebSocket(url);
   ws.binaryType = 'arraybuffer';
-  ws.onopen = () => { tm.connected = true; setConn('connected', ''); };
+  ws.onopen = () => { tm.connected = true; tm.connects++; setConn('connected', ''); };
   ws.onclose = () => {
     tm.connected = false;
     sway.pending.clear();
@@ -573,7 +575,10 @@ function connect() {
       return;
     }
     const msg = JSON.parse(ev.data);
-    if (msg.type === 'pose') sway.pending.set(swayKey(msg.name), msg);
+    if (msg.type === 'pose') {
+      sway.pending.set(swayKey(msg.name), msg);
+      tm.lastPoseSeen = { tree: msg.tree, frame: msg.frame };
+    }
     else if (msg.type === 'status') setStatus(msg.status);
     else if (msg.type === 'tree') wantTree(msg.version);
   };
