@@ -133,7 +133,15 @@ fn main() {
             if min_spacing >= 1.0 {
                 counted += 1;
                 if let Ok(path) = std::env::var("CANDIDATES") {
-                    dump_candidates(&path, first_seed + seed, overlap, trees, &tips, &l, &crown);
+                    let truth: Vec<usize> = tips.iter().map(|c| f.tip_tree[c.marker]).collect();
+                    dump_candidates(
+                        &path,
+                        (first_seed + seed, overlap, trees),
+                        &tips,
+                        &truth,
+                        &l,
+                        &crown,
+                    );
                 }
                 let by_fit = forest::plan(&tips, &[], &[], &crown, &recon).expect("plan");
                 right_fit += usize::from(by_fit.trees.len() == trees);
@@ -204,7 +212,9 @@ fn singles(first_seed: u64, n: u64, s: &ForestSettings, recon: &ReconstructSetti
         if let Ok(path) = std::env::var("CANDIDATES") {
             // Overlap 9 marks a tree alone in the dump.
             let l = links(&t);
-            dump_candidates(&path, first_seed + seed, 9.0, 1, &t.rest_tips(), &l, s);
+            let tips = t.rest_tips();
+            let truth = vec![0; tips.len()];
+            dump_candidates(&path, (first_seed + seed, 9.0, 1), &tips, &truth, &l, s);
         }
         let plan = forest::plan(&t.rest_tips(), &links(&t), &[], s, recon).expect("plan");
         if plan.trees.len() == 1 {
@@ -225,10 +235,9 @@ fn singles(first_seed: u64, n: u64, s: &ForestSettings, recon: &ReconstructSetti
 /// `path` as CSV lines: seed, overlap, true K, K, rms, dependence, ratio.
 fn dump_candidates(
     path: &str,
-    seed: u64,
-    overlap: f64,
-    trees: usize,
+    (seed, overlap, trees): (u64, f64, usize),
     tips: &[treemocap::model::tips::CapturedTip],
+    truth: &[usize],
     l: &[sway::SwayLink],
     s: &ForestSettings,
 ) {
@@ -248,5 +257,30 @@ fn dump_candidates(
             cand.k, cand.rms, cand.dependence, cand.ratio
         )
         .expect("write");
+        if let Ok(detail) = std::env::var("CANDIDATE_DETAIL") {
+            // Per crown: RMS, tips, own mean correlation; per pair: mean.
+            let k = cand.k;
+            let own: Vec<f64> = (0..k)
+                .map(|x| c.mean_between(&cand.labels, x, x).0)
+                .collect();
+            let tips_of: Vec<usize> = (0..k)
+                .map(|x| cand.labels.iter().filter(|&&l| l == x).count())
+                .collect();
+            let between: Vec<Vec<(f64, usize)>> = (0..k)
+                .map(|x| (0..k).map(|y| c.mean_between(&cand.labels, x, y)).collect())
+                .collect();
+            let line = serde_json::json!({
+                "seed": seed, "overlap": overlap, "trees": trees, "k": k,
+                "rms": cand.rms, "dep": cand.dependence, "ratio": cand.ratio,
+                "crown_rms": cand.crown_rms, "tips": tips_of, "own": own,
+                "between": between, "labels": cand.labels, "truth": truth,
+            });
+            let mut d = std::fs::OpenOptions::new()
+                .create(true)
+                .append(true)
+                .open(&detail)
+                .expect("detail file");
+            writeln!(d, "{line}").expect("write");
+        }
     }
 }

@@ -27,7 +27,16 @@ pub const MAX_EXACT: usize = 48;
 #[derive(Debug, Default)]
 pub struct Assigner {
     parent: Vec<usize>,
-    comp_edges: Vec<Vec<Edge>>,
+    /// The valid edges grouped by component, each group in the edges'
+    /// order: one flat buffer (a counting sort), not a vector per
+    /// component, whose thousand scattered allocations a frame at 1 000
+    /// markers were each a cache miss once the caches had been evicted.
+    by_comp: Vec<Edge>,
+    /// Per valid edge, its component.
+    comp_of_edge: Vec<u32>,
+    /// Per component, its edge count, then where its group ends in
+    /// `by_comp`.
+    comp_end: Vec<usize>,
     comp_of_root: Vec<usize>,
     rows: Vec<usize>,
     cols: Vec<usize>,
@@ -69,27 +78,56 @@ impl Assigner {
                 self.parent[a] = b;
             }
         }
-        for v in self.comp_edges.iter_mut() {
-            v.clear();
+        self.group(edges, n_rows, n_cols);
+        let by_comp = std::mem::take(&mut self.by_comp);
+        let mut start = 0;
+        for c in 0..self.comp_end.len() {
+            let end = self.comp_end[c];
+            self.solve_component(&by_comp[start..end], miss, out);
+            start = end;
         }
+        self.by_comp = by_comp;
+    }
+
+    /// Groups the valid edges by component into `by_comp` (components
+    /// numbered in the order of their first edge, each group in the edges'
+    /// order), `comp_end` ending each group.
+    fn group(&mut self, edges: &[Edge], n_rows: usize, n_cols: usize) {
+        let valid = |e: &&Edge| e.row < n_rows && e.col < n_cols && e.cost.is_finite();
         self.comp_of_root.clear();
         self.comp_of_root.resize(n_rows + n_cols, usize::MAX);
-        let mut n_comp = 0;
+        self.comp_of_edge.clear();
+        self.comp_end.clear();
         for e in edges.iter().filter(valid) {
             let root = find(&mut self.parent, e.row);
             if self.comp_of_root[root] == usize::MAX {
-                self.comp_of_root[root] = n_comp;
-                n_comp += 1;
-                if self.comp_edges.len() < n_comp {
-                    self.comp_edges.push(Vec::new());
-                }
+                self.comp_of_root[root] = self.comp_end.len();
+                self.comp_end.push(0);
             }
-            self.comp_edges[self.comp_of_root[root]].push(*e);
+            let c = self.comp_of_root[root];
+            self.comp_end[c] += 1;
+            self.comp_of_edge.push(c as u32);
         }
-        for c in 0..n_comp {
-            let comp = std::mem::take(&mut self.comp_edges[c]);
-            self.solve_component(&comp, miss, out);
-            self.comp_edges[c] = comp;
+        // Counts → each group's start, advanced to its end by the scatter.
+        let mut start = 0;
+        for n in self.comp_end.iter_mut() {
+            let count = *n;
+            *n = start;
+            start += count;
+        }
+        self.by_comp.clear();
+        self.by_comp.resize(
+            start,
+            Edge {
+                row: 0,
+                col: 0,
+                cost: 0.0,
+            },
+        );
+        for (e, &c) in edges.iter().filter(valid).zip(&self.comp_of_edge) {
+            let at = &mut self.comp_end[c as usize];
+            self.by_comp[*at] = *e;
+            *at += 1;
         }
     }
 

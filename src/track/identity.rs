@@ -37,6 +37,7 @@ use kiddo::{ImmutableKdTree, SquaredEuclidean};
 
 use super::assign::{Assigner, Edge};
 use super::id_hash::IdMap;
+use super::inline_vec::InlineVec;
 
 /// Neighbours kept per identity.
 const NEIGHBOURS: usize = 8;
@@ -78,7 +79,7 @@ pub(crate) struct IdentitySettings {
 }
 
 /// A neighbour of an identity and how much their offset varies.
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone, Copy, Default)]
 struct Neighbour {
     id: usize,
     mean: DVec3,
@@ -114,8 +115,11 @@ struct Ident {
     trace: Option<usize>,
     last: (i64, DVec3),
     prev: (i64, DVec3),
-    neighbours: Vec<Neighbour>,
-    gap: Option<Gap>,
+    /// Inline (see `InlineVec`): the frame walks them all.
+    neighbours: InlineVec<Neighbour, NEIGHBOURS>,
+    /// Boxed: few identities are in a gap, and inline it would double the
+    /// stride of the array every frame walks.
+    gap: Option<Box<Gap>>,
     /// Mean and RMS spread of its first `confirm_frames` measurements: the
     /// live daemon matches identities to a tree's tips with it.
     first: (DVec3, f64),
@@ -343,7 +347,7 @@ impl Identities {
                 continue;
             };
             prefetch_one(id);
-            prefetch(&id.neighbours);
+            prefetch(&id.neighbours[..]);
             if let Some(g) = &id.gap {
                 prefetch(&g.snap);
             }
@@ -408,7 +412,7 @@ impl Identities {
             self.s.link_max_m
         };
         let p0 = id.last.1;
-        self.idents[i].gap = Some(Gap {
+        self.idents[i].gap = Some(Box::new(Gap {
             from,
             p0,
             snap,
@@ -417,7 +421,7 @@ impl Identities {
             last_pred: p0,
             moved: 0.0,
             ended: false,
-        });
+        }));
     }
 
     /// Predicts every identity in a gap from its neighbours' motion.
@@ -681,7 +685,7 @@ impl Identities {
             trace: Some(trace),
             last,
             prev,
-            neighbours: Vec::new(),
+            neighbours: InlineVec::new(),
             gap: None,
             first: (mean, spread),
         });

@@ -12,10 +12,15 @@
 
 use glam::DVec3;
 
-use super::id_hash::IdMap;
 use super::tracker::Tracker;
 use super::TrackingSettings;
 use crate::model::frame::MarkerFrame;
+
+/// `LiveTips::label` of an identity not yet matched with a tip.
+const UNTRIED: u32 = u32::MAX;
+/// `LiveTips::label` of an identity tried and matched with no tip (not
+/// retried every frame).
+const UNMATCHED: u32 = u32::MAX - 1;
 
 /// The tree's tips measured in one frame.
 #[derive(Debug, Clone, Default)]
@@ -34,12 +39,14 @@ pub struct LiveTips {
     match_radius: f64,
     /// The tree's tips: (marker index, rest position).
     tips: Vec<(usize, DVec3)>,
-    /// Tracker identity → index into `tips`.
-    label: IdMap<usize>,
+    /// Per tracker identity (identities are numbered densely from 0):
+    /// its index into `tips`, [`UNTRIED`] or [`UNMATCHED`]. A flat array,
+    /// 4 bytes an identity: it was a hash map, whose thousand lookups a
+    /// frame at 1 000 markers each missed the cache once the daemon's
+    /// other work had evicted it.
+    label: Vec<u32>,
     /// Which of `tips` are claimed.
     claimed: Vec<bool>,
-    /// Identities already tried and not matched (not retried every frame).
-    unmatched: IdMap<usize>,
     /// Per tip, its marker's position and frame index in the frame being
     /// labelled; reused across frames.
     slots: Vec<Option<(DVec3, usize)>>,
@@ -53,9 +60,8 @@ impl LiveTips {
             tracker: Tracker::live(settings, frame_rate),
             match_radius: match_radius_m,
             tips: Vec::new(),
-            label: IdMap::default(),
+            label: Vec::new(),
             claimed: Vec::new(),
-            unmatched: IdMap::default(),
             slots: Vec::new(),
         }
     }
@@ -67,7 +73,6 @@ impl LiveTips {
         // a search per tip was 1 000 × 1 000 steps a frame at 1 000 tips.
         self.tips.sort_by_key(|t| t.0);
         self.label.clear();
-        self.unmatched.clear();
         self.claimed = vec![false; tips.len()];
     }
 
@@ -81,12 +86,12 @@ impl LiveTips {
     /// due (`track::warm`): off the latency path, the frame then finds it
     /// in the caches. Reads and changes nothing.
     pub fn warm(&self) {
-        use super::warm::{prefetch, prefetch_one};
+        use super::warm::prefetch;
         self.tracker.warm();
         prefetch(&self.tips);
         prefetch(&self.slots);
         prefetch(&self.claimed);
-        self.label.values().for_each(prefetch_one);
+        prefetch(&self.label);
     }
 
     /// Whether there is a tree to label with.
@@ -110,13 +115,13 @@ impl LiveTips {
             match_radius: self.match_radius,
             label: &mut self.label,
             claimed: &mut self.claimed,
-            unmatched: &mut self.unmatched,
         };
         let mut measured = 0;
         for (identity, p, index) in self.tracker.current_markers() {
-            let k = match labels.label.get(&identity) {
-                Some(k) => Some(*k),
-                None => labels.match_identity(&self.tracker, identity),
+            let k = match labels.label.get(identity).copied() {
+                Some(UNMATCHED) => None,
+                Some(k) if k != UNTRIED => Some(k as usize),
+                _ => labels.match_identity(&self.tracker, identity),
             };
             if let Some(slot) = k.and_then(|k| slots.get_mut(k)) {
                 *slot = Some((p, index));
@@ -137,13 +142,23 @@ impl LiveTips {
         seen
     }
 
-    /// Displacements from rest of the tips seen (for the sway PCA).
+    /// Displacements from rest of the tips seen (for the sway PCA), in
+    /// the order of `seen`. Both are by marker (`update` returns its tips
+    /// so), so the tips are found by walking the two together, not by a
+    /// search each; a tip out of order is still found, by a search.
     pub fn displacements<'a>(
         &'a self,
         seen: &'a [(usize, DVec3)],
     ) -> impl Iterator<Item = DVec3> + 'a {
-        seen.iter().filter_map(|(m, p)| {
-            let k = self.tips.binary_search_by_key(m, |t| t.0).ok()?;
+        let mut at = 0;
+        seen.iter().filter_map(move |(m, p)| {
+            while self.tips.get(at).is_some_and(|t| t.0 < *m) {
+                at += 1;
+            }
+            let k = match self.tips.get(at) {
+                Some(t) if t.0 == *m => at,
+                _ => self.tips.binary_search_by_key(m, |t| t.0).ok()?,
+            };
             Some(*p - self.tips[k].1)
         })
     }
@@ -155,16 +170,14 @@ impl LiveTips {
 struct Labels<'a> {
     tips: &'a [(usize, DVec3)],
     match_radius: f64,
-    label: &'a mut IdMap<usize>,
+    label: &'a mut Vec<u32>,
     claimed: &'a mut Vec<bool>,
-    unmatched: &'a mut IdMap<usize>,
 }
 
 impl Labels<'_> {
+    /// The tip identity `identity` (not tried before) is matched with,
+    /// noted in `label`.
     fn match_identity(&mut self, tracker: &Tracker, identity: usize) -> Option<usize> {
-        if self.unmatched.get(&identity) == Some(&self.tips.len()) {
-            return None;
-        }
         let (first, _) = tracker.first_position(identity)?;
         let best = self
             .tips
@@ -177,14 +190,24 @@ impl Labels<'_> {
         match best {
             Some((_, k)) => {
                 self.claimed[k] = true;
-                self.label.insert(identity, k);
+                self.set(identity, k as u32);
                 Some(k)
             }
             None => {
-                self.unmatched.insert(identity, self.tips.len());
+                self.set(identity, UNMATCHED);
                 None
             }
         }
+    }
+}
+
+impl Labels<'_> {
+    /// Notes identity `identity`'s label, growing the array to reach it.
+    fn set(&mut self, identity: usize, value: u32) {
+        if self.label.len() <= identity {
+            self.label.resize(identity + 1, UNTRIED);
+        }
+        self.label[identity] = value;
     }
 }
 

@@ -44,6 +44,7 @@ use super::grid::Grid;
 use super::identity::{Identities, IdentitySettings};
 use super::jitter::{third_difference, Jitter};
 use super::motion::{Motion, MotionParams};
+use super::radix;
 use crate::model::frame::MarkerFrame;
 use crate::model::trace::{Timeline, Trace};
 use crate::track::TrackingSettings;
@@ -160,8 +161,11 @@ pub struct Tracker {
     /// the latest frame, by trace: which marker each identity took.
     measured_at: Vec<(usize, usize)>,
     order: Vec<usize>,
-    /// `clean_markers`' sort keys, reused: (x as ordered bits, index).
+    /// `clean_markers`' and `check_spacing`'s sort keys, reused: (x as
+    /// ordered bits, index).
     by_x: Vec<(u64, usize)>,
+    /// The radix sort's second buffer.
+    radix_scratch: Vec<(u64, usize)>,
     keep: Vec<bool>,
     edges: Vec<Edge>,
     /// The frame's markers bucketed for the gate search (beyond
@@ -208,6 +212,7 @@ impl Tracker {
             measured_at: Vec::new(),
             order: Vec::new(),
             by_x: Vec::new(),
+            radix_scratch: Vec::new(),
             keep: Vec::new(),
             edges: Vec::new(),
             grid: Grid::default(),
@@ -561,7 +566,8 @@ impl Tracker {
         // Sweep along x: only markers within duplicate_m in x can be copies.
         // Sorted as (x as an ordered integer, index) pairs: the same order
         // as comparing x by `total_cmp` then the index, without a lookup
-        // into the points for every comparison (a tenth of a live frame).
+        // into the points for every comparison (a tenth of a live frame),
+        // and by a radix sort (`radix`), not by comparisons.
         self.by_x.clear();
         self.by_x.extend(
             self.points
@@ -569,7 +575,7 @@ impl Tracker {
                 .enumerate()
                 .map(|(i, p)| (ordered_bits(p[0]), i)),
         );
-        self.by_x.sort_unstable();
+        radix::sort_pairs(&mut self.by_x, &mut self.radix_scratch);
         self.order.clear();
         self.order.extend(self.by_x.iter().map(|&(_, i)| i));
         let pts = &self.points;
@@ -616,17 +622,19 @@ impl Tracker {
     /// Warns (once) when two established traces are predicted closer than
     /// twice the gate: their gates overlap and their paths could swap.
     fn check_spacing(&mut self) {
-        self.order.clear();
-        self.order.extend(
+        // Sorted by x as ordered integer keys (`radix`), equal x by row.
+        self.by_x.clear();
+        self.by_x.extend(
             self.live
                 .iter()
                 .enumerate()
                 .filter(|(_, l)| l.measured >= 10 && l.motion.t() == self.last_t - 1)
-                .map(|(i, _)| i),
+                .map(|(i, l)| (ordered_bits(l.prediction.x), i)),
         );
+        radix::sort_pairs(&mut self.by_x, &mut self.radix_scratch);
+        self.order.clear();
+        self.order.extend(self.by_x.iter().map(|&(_, i)| i));
         let live = &self.live;
-        self.order
-            .sort_unstable_by(|&a, &b| live[a].prediction.x.total_cmp(&live[b].prediction.x));
         let limit = 2.0 * self.gate_m;
         let mut closest = f64::INFINITY;
         let mut pair = (0, 0);

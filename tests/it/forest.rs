@@ -203,12 +203,14 @@ fn the_sway_finds_the_count_where_the_crown_fit_alone_misses() {
     // the crown fit alone takes a tree too many (a lumpy crown fitted two
     // surfaces) or too few (two crowns fitted one; at seed 7 five trees
     // fitted within the tolerance by four crowns, and clearly better by
-    // five whose crowns do not sway as one):
+    // five whose crowns do not sway as one; at held-out seed 1019, crowns
+    // overlapping by a third, the same, though only the RMS over all tips
+    // shows it, the worst crown being a lumpy tree elsewhere):
     // the trunks' sway sets them right, and a still take (no sway) falls
     // back on the fit alone.
     let recon = ReconstructSettings::default();
     let s = ForestSettings::default();
-    for (seed, overlap) in [(5063, 0.0), (5026, 1.0 / 6.0), (7, 0.25)] {
+    for (seed, overlap) in [(5063, 0.0), (5026, 1.0 / 6.0), (7, 0.25), (1019, 1.0 / 3.0)] {
         let trees = 2 + (seed % 4) as usize;
         let (t, l) = sweep_session(seed as u64, trees, overlap);
         let tips = t.rest_tips();

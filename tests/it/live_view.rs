@@ -369,13 +369,8 @@ fn the_live_page_shows_markers_tips_and_the_tree() {
         send(f);
         std::thread::sleep(Duration::from_micros(2000));
     }
-    next = sway_from
-        + the_tree_sways_with_the_poses(
-            &mut page,
-            &base,
-            osc_port,
-            &frames[sway_from..sway_from + 700],
-        );
+    next =
+        sway_from + the_tree_sways_with_the_poses(&mut page, &base, osc_port, &frames[sway_from..]);
 
     // The rebuild button: a new tree version on /status, then on the page.
     let before = status(&base)["tree_version"].as_u64().unwrap();
@@ -568,8 +563,10 @@ fn the_tree_sways_with_the_poses(
     // and loading take seconds on a busy machine).
     let start = Instant::now();
     while status(base)["last_tree"]["reason"]["trigger"] == "first_tree" {
+        // A deadline, not a measure: the analysis runs at nice +10 and
+        // took over 30 s under load 9.
         assert!(
-            start.elapsed() < Duration::from_secs(30),
+            start.elapsed() < Duration::from_secs(90),
             "no tree with the wind"
         );
         std::thread::sleep(Duration::from_millis(100));
@@ -578,17 +575,35 @@ fn the_tree_sways_with_the_poses(
     let current = status(base)["tree_version"].as_u64().unwrap();
     let loaded = format!("treemocap.tree?.version >= {current}");
     assert!(page.wait(&loaded, 30_000).is_some(), "{}", page.state());
+    // The stream goes on until the sway switch has been off and on again
+    // and the screenshot is taken, then 3 s more (at least 10 s in all):
+    // the page rightly skips the poses that come while the switch is off,
+    // and the last pose checked below must come after it. On a busy
+    // machine a screenshot took 14 s, so frames go at half the capture's
+    // rate (maple's wind phase has 1 400 of them).
+    let (switched, shot) = (
+        Arc::new(AtomicBool::new(false)),
+        Arc::new(AtomicBool::new(false)),
+    );
     let sending = frames.to_vec();
+    let (sender_switched, sender_shot) = (switched.clone(), shot.clone());
     let sender = std::thread::spawn(move || {
         let osc = UdpSocket::bind("127.0.0.1:0").unwrap();
-        for f in &sending {
+        let mut done_at = None;
+        for (i, f) in sending.iter().enumerate() {
+            if sender_switched.load(Ordering::Relaxed) && sender_shot.load(Ordering::Relaxed) {
+                done_at.get_or_insert(i);
+            }
+            if i >= 500 && done_at.is_some_and(|at| i >= at + 150) {
+                return i;
+            }
             osc.send_to(&osc_frame(f), ("127.0.0.1", osc_port)).unwrap();
-            std::thread::sleep(Duration::from_millis(10));
+            std::thread::sleep(Duration::from_millis(20));
         }
+        panic!("the replay ended before the sway switch and the screenshot were done");
     });
     let probe = "treemocap.swayProbe()";
     let mut probes = Vec::new();
-    let mut shot_taken = false;
     let started = Instant::now();
     while !sender.is_finished() {
         std::thread::sleep(Duration::from_millis(120));
@@ -598,11 +613,8 @@ fn the_tree_sways_with_the_poses(
             continue;
         }
         probes.push(v);
-        let t = started.elapsed();
-        // Midway: a screenshot of the swaying tree, then the switch.
-        if !shot_taken && t > Duration::from_millis(1500) {
-            shot_taken = true;
-            screenshot_shows_the_tree(page, "live-sway.png");
+        // Once swaying: the switch off (the rest pose) and on again.
+        if !switched.load(Ordering::Relaxed) && started.elapsed() > Duration::from_millis(1500) {
             page.click("#sway");
             let off = page.eval(probe);
             assert!(off["pose"].is_null(), "sway off: {off}");
@@ -613,17 +625,20 @@ fn the_tree_sways_with_the_poses(
                 );
             }
             page.click("#sway");
+            switched.store(true, Ordering::Relaxed);
+        } else if switched.load(Ordering::Relaxed) && !shot.load(Ordering::Relaxed) {
+            // Swaying again: a screenshot of the swaying tree.
+            screenshot_shows_the_tree(page, "live-sway.png");
+            shot.store(true, Ordering::Relaxed);
         }
     }
-    sender.join().unwrap();
-    assert!(shot_taken, "the replay ended before the screenshot");
+    let sent = sender.join().unwrap();
     // The page followed the stream to its end: its last pose is the last
     // one sent for the tree it shows (poses of a tree rebuilt meanwhile and
-    // not loaded yet are rightly ignored), or (a page starved of CPU on a
-    // busy machine can miss the last events, seen under load 13) one of
-    // its last 3 s: in the whole suite on 2 cores the page's last pose was
-    // 1.2–1.8 s before the stream's end in three runs out of three, the
-    // cause not found yet.
+    // not loaded yet are rightly ignored). The page lagged 1.2–1.8 s in
+    // the whole suite once: the sway switch, clicked late in the stream on
+    // a busy machine, was off for its last poses (the stream now goes on
+    // after the switch).
     let shown_tree = page.eval("treemocap.tree?.version").as_u64();
     let last = *poses
         .lock()
@@ -645,20 +660,15 @@ fn the_tree_sways_with_the_poses(
     let expr = format!("treemocap.lastPoseFrame === {last}");
     if page.wait(&expr, 15_000).is_none() {
         let state = page.state();
-        let applied = state["lastPoseFrame"].as_i64().unwrap_or(0);
-        // Received but not applied, or never received: the page's side
-        // or the server's.
-        let seen = &state["lastPoseSeen"];
-        let tree = &state["tree"];
-        let connects = &state["connects"];
+        let applied = state["lastPoseFrame"].as_i64();
         assert!(
-            applied >= last - 300 || before.is_some_and(|b| applied >= b - 300),
-            "last pose sent {last} (tree {shown_tree:?}; before it {before:?}), applied {applied}, \
-             last received {seen}, tree shown {tree}, connections {connects}"
-        );
-        eprintln!(
-            "sway: last pose sent {last} (tree {shown_tree:?}), last applied {applied}, \
-             last received {seen}, tree shown {tree}, connections {connects}"
+            before.is_some() && applied == before,
+            "last pose sent {last} (tree {shown_tree:?}; before it {before:?}), applied {applied:?}, \
+             last received {}, tree shown {}, connections {}, last skipped {}",
+            state["lastPoseSeen"],
+            state["tree"],
+            state["connects"],
+            state["poseSkipped"]
         );
     }
     // Every probe against the pose the test received for its frame.
@@ -726,7 +736,7 @@ fn the_tree_sways_with_the_poses(
     assert!(worst_tip(&v["tips"], &xyz(rest)) < 1e-5, "{v}");
     stop.store(true, Ordering::Relaxed);
     listener.join().unwrap();
-    frames.len()
+    sent
 }
 
 #[test]

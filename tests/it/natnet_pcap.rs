@@ -21,13 +21,28 @@ use treemocap::source::channel::frame_channel;
 use treemocap::source::natnet::client::{self, NatNetStatus};
 use treemocap::source::natnet::settings::NatNetSettings;
 
-/// tcpdump on loopback for the two server ports, ready when it says so.
-fn tcpdump(out: &Path, ports: [u16; 2]) -> Child {
+/// tcpdump on loopback for the two server ports, ready when it says so,
+/// and what it says after that (its counts when it stops: received by the
+/// filter, dropped by the kernel). Its stderr stays read to the end, so
+/// its last words never meet a closed pipe.
+fn tcpdump(out: &Path, ports: [u16; 2]) -> (Child, std::thread::JoinHandle<String>) {
     let filter = format!("udp port {} or udp port {}", ports[0], ports[1]);
     let mut child = Command::new("tcpdump")
         // Immediate mode: packets reach the file as they come, not when the
         // kernel ring's block times out (a short capture would be empty).
-        .args(["-i", "lo", "--immediate-mode", "-U", "-s", "0", "-n", "-w"])
+        // A 16 MB ring: eight captures at once on a busy machine.
+        .args([
+            "-i",
+            "lo",
+            "--immediate-mode",
+            "-U",
+            "-B",
+            "16384",
+            "-s",
+            "0",
+            "-n",
+            "-w",
+        ])
         .arg(out)
         .arg(&filter)
         .stdout(Stdio::null())
@@ -37,7 +52,9 @@ fn tcpdump(out: &Path, ports: [u16; 2]) -> Child {
     let mut lines = BufReader::new(child.stderr.take().unwrap()).lines();
     let ready = lines.next().and_then(|l| l.ok()).unwrap_or_default();
     assert!(ready.contains("listening on lo"), "tcpdump: {ready}");
-    child
+    let rest =
+        std::thread::spawn(move || lines.map_while(|l| l.ok()).collect::<Vec<_>>().join("; "));
+    (child, rest)
 }
 
 /// The FRAMEOFDATA datagrams in the complete records of a legacy pcap of
@@ -66,25 +83,28 @@ fn frames_captured(bytes: &[u8]) -> usize {
     n
 }
 
-/// Waits until tcpdump has written `n` frames to `path` (at most 30 s).
-/// On a loaded machine tcpdump can be seconds behind the kernel's ring;
-/// stopping it earlier loses what it has not read yet.
-fn settle(path: &Path, n: usize) {
+/// Waits until tcpdump has written `n` frames to `path` (at most 30 s);
+/// the frames it holds. On a loaded machine tcpdump can be seconds behind
+/// the kernel's ring; stopping it earlier loses what it has not read yet.
+fn settle(path: &Path, n: usize) -> usize {
     let deadline = Instant::now() + Duration::from_secs(30);
-    while Instant::now() < deadline {
-        if frames_captured(&std::fs::read(path).unwrap_or_default()) >= n {
-            return;
+    loop {
+        let held = frames_captured(&std::fs::read(path).unwrap_or_default());
+        if held >= n || Instant::now() >= deadline {
+            return held;
         }
         std::thread::sleep(Duration::from_millis(50));
     }
 }
 
-/// Ends tcpdump as Ctrl-C would, so it writes out everything.
-fn stop(mut child: Child) {
+/// Ends tcpdump as Ctrl-C would, so it writes out everything; what it
+/// said at the end.
+fn stop((mut child, said): (Child, std::thread::JoinHandle<String>)) -> String {
     let _ = Command::new("kill")
         .args(["-INT", &child.id().to_string()])
         .status();
     let _ = child.wait();
+    said.join().unwrap_or_default()
 }
 
 /// Serves `path` in `version` on fixed ports and receives it with our
@@ -155,8 +175,14 @@ fn capture(dir: &Path, path: &Path, version: Version, n: usize) -> (PathBuf, Vec
         got
     });
     // Every frame the client got must reach tcpdump's file first.
-    settle(&out, got.len());
-    stop(dump);
+    let held = settle(&out, got.len());
+    let said = stop(dump);
+    if held < got.len() {
+        eprintln!(
+            "NatNet {version}: tcpdump wrote {held} of the {} frames the client got in 30 s; it said: {said}",
+            got.len()
+        );
+    }
     (out, got)
 }
 
@@ -204,6 +230,17 @@ fn captures_of_every_version_read_back_as_the_session() {
         );
         assert!(rec.source().contains("treemocap"), "{}", rec.source());
         assert_eq!(rec.info().format, treemocap::format::Format::Pcap);
+        if frames.len() != sent.len() {
+            // Kept for a look with tcpdump -r or Wireshark.
+            let kept = std::env::temp_dir().join(format!("treemocap-failed-natnet-{version}.pcap"));
+            let _ = std::fs::copy(&pcap, &kept);
+            eprintln!(
+                "NatNet {version}: the capture holds {} FRAMEOFDATA datagrams, the reader gave {} frames; kept as {}",
+                frames_captured(&std::fs::read(&pcap).unwrap()),
+                frames.len(),
+                kept.display()
+            );
+        }
         // What the capture holds is what the client got, frame for frame.
         check_session(version, &sent, &frames);
         assert_eq!(frames, live, "NatNet {version}");

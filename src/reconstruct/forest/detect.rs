@@ -87,7 +87,7 @@ fn search(
     let mut fewer = Crown::fit(tips, centroid(tips), FREE).map(|c| {
         let labels = vec![0; tips.len()];
         Split {
-            rms: rms_of(tips, std::slice::from_ref(&c), &labels),
+            crown_rms: crown_rms(tips, std::slice::from_ref(&c), &labels),
             centres: vec![c.axis_at(0.0)],
             labels,
         }
@@ -101,12 +101,15 @@ fn search(
             };
             out.push(Candidate {
                 k,
-                rms: split.rms,
+                rms: split.rms(),
+                rms_all: split.rms_all(),
+                crown_rms: split.crown_rms.clone(),
+                labels: split.labels.clone(),
                 dependence,
                 ratio,
                 centres: split.centres.clone(),
             });
-            if stop_at_fit && split.rms <= s.fit_tolerance_m {
+            if stop_at_fit && split.rms() <= s.fit_tolerance_m {
                 break;
             }
         }
@@ -121,8 +124,8 @@ fn search(
 
 /// A valid split of the tips into crowns.
 struct Split {
-    /// The worst crown's RMS surface distance (m).
-    rms: f64,
+    /// Every crown's RMS surface distance (m).
+    crown_rms: Vec<f64>,
     /// Axis foot of every crown.
     centres: Vec<DVec3>,
     /// Crown of every tip.
@@ -163,7 +166,7 @@ fn best_split(
 /// The split of least RMS (the first on a tie).
 fn least_rms(splits: impl Iterator<Item = Split>) -> Option<Split> {
     splits.fold(None, |best: Option<Split>, split| match best {
-        Some(b) if b.rms <= split.rms => Some(b),
+        Some(b) if b.rms() <= split.rms() => Some(b),
         _ => Some(split),
     })
 }
@@ -234,7 +237,7 @@ fn refine(
         }
     }
     Some(Split {
-        rms: rms_of(tips, &crowns, &labels),
+        crown_rms: crown_rms(tips, &crowns, &labels),
         centres,
         labels,
     })
@@ -285,10 +288,33 @@ fn kmeans(tips: &[DVec3], k: usize, first: usize) -> (Vec<DVec3>, Vec<usize>) {
     (centres, labels)
 }
 
-/// The worst tree's root mean square distance of its tips from its crown:
-/// two trees taken for one make one bad crown among good ones, which the
-/// RMS over all tips would hide.
-fn rms_of(tips: &[DVec3], crowns: &[Crown], labels: &[usize]) -> f64 {
+impl Split {
+    /// The worst crown's RMS surface distance (m): two trees taken for one
+    /// make one bad crown among good ones, which the RMS over all tips
+    /// would hide.
+    fn rms(&self) -> f64 {
+        self.crown_rms.iter().copied().fold(0.0, f64::max)
+    }
+
+    /// The RMS surface distance over all tips, each from its own crown
+    /// (m): where cutting one crown in two helps that crown, this shows it
+    /// though another crown stays the worst.
+    fn rms_all(&self) -> f64 {
+        let mut count = vec![0usize; self.crown_rms.len()];
+        for &l in &self.labels {
+            count[l] += 1;
+        }
+        let sum: f64 = count
+            .iter()
+            .zip(&self.crown_rms)
+            .map(|(&n, r)| n as f64 * r * r)
+            .sum();
+        (sum / self.labels.len().max(1) as f64).sqrt()
+    }
+}
+
+/// Every tree's root mean square distance of its tips from its crown.
+fn crown_rms(tips: &[DVec3], crowns: &[Crown], labels: &[usize]) -> Vec<f64> {
     let mut sum = vec![0.0; crowns.len()];
     let mut count = vec![0usize; crowns.len()];
     for (p, &l) in tips.iter().zip(labels) {
@@ -298,7 +324,7 @@ fn rms_of(tips: &[DVec3], crowns: &[Crown], labels: &[usize]) -> f64 {
     sum.iter()
         .zip(&count)
         .map(|(s, &n)| (s / n.max(1) as f64).sqrt())
-        .fold(0.0, f64::max)
+        .collect()
 }
 
 fn centroid(tips: &[DVec3]) -> DVec3 {

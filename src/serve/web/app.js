@@ -176,6 +176,7 @@ const tm = {
   poses: 0,             // pose events applied
   lastPoseFrame: null,  // frame of the last pose applied (kept after the rest pose returns)
   lastPoseSeen: null,   // { tree, frame } of the last pose event received, applied or not
+  poseSkipped: null,    // { frame, tree, why } of the last pose event not applied
   swayFrames: {},       // per tree swaying ('' for a tree alone): the frame of its pose shown
   decodeFrame,
 };
@@ -374,7 +375,12 @@ function restPose() {
 function applyPose(p) {
   const t = sway.trees.get(swayKey(p.name));
   const d = p.d_um;
-  if (!sway.on || !t || p.tree !== tm.tree?.version || d?.length !== 3 * t.bones.length) return;
+  const skip = !sway.on ? 'sway off' : !t ? 'no such tree' : p.tree !== tm.tree?.version ? `tree ${tm.tree?.version} shown`
+    : d?.length !== 3 * t.bones.length ? `${d?.length} values for ${t.bones.length} joints` : null;
+  if (skip) {
+    tm.poseSkipped = { frame: p.frame, tree: p.tree, why: skip };
+    return;
+  }
   const { bones, parent, rest } = t;
   for (let i = 0; i < bones.length; i++) {
     const j = parent[i], k = 3 * i;
