@@ -41,6 +41,11 @@ pub(crate) struct Pipeline {
     pca: SwayPca,
     next_pca: f64,
     next_analysis: f64,
+    /// Frames have entered the window since it was last handed to the
+    /// analysis. A replay at full speed can end while the analysis is still
+    /// busy with its first frames; the window's end is then handed over once
+    /// the source is quiet, or no tree would come until the next frame.
+    unanalysed: bool,
     rate: RateEstimate,
     osc: Option<OscSender>,
     /// The current tree swayed by the live tips (issue 13), on its own
@@ -121,6 +126,7 @@ impl Pipeline {
             pca: SwayPca::new(c.wind.pca_window_s, c.wind.pca_min_sway_mm / 1000.0),
             next_pca: f64::NEG_INFINITY,
             next_analysis: f64::NEG_INFINITY,
+            unanalysed: false,
             rate,
             osc: super::osc_sender(&d.osc_targets)?,
             recorder,
@@ -210,12 +216,14 @@ impl Pipeline {
     }
 
     /// A quiet source (a finished replay, a paused rig) must not leave a
-    /// requested rebuild waiting for the next frame.
+    /// requested rebuild, or frames no analysis has seen, waiting for the
+    /// next frame.
     fn on_quiet(&mut self) {
         if let Some((frame, seen)) = self.unshown.take() {
             self.publish(&frame, &seen);
         }
-        if self.shared.rebuild.load(Ordering::Relaxed) && !self.window.is_empty() {
+        let rebuild = self.shared.rebuild.load(Ordering::Relaxed);
+        if (rebuild || self.unanalysed) && !self.window.is_empty() {
             self.offer_window();
         }
     }
@@ -254,6 +262,7 @@ impl Pipeline {
             w.write_frame(&frame);
         }
         self.window.push(&frame);
+        self.unanalysed = true;
         self.maybe_analyse(now);
         self.show(frame, seen);
         self.plan_warm(arrived);
@@ -358,6 +367,7 @@ impl Pipeline {
             snapshot: self.window.snapshot(),
             frame_rate: self.rate.hz.round().max(1.0),
         });
+        self.unanalysed = false;
         true
     }
 }

@@ -262,6 +262,35 @@ fn an_unchanged_session_gives_one_tree_and_rebuild_gives_the_same_tree() {
     assert!(second_tips == std::fs::read(out_dir.path().join("tips.json")).unwrap());
 }
 
+/// A replay that ends before its next analysis is due (here an interval
+/// of 60 s, longer than the 40 s take; in practice a short take replayed at full
+/// speed while the analysis was still busy with its first frames) still
+/// gives its tree: once the source is quiet, the window's end is analysed.
+#[test]
+fn a_replay_that_ends_between_analyses_still_gives_its_tree() {
+    let out_dir = tempfile::tempdir().unwrap();
+    let http_port = free_tcp();
+    let _daemon = start_daemon(
+        out_dir.path(),
+        http_port,
+        &[
+            "daemon.replay_speed=0".into(),
+            "daemon.analysis_interval_s=60".into(),
+        ],
+    );
+    wait_status(http_port, "the end of the replay", 60, |v| {
+        v["frames"] == 4000
+    });
+    // Only the first frame was due for analysis while frames came; the
+    // tree needs the still phase, which only the quiet source's hand-over
+    // shows the analysis. A deadline, not a measure.
+    let v = wait_status(http_port, "the tree of the whole replay", 180, |v| {
+        v["trees"].as_u64().unwrap_or(0) >= 1
+    });
+    assert_eq!(v["tips"], 24, "maple-24's tips: {v}");
+    assert!(out_dir.path().join("tree.glb").exists());
+}
+
 fn start_daemon(out: &std::path::Path, http_port: u16, sets: &[String]) -> Killed {
     start_daemon_with_config(out, http_port, None, sets)
 }
