@@ -110,8 +110,30 @@ fn stop((mut child, said): (Child, std::thread::JoinHandle<String>)) -> String {
 /// Serves `path` in `version` on fixed ports and receives it with our
 /// client, while tcpdump records; returns the capture and what the client
 /// got.
+///
+/// The ports are picked free before tcpdump starts (its filter names
+/// them), so another test can take one before the server binds it; the
+/// server then refuses to start (seen once in a full run). Such a run is
+/// tried again on other ports; any other failure is the test's.
 fn capture(dir: &Path, path: &Path, version: Version, n: usize) -> (PathBuf, Vec<MarkerFrame>) {
-    let (cmd, data) = (free_port(), free_port());
+    for attempt in 1..=3 {
+        match capture_on(dir, path, version, n, (free_port(), free_port())) {
+            Ok(done) => return done,
+            Err(bind) => eprintln!("NatNet {version}, attempt {attempt}: {bind}"),
+        }
+    }
+    panic!("NatNet {version}: the server could not bind free ports three times")
+}
+
+/// One [`capture`] on the given ports; `Err` when the server could not
+/// bind them.
+fn capture_on(
+    dir: &Path,
+    path: &Path,
+    version: Version,
+    n: usize,
+    (cmd, data): (u16, u16),
+) -> Result<(PathBuf, Vec<MarkerFrame>), String> {
     let out = dir.join(format!("natnet-{version}.pcap"));
     let dump = tcpdump(&out, [cmd, data]);
     let rt = tokio::runtime::Builder::new_current_thread()
@@ -152,9 +174,14 @@ fn capture(dir: &Path, path: &Path, version: Version, n: usize) -> (PathBuf, Vec
             tokio::time::sleep(Duration::from_millis(10)).await;
         }
         let _ = stop_client.send(true);
-        cli.await.unwrap().unwrap();
+        let client = cli.await.unwrap();
         let _ = stop_server.send(true);
-        let _ = srv.await;
+        match srv.await.unwrap() {
+            Err(e) if e.to_string().contains("cannot") => return Err(e.to_string()),
+            Err(e) => panic!("NatNet {version}: the server failed: {e}"),
+            Ok(_) => {}
+        }
+        client.unwrap();
         if got.len() != n {
             // What each side counted, to tell a frame never sent from one
             // lost on the way or held by the client.
@@ -172,8 +199,15 @@ fn capture(dir: &Path, path: &Path, version: Version, n: usize) -> (PathBuf, Vec
                 stats.requests.load(std::sync::atomic::Ordering::Relaxed),
             );
         }
-        got
+        Ok(got)
     });
+    let got = match got {
+        Ok(got) => got,
+        Err(bind) => {
+            stop(dump);
+            return Err(bind);
+        }
+    };
     // Every frame the client got must reach tcpdump's file first.
     let held = settle(&out, got.len());
     let said = stop(dump);
@@ -183,7 +217,7 @@ fn capture(dir: &Path, path: &Path, version: Version, n: usize) -> (PathBuf, Vec
             got.len()
         );
     }
-    (out, got)
+    Ok((out, got))
 }
 
 fn read_capture(path: &Path, options: PcapOptions) -> (PcapRecording, Vec<MarkerFrame>) {
