@@ -206,8 +206,9 @@ fn the_sway_finds_the_count_where_the_crown_fit_alone_misses() {
     // five whose crowns do not sway as one; at held-out seed 1019, crowns
     // overlapping by a third, the same, though only the RMS over all tips
     // shows it, the worst crown being a lumpy tree elsewhere):
-    // the trunks' sway sets them right, and a still take (no sway) falls
-    // back on the fit alone.
+    // the trunks' sway sets them right (docs/forest.md, "The count: one
+    // criterion for the fit and the sway"), and a still take (no sway)
+    // falls back on the fit alone.
     let recon = ReconstructSettings::default();
     let s = ForestSettings::default();
     for (seed, overlap) in [(5063, 0.0), (5026, 1.0 / 6.0), (7, 0.25), (1019, 1.0 / 3.0)] {
@@ -224,15 +225,20 @@ fn the_sway_finds_the_count_where_the_crown_fit_alone_misses() {
             swayed.fits
         );
         // The plan says which evidence settled the count: the still take's
-        // by the crown fit, the swayed one's by the sway, naming the fit's
-        // own number (the still take's) and a margin in (0, 1].
+        // by the crown fit; the swayed one's by the criterion of the fit
+        // and the sway, whose crowns the sway pulled — "by the sway" when
+        // the fit's rule among those same crowns would have taken another
+        // number (named), "by the crown fit" when the pulled crowns
+        // already fit right (seed 5063) — and a margin in (0, 1].
         let (by_fit, by_sway) = (still.count.unwrap(), swayed.count.unwrap());
         assert_eq!(by_fit.basis, CountBasis::Fit, "seed {seed}: {by_fit:?}");
         assert!(!by_fit.swayed && by_sway.swayed, "seed {seed}");
         assert!(by_fit.reason.contains("fit tolerance"), "{by_fit:?}");
-        assert_eq!(by_sway.basis, CountBasis::Sway, "seed {seed}: {by_sway:?}");
-        assert_eq!(by_sway.fit_trees, still.trees.len(), "{by_sway:?}");
-        assert!(by_sway.reason.contains("sway"), "{by_sway:?}");
+        assert!(by_sway.reason.contains("sway best"), "{by_sway:?}");
+        match by_sway.basis {
+            CountBasis::Sway => assert_ne!(by_sway.fit_trees, trees, "{by_sway:?}"),
+            CountBasis::Fit => assert_eq!(by_sway.fit_trees, trees, "{by_sway:?}"),
+        }
         for c in [&by_fit, &by_sway] {
             assert!(c.margin > 0.0 && c.margin <= 1.0, "seed {seed}: {c:?}");
         }
