@@ -269,7 +269,29 @@ fn dump_candidates(
             let between: Vec<Vec<(f64, usize)>> = (0..k)
                 .map(|x| (0..k).map(|y| c.mean_between(&cand.labels, x, y)).collect())
                 .collect();
+            // Per pair of crowns: the sum of the squared correlations (for
+            // a block model's residuals).
+            let between_sq: Vec<Vec<f64>> = (0..k)
+                .map(|x| {
+                    (0..k)
+                        .map(|y| {
+                            let mut sq = 0.0;
+                            for a in (0..tips.len()).filter(|&a| cand.labels[a] == x) {
+                                for b in (0..tips.len())
+                                    .filter(|&b| cand.labels[b] == y && (x != y || b > a))
+                                {
+                                    if let Some(r) = c.get(a, b) {
+                                        sq += r * r;
+                                    }
+                                }
+                            }
+                            sq
+                        })
+                        .collect()
+                })
+                .collect();
             let line = serde_json::json!({
+                "between_sq": between_sq,
                 "seed": seed, "overlap": overlap, "trees": trees, "k": k,
                 "rms": cand.rms, "dep": cand.dependence, "ratio": cand.ratio,
                 "crown_rms": cand.crown_rms, "tips": tips_of, "own": own,

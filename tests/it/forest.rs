@@ -206,8 +206,9 @@ fn the_sway_finds_the_count_where_the_crown_fit_alone_misses() {
     // five whose crowns do not sway as one; at held-out seed 1019, crowns
     // overlapping by a third, the same, though only the RMS over all tips
     // shows it, the worst crown being a lumpy tree elsewhere):
-    // the trunks' sway sets them right, and a still take (no sway) falls
-    // back on the fit alone.
+    // the trunks' sway sets them right (docs/forest.md, "The count: one
+    // criterion for the fit and the sway"), and a still take (no sway)
+    // falls back on the fit alone.
     let recon = ReconstructSettings::default();
     let s = ForestSettings::default();
     for (seed, overlap) in [(5063, 0.0), (5026, 1.0 / 6.0), (7, 0.25), (1019, 1.0 / 3.0)] {
@@ -224,18 +225,60 @@ fn the_sway_finds_the_count_where_the_crown_fit_alone_misses() {
             swayed.fits
         );
         // The plan says which evidence settled the count: the still take's
-        // by the crown fit, the swayed one's by the sway, naming the fit's
-        // own number (the still take's) and a margin in (0, 1].
+        // by the crown fit; the swayed one's by the criterion of the fit
+        // and the sway, whose crowns the sway pulled — "by the sway" when
+        // the fit's rule among those same crowns would have taken another
+        // number (named), "by the crown fit" when the pulled crowns
+        // already fit right (seed 5063) — and a margin in (0, 1].
         let (by_fit, by_sway) = (still.count.unwrap(), swayed.count.unwrap());
         assert_eq!(by_fit.basis, CountBasis::Fit, "seed {seed}: {by_fit:?}");
         assert!(!by_fit.swayed && by_sway.swayed, "seed {seed}");
         assert!(by_fit.reason.contains("fit tolerance"), "{by_fit:?}");
-        assert_eq!(by_sway.basis, CountBasis::Sway, "seed {seed}: {by_sway:?}");
-        assert_eq!(by_sway.fit_trees, still.trees.len(), "{by_sway:?}");
-        assert!(by_sway.reason.contains("sway"), "{by_sway:?}");
+        assert!(by_sway.reason.contains("sway best"), "{by_sway:?}");
+        match by_sway.basis {
+            CountBasis::Sway => assert_ne!(by_sway.fit_trees, trees, "{by_sway:?}"),
+            CountBasis::Fit => assert_eq!(by_sway.fit_trees, trees, "{by_sway:?}"),
+        }
         for c in [&by_fit, &by_sway] {
             assert!(c.margin > 0.0 && c.margin <= 1.0, "seed {seed}: {c:?}");
         }
+    }
+}
+
+#[test]
+fn the_counts_the_threshold_rule_missed_are_right() {
+    // Held-out sessions (not looked at while the criterion's two factors
+    // were chosen on seeds 0–39) that the threshold rule before it got
+    // wrong: 1030 (two halves of a tree at 0.61 of their own, under the
+    // 0.65 that merged), 2002 (a fifth crown of 7 tips fitting very well),
+    // 2009 (a tree's halves at 0.57 of their own, two trees at 0.27 by
+    // chance), 2022 (no split into four by shape was the four trees) and
+    // 3009 (three trees hardly swaying with their trunks, a fourth crown
+    // "swaying apart" as nothing correlates). The trunk's pull in the
+    // search and one criterion for the fit and the sway count them right
+    // (docs/forest.md, "The count: one criterion for the fit and the
+    // sway").
+    let recon = ReconstructSettings::default();
+    let s = ForestSettings::default();
+    for (seed, overlap) in [
+        (1030, 1.0 / 3.0),
+        (2002, 1.0 / 3.0),
+        (2009, -0.1),
+        (2022, 1.0 / 3.0),
+        (3009, -0.1),
+    ] {
+        let trees = 2 + (seed % 4) as usize;
+        let (t, l) = sweep_session(seed as u64, trees, overlap);
+        let plan = forest::plan(&t.rest_tips(), &l, &[], &s, &recon).unwrap();
+        let count = plan.count.clone().unwrap();
+        assert_eq!(
+            plan.trees.len(),
+            trees,
+            "seed {seed}: fits {:?}, {count:?}",
+            plan.fits
+        );
+        assert!(count.swayed, "seed {seed}: {count:?}");
+        assert!(count.reason.contains("sway best"), "seed {seed}: {count:?}");
     }
 }
 

@@ -5,8 +5,9 @@
 //! For K = 1, 2, … the tips are split by k-means on their horizontal
 //! positions (several deterministic starts) and by the best split into
 //! K − 1 with one of its crowns cut in two, then crowns are fitted with a
-//! free axis and every tip goes to the nearest surface, until the split
-//! stands; a split counts when every tree has `min_tips` tips and every two
+//! free axis and every tip goes to the nearest surface (in a swayed take,
+//! less the trunk's pull of the crown whose tips it sways with), until the
+//! split stands; a split counts when every tree has `min_tips` tips and every two
 //! axes stand `min_spacing_m` apart, and the one with the least RMS is
 //! kept. [`super::count`] then chooses K among them (by the fit alone, or
 //! the fit and the sway) and says why.
@@ -99,6 +100,10 @@ fn search(
                 Some(c) if k > 1 => c.dependence(&split.labels, k),
                 _ => (f64::NEG_INFINITY, f64::NEG_INFINITY),
             };
+            let (sway_ssr, sway_pairs, sway_blocks) = match sway {
+                Some(c) => c.block_residual(&split.labels, k),
+                None => (0.0, 0, 0),
+            };
             out.push(Candidate {
                 k,
                 rms: split.rms(),
@@ -107,6 +112,9 @@ fn search(
                 labels: split.labels.clone(),
                 dependence,
                 ratio,
+                sway_ssr,
+                sway_pairs,
+                sway_blocks,
                 centres: split.centres.clone(),
             });
             if stop_at_fit && split.rms() <= s.fit_tolerance_m {
@@ -117,7 +125,7 @@ fn search(
         if k > s.max_trees || tips.len() < k * s.min_tips {
             break;
         }
-        fewer = best_split(tips, k, s, fewer.as_ref());
+        fewer = best_split(tips, k, s, fewer.as_ref(), sway);
     }
     out
 }
@@ -146,11 +154,12 @@ fn best_split(
     k: usize,
     s: &ForestSettings,
     fewer: Option<&Split>,
+    sway: Option<&Coherence>,
 ) -> Option<Split> {
     let starts = (0..STARTS.min(tips.len())).filter_map(|start| {
         let first = start * tips.len() / STARTS.min(tips.len());
         let (centres, labels) = kmeans(tips, k, first);
-        refine(tips, centres, labels, s)
+        refine(tips, centres, labels, s, sway)
     });
     let best = least_rms(starts);
     if best.is_some() {
@@ -159,7 +168,7 @@ fn best_split(
     let f = fewer.filter(|f| f.centres.len() + 1 == k)?;
     least_rms((0..f.centres.len()).filter_map(|t| {
         let (centres, labels) = cut(tips, f, t)?;
-        refine(tips, centres, labels, s)
+        refine(tips, centres, labels, s, sway)
     }))
 }
 
@@ -200,6 +209,7 @@ fn refine(
     mut centres: Vec<DVec3>,
     mut labels: Vec<usize>,
     s: &ForestSettings,
+    sway: Option<&Coherence>,
 ) -> Option<Split> {
     let mut crowns = Vec::new();
     for _ in 0..ROUNDS {
@@ -216,9 +226,21 @@ fn refine(
             *c = crown.axis_at(0.0);
             crowns.push(crown);
         }
+        // The trunk's pull, as when tips are given to trees (assign): a
+        // tip's mean sway correlation with a crown's tips takes
+        // `trunk_weight_m` per unit off its distance to that crown, so a
+        // crown gathers the tips that sway with it and a split's crowns
+        // are trees, not pieces cut by shape alone (docs/forest.md).
+        let shared = sway.map(|co| co.means_with(&labels, crowns.len()));
         let next: Vec<usize> = tips
             .iter()
-            .map(|p| nearest(crowns.iter().map(|c| c.distance(*p))))
+            .enumerate()
+            .map(|(i, p)| {
+                nearest(crowns.iter().enumerate().map(|(t, c)| {
+                    let with = shared.as_ref().and_then(|m| m[i][t]).unwrap_or(0.0);
+                    c.distance(*p) - s.trunk_weight_m * with
+                }))
+            })
             .collect();
         if next == labels {
             break;

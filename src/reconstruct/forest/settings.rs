@@ -53,12 +53,15 @@ pub struct ForestSettings {
     /// How strongly such a partner pulls a tip into its tree (m of surface
     /// distance per partner); 0 turns the sway off.
     pub sway_weight_m: f64,
-    /// Two found crowns whose tips' sway correlates this much on average
-    /// share a trunk: a split that makes such crowns cuts one tree, and
-    /// the count is the most crowns that all sway independently.
+    /// No longer used (accepted so that configs which set it still load):
+    /// the count's threshold on two crowns' mean sway correlation, replaced
+    /// by one criterion for the fit and the sway (docs/forest.md, "The
+    /// count: one criterion for the fit and the sway").
     pub trunk_coherence: f64,
     /// How strongly a tip's mean sway correlation with a tree's tips pulls
-    /// it into that tree (m of surface distance per unit of correlation).
+    /// it into that tree (m of surface distance per unit of correlation):
+    /// when tips are given to trees, and when the search for the trees
+    /// fits its crowns in a swayed take.
     pub trunk_weight_m: f64,
 }
 

@@ -191,6 +191,64 @@ impl Coherence {
         (worst, ratio)
     }
 
+    /// How well a block model explains the correlations of the `k` groups
+    /// of `labels` as `k` trees: every two tips of one group correlate
+    /// about that group's mean (its trunk's share of the sway), tips of two
+    /// groups about 0 (two trees sway independently). Returns the squared
+    /// residuals' sum over every known pair, the number of pairs, and the
+    /// number of groups with a pair inside (the block means fitted): what
+    /// the count's criterion takes (docs/forest.md, "The count: one
+    /// criterion for the fit and the sway").
+    pub fn block_residual(&self, labels: &[usize], k: usize) -> (f64, usize, usize) {
+        // Per group: pairs, sum and sum of squares inside; across groups:
+        // the sum of squares (about 0).
+        let mut inside = vec![(0usize, 0.0f64, 0.0f64); k];
+        let (mut across, mut pairs) = (0.0, 0usize);
+        for a in 0..self.n {
+            for b in a + 1..self.n {
+                let Some(c) = self.get(a, b) else { continue };
+                pairs += 1;
+                match (labels.get(a), labels.get(b)) {
+                    (Some(&x), Some(&y)) if x == y && x < k => {
+                        let g = &mut inside[x];
+                        g.0 += 1;
+                        g.1 += c;
+                        g.2 += c * c;
+                    }
+                    _ => across += c * c,
+                }
+            }
+        }
+        let blocks = inside.iter().filter(|g| g.0 > 0).count();
+        let within: f64 = inside
+            .iter()
+            .filter(|g| g.0 > 0)
+            .map(|&(n, sum, sq)| sq - sum * sum / n as f64)
+            .sum();
+        ((within + across).max(0.0), pairs, blocks)
+    }
+
+    /// [`Coherence::mean_with`] for every tip and every group `x < k` at
+    /// once (row `a`, column `x`): one pass over the pairs.
+    pub fn means_with(&self, labels: &[usize], k: usize) -> Vec<Vec<Option<f64>>> {
+        (0..self.n)
+            .map(|a| {
+                let mut sum = vec![(0.0, 0usize); k];
+                for b in (0..self.n).filter(|&b| b != a) {
+                    if let (Some(c), Some(&x)) = (self.get(a, b), labels.get(b)) {
+                        if let Some(g) = sum.get_mut(x) {
+                            g.0 += c;
+                            g.1 += 1;
+                        }
+                    }
+                }
+                sum.iter()
+                    .map(|&(s, n)| (n > 0).then(|| s / n as f64))
+                    .collect()
+            })
+            .collect()
+    }
+
     /// The mean correlation of tip `a` with the tips labelled `x` (other
     /// than itself), when any is known.
     pub fn mean_with(&self, labels: &[usize], a: usize, x: usize) -> Option<f64> {
@@ -327,5 +385,48 @@ mod tests {
         assert_eq!(links.len(), 1);
         assert_eq!((links[0].a, links[0].b), (5, 9));
         assert!(links[0].correlation > 0.7, "{links:?}");
+    }
+
+    /// Two trees of three tips each: every two tips of one tree correlate
+    /// 0.6 (tree 0) or 0.4 (tree 1), tips of the two trees 0.
+    fn two_trees() -> Coherence {
+        let mut links = Vec::new();
+        for a in 0..6 {
+            for b in a + 1..6 {
+                let c = match (a < 3, b < 3) {
+                    (true, true) => 0.6,
+                    (false, false) => 0.4,
+                    _ => 0.0,
+                };
+                links.push((a, b, c));
+            }
+        }
+        Coherence::new(6, &links)
+    }
+
+    #[test]
+    fn the_block_model_fits_one_group_per_tree_and_no_other_split() {
+        let c = two_trees();
+        // One group per tree: every pair at its block's mean, none left.
+        let (ssr, pairs, blocks) = c.block_residual(&[0, 0, 0, 1, 1, 1], 2);
+        assert_eq!((pairs, blocks), (15, 2));
+        assert!(ssr < 1e-12, "{ssr}");
+        // Tree 0 cut in two: its pairs across the cut (2 × 0.6) are taken
+        // for 0, as if two trees.
+        let (cut, _, blocks) = c.block_residual(&[0, 0, 2, 1, 1, 1], 3);
+        assert_eq!(blocks, 2, "a group of one tip has no pair inside");
+        assert!((cut - 2.0 * 0.36).abs() < 1e-9, "{cut}");
+        // The two trees as one: the mean 0.2 over all 15 pairs.
+        let (merged, _, blocks) = c.block_residual(&[0; 6], 1);
+        assert_eq!(blocks, 1);
+        assert!(merged > cut, "{merged} {cut}");
+        // Every tip's mean with every group, as one tip at a time gives it.
+        let labels = [0, 0, 2, 1, 1, 1];
+        let all = c.means_with(&labels, 3);
+        for (a, row) in all.iter().enumerate() {
+            for (x, m) in row.iter().enumerate() {
+                assert_eq!(*m, c.mean_with(&labels, a, x), "tip {a} group {x}");
+            }
+        }
     }
 }
