@@ -239,6 +239,20 @@ impl Trace {
         self.fills.insert(at, fill);
     }
 
+    /// Records a trace's fills (see [`Trace::add_fill`]). A list in frame
+    /// order given to a trace without fills becomes its list as it is: gap
+    /// filling makes each trace's list whole, and copying it in held every
+    /// fill twice.
+    pub(crate) fn add_fills(&mut self, fills: Vec<Fill>) {
+        if self.fills.is_empty() && fills.is_sorted_by_key(|f| f.from) {
+            self.fills = fills;
+            return;
+        }
+        for fill in fills {
+            self.add_fill(fill);
+        }
+    }
+
     /// Which source IDs the measurements came from, as runs.
     pub fn sources(&self) -> &[SourceRun] {
         &self.sources

@@ -225,22 +225,14 @@ pub fn join_into_gaps(
             .collect();
         let mut edges = Vec::new();
         for (row, &f) in fragments.iter().enumerate() {
-            let Some(frag) = slots[f].as_ref().map(Measured::of) else {
+            let Some(frag) = slots[f].as_ref() else {
                 continue;
             };
-            let span = (frag.first_frame(), frag.last_frame());
             for (col, &h) in hosts.iter().enumerate() {
-                // Only the host's measurements a hand-over can look at, one
-                // host at a time: a whole host of an hour-long take as
-                // samples and prefix sums is 56 bytes a sample (3.2 GB
-                // for 70 tips), the hosts being most of the take.
-                let Some(host) = slots[h]
-                    .as_ref()
-                    .map(|t| Measured::around(t, span, context as usize))
-                else {
+                let Some(host) = slots[h].as_ref() else {
                     continue;
                 };
-                let Some(cost) = switch_cost(&host, &frag, context as usize) else {
+                let Some(cost) = switch_cost(host, frag, context as usize) else {
                     continue;
                 };
                 if cost <= radius_m {
@@ -263,6 +255,13 @@ pub fn join_into_gaps(
                 slots[h] = Some(m);
                 slots[frag] = None;
                 joined_now += 1;
+                // The merged copy was written while the host and the
+                // fragment were alive, so their freed chunks are holes the
+                // next copy only partly reuses: on an hour-long take the
+                // joins left 55 MB of them resident (the marker stage's peak
+                // was there and in gap filling, 348 MB against issue 14's
+                // 300 MB, with never more than 284 MB in use).
+                crate::memory::release_freed();
             }
         }
         joins += joined_now;
@@ -273,70 +272,84 @@ pub fn join_into_gaps(
     (slots.into_iter().flatten().collect(), joins)
 }
 
-/// A trace's measurements (all of them, or those around a span) with prefix
-/// sums of their positions, so the mean of any run of them costs O(1).
-struct Measured {
-    /// The frames of the measurements kept; their positions are needed
-    /// only as means, which `prefix` gives (32 bytes a sample instead of
-    /// 56: a long fragment and its host around it were the hour-long
-    /// take's largest transient).
-    frames: Vec<i64>,
-    /// `prefix[k]`: the sum of every measurement of the trace before
-    /// `frames[k]` (from the trace's first, even when `frames` starts
-    /// later), so that a mean is the same, bit for bit, whichever part of
-    /// the trace was kept.
-    prefix: Vec<DVec3>,
+/// A trace's measurements read in order, with the running sum of their
+/// positions, keeping only a window of them: the means [`switch_cost`]
+/// compares reach `context` measurements back and `context` ahead of where
+/// the walk is, nothing more.
+///
+/// Why a window: holding a trace's measurements with their prefix sums was
+/// 32 bytes a sample, and on an hour-long take a fragment spanning most of
+/// the hour and its host around it were 67 MB at once, the largest
+/// transient of the marker stage (issue 14: the hour's peak 348 MB against
+/// the 300 MB target). The window is `2 × context + 1` samples, whatever
+/// the length of the traces.
+///
+/// The sums are accumulated from the trace's first measurement in the
+/// same order as before, so every mean is the same, bit for bit, as one
+/// taken from prefix sums of the whole trace.
+struct Stream<I> {
+    iter: I,
+    /// `(frame, sum of every measurement before it)` of measurements
+    /// `base..base + window.len()`.
+    window: std::collections::VecDeque<(i64, DVec3)>,
+    base: usize,
+    /// The sum of every measurement read so far (the prefix sum at
+    /// `base + window.len()`).
+    acc: DVec3,
+    /// The trace has no measurement left to read.
+    done: bool,
 }
 
-impl Measured {
-    fn of(t: &Trace) -> Self {
-        Measured::around(t, (i64::MIN, i64::MAX), 0)
+impl<I: Iterator<Item = (i64, DVec3)>> Stream<I> {
+    fn new(iter: I) -> Self {
+        Stream {
+            iter,
+            window: Default::default(),
+            base: 0,
+            acc: DVec3::ZERO,
+            done: false,
+        }
     }
 
-    /// The measurements a fragment spanning the frames `span` can hand over
-    /// with in [`switch_cost`]: those inside the span and `context` on each
-    /// side. Before the span the walk only steps through the host, and after
-    /// the first hand-over back to it nothing is compared, so the cost is
-    /// that of the whole trace.
-    fn around(t: &Trace, span: (i64, i64), context: usize) -> Self {
-        let mut frames: std::collections::VecDeque<i64> = Default::default();
-        let mut prefix: std::collections::VecDeque<DVec3> = Default::default();
-        let mut acc = DVec3::ZERO;
-        let mut after = 0usize;
-        for s in t.measurements() {
-            if s.0 > span.1 {
-                if after == context {
-                    break;
+    /// Reads measurements until `k` of them are read or the trace ends.
+    fn read_to(&mut self, k: usize) {
+        while !self.done && self.base + self.window.len() < k {
+            match self.iter.next() {
+                Some((frame, p)) => {
+                    self.window.push_back((frame, self.acc));
+                    self.acc += p;
                 }
-                after += 1;
-            }
-            frames.push_back(s.0);
-            prefix.push_back(acc);
-            acc += s.1;
-            if s.0 < span.0 && frames.len() > context {
-                frames.pop_front();
-                prefix.pop_front();
+                None => self.done = true,
             }
         }
-        prefix.push_back(acc);
-        Measured {
-            frames: frames.into(),
-            prefix: prefix.into(),
+    }
+
+    /// Frame of measurement `k` (`None` past the end). `k` is never before
+    /// the window: the walk only moves forward.
+    fn frame(&mut self, k: usize) -> Option<i64> {
+        self.read_to(k + 1);
+        self.window.get(k.checked_sub(self.base)?).map(|w| w.0)
+    }
+
+    /// The sum of measurements before `k`; `k` at most the number read.
+    fn prefix(&self, k: usize) -> DVec3 {
+        self.window.get(k - self.base).map_or(self.acc, |w| w.1)
+    }
+
+    /// Mean of measurements `[lo, hi)` (clamped to the trace; `None` when
+    /// empty), as `(prefix[hi] - prefix[lo]) / (hi - lo)`.
+    fn mean(&mut self, lo: usize, hi: usize) -> Option<DVec3> {
+        self.read_to(hi);
+        let hi = hi.min(self.base + self.window.len());
+        (hi > lo).then(|| (self.prefix(hi) - self.prefix(lo)) / (hi - lo) as f64)
+    }
+
+    /// Forgets measurements before `k` (no mean will start before it).
+    fn forget_before(&mut self, k: usize) {
+        while self.base < k && !self.window.is_empty() {
+            self.window.pop_front();
+            self.base += 1;
         }
-    }
-
-    fn first_frame(&self) -> i64 {
-        self.frames.first().copied().unwrap_or(i64::MAX)
-    }
-
-    fn last_frame(&self) -> i64 {
-        self.frames.last().copied().unwrap_or(i64::MIN)
-    }
-
-    /// Mean of measurements `[lo, hi)` (clamped; `None` when empty).
-    fn mean(&self, lo: usize, hi: usize) -> Option<DVec3> {
-        let hi = hi.min(self.frames.len());
-        (hi > lo).then(|| (self.prefix[hi] - self.prefix[lo]) / (hi - lo) as f64)
     }
 }
 
@@ -351,30 +364,29 @@ impl Measured {
 /// (the identity layer can hand the later pieces of one marker to two
 /// identities): every hand-over is checked the same way. `None` when both
 /// are measured in one frame (two markers) or there is no hand-over.
-fn switch_cost(host: &Measured, frag: &Measured, context: usize) -> Option<f64> {
-    let (a, b) = (&host.frames, &frag.frames);
+fn switch_cost(host: &Trace, frag: &Trace, context: usize) -> Option<f64> {
+    let mut a = Stream::new(host.measurements());
+    let mut b = Stream::new(frag.measurements());
     let (mut i, mut j) = (0usize, 0usize);
     let mut last: Option<bool> = None;
     let mut worst: Option<f64> = None;
     loop {
-        let from_host = match (a.get(i), b.get(j)) {
+        let from_host = match (a.frame(i), b.frame(j)) {
             (Some(x), Some(y)) if x == y => return None,
             (Some(x), Some(y)) => x < y,
+            // Only one trace is left: after this step, no hand-over can
+            // follow, and reading the rest of it would change nothing.
+            (Some(_), None) if last == Some(true) => break,
+            (None, Some(_)) if last == Some(false) => break,
             (Some(_), None) => true,
             (None, Some(_)) => false,
             (None, None) => break,
         };
         if last.is_some_and(|l| l != from_host) {
             let (before, after) = if from_host {
-                (
-                    frag.mean(j.saturating_sub(context), j),
-                    host.mean(i, i + context),
-                )
+                (b.mean(j.saturating_sub(context), j), a.mean(i, i + context))
             } else {
-                (
-                    host.mean(i.saturating_sub(context), i),
-                    frag.mean(j, j + context),
-                )
+                (a.mean(i.saturating_sub(context), i), b.mean(j, j + context))
             };
             if let (Some(x), Some(y)) = (before, after) {
                 let d = x.distance(y);
@@ -384,8 +396,10 @@ fn switch_cost(host: &Measured, frag: &Measured, context: usize) -> Option<f64> 
         last = Some(from_host);
         if from_host {
             i += 1;
+            a.forget_before(i.saturating_sub(context));
         } else {
             j += 1;
+            b.forget_before(j.saturating_sub(context));
         }
     }
     worst
@@ -460,18 +474,75 @@ mod gap_join_tests {
         assert_eq!(out[0].measured(), 1600 + 300);
     }
 
-    /// The host's measurements around a fragment give the cost of the
-    /// whole host, bit for bit, wherever the fragment lies: before, inside
-    /// a gap, interleaved, across the end, after it, and sharing a frame.
+    /// [`switch_cost`] as it was before it read the traces through a
+    /// window: every measurement of both traces with their prefix sums,
+    /// walked whole. The reference the windowed walk must equal bit for bit.
+    fn switch_cost_whole(host: &Trace, frag: &Trace, context: usize) -> Option<f64> {
+        let whole = |t: &Trace| {
+            let mut frames = Vec::new();
+            let mut prefix = vec![DVec3::ZERO];
+            for (f, p) in t.measurements() {
+                frames.push(f);
+                prefix.push(prefix[prefix.len() - 1] + p);
+            }
+            (frames, prefix)
+        };
+        let mean = |(frames, prefix): &(Vec<i64>, Vec<DVec3>), lo: usize, hi: usize| {
+            let hi = hi.min(frames.len());
+            (hi > lo).then(|| (prefix[hi] - prefix[lo]) / (hi - lo) as f64)
+        };
+        let (a, b) = (whole(host), whole(frag));
+        let (mut i, mut j) = (0usize, 0usize);
+        let mut last: Option<bool> = None;
+        let mut worst: Option<f64> = None;
+        loop {
+            let from_host = match (a.0.get(i), b.0.get(j)) {
+                (Some(x), Some(y)) if x == y => return None,
+                (Some(x), Some(y)) => x < y,
+                (Some(_), None) => true,
+                (None, Some(_)) => false,
+                (None, None) => break,
+            };
+            if last.is_some_and(|l| l != from_host) {
+                let (before, after) = if from_host {
+                    (
+                        mean(&b, j.saturating_sub(context), j),
+                        mean(&a, i, i + context),
+                    )
+                } else {
+                    (
+                        mean(&a, i.saturating_sub(context), i),
+                        mean(&b, j, j + context),
+                    )
+                };
+                if let (Some(x), Some(y)) = (before, after) {
+                    let d = x.distance(y);
+                    worst = Some(worst.map_or(d, |w: f64| w.max(d)));
+                }
+            }
+            last = Some(from_host);
+            if from_host {
+                i += 1;
+            } else {
+                j += 1;
+            }
+        }
+        worst
+    }
+
+    /// The cost read through windows is the cost of the whole traces, bit
+    /// for bit, wherever the fragment lies: before the host, inside a gap,
+    /// interleaved, across the end, after it, sharing a frame, and with the
+    /// two traces' roles swapped.
     #[test]
-    fn host_around_a_fragment_costs_what_the_whole_host_costs() {
+    fn windowed_cost_is_the_whole_traces_cost() {
         let at = |n: i64| DVec3::new(0.02 * (n as f64 / 30.0).sin(), 1.0, 0.001 * n as f64);
         let mut host = Trace::new(0, 40, at(40), None);
         for n in (41..700).chain(760..900).filter(|n| n % 7 != 3) {
             host.push(n, at(n), None);
         }
         // Half-open frame ranges of each fragment.
-        let spans: [&[(i64, i64)]; 7] = [
+        let spans: [&[(i64, i64)]; 8] = [
             &[(0, 30)],
             &[(0, 45)],
             &[(700, 760)],
@@ -479,8 +550,8 @@ mod gap_join_tests {
             &[(850, 1000)],
             &[(910, 990)],
             &[(300, 302)],
+            &[(0, 1000)],
         ];
-        let whole = Measured::of(&host);
         for (k, ranges) in spans.iter().enumerate() {
             let frames: Vec<i64> = ranges
                 .iter()
@@ -491,25 +562,39 @@ mod gap_join_tests {
             for &n in &frames[1..] {
                 frag.push(n, at(n) + DVec3::X * 0.003, None);
             }
-            let frag = Measured::of(&frag);
             for context in [1, 5, 50, 2000] {
-                let near =
-                    Measured::around(&host, (frag.first_frame(), frag.last_frame()), context);
-                assert!(near.frames.len() <= whole.frames.len());
-                let (a, b) = (
-                    switch_cost(&whole, &frag, context),
-                    switch_cost(&near, &frag, context),
-                );
-                assert_eq!(
-                    a.map(f64::to_bits),
-                    b.map(f64::to_bits),
-                    "span {k}, context {context}"
-                );
-                assert_eq!(a.is_none(), k == 6, "span {k}");
+                for (x, y) in [(&host, &frag), (&frag, &host)] {
+                    let (whole, windowed) =
+                        (switch_cost_whole(x, y, context), switch_cost(x, y, context));
+                    assert_eq!(
+                        whole.map(f64::to_bits),
+                        windowed.map(f64::to_bits),
+                        "span {k}, context {context}"
+                    );
+                    assert_eq!(whole.is_none(), k == 6, "span {k}");
+                }
             }
         }
-        // Far from both ends, only the span and its context are kept.
-        let near = Measured::around(&host, (300, 302), 5);
-        assert_eq!(near.frames.len(), 5 + 3 + 5);
+    }
+
+    /// Walking a trace as [`switch_cost`] does keeps at most `2 × context
+    /// + 1` measurements, however long the trace.
+    #[test]
+    fn stream_window_stays_bounded() {
+        let mut t = Trace::new(0, 0, DVec3::ZERO, None);
+        for n in 1..20_000 {
+            t.push(n, DVec3::new(n as f64 * 1e-4, 1.0, 0.0), None);
+        }
+        let context = 24;
+        let mut s = Stream::new(t.measurements());
+        let mut i = 0;
+        while s.frame(i).is_some() {
+            s.mean(i.saturating_sub(context), i);
+            s.mean(i, i + context);
+            assert!(s.window.len() <= 2 * context + 1, "at {i}");
+            i += 1;
+            s.forget_before(i.saturating_sub(context));
+        }
+        assert_eq!(i, t.measured());
     }
 }
