@@ -41,7 +41,7 @@ use serde::Serialize;
 
 use super::assign::{Assigner, Edge};
 use super::grid::Grid;
-use super::identity::{Identities, IdentitySettings};
+use super::identity::{Identities, IdentitySettings, NO_MARKER};
 use super::jitter::{third_difference, Jitter};
 use super::motion::{Motion, MotionParams};
 use super::radix;
@@ -249,15 +249,30 @@ impl Tracker {
     /// Like [`Tracker::current`], with the index among the latest frame's
     /// markers of the marker each identity took: the daemon shows which
     /// markers are tips without searching the frame for their positions.
+    ///
+    /// An identity measured through its trace names its marker itself (the
+    /// identity layer notes it as the trace is measured); one joined or
+    /// confirmed in this very frame is looked up by its trace among the
+    /// frame's measured traces, as every identity was before.
     pub fn current_markers(&self) -> impl Iterator<Item = (usize, DVec3, usize)> + '_ {
         self.identities
-            .current_traces()
-            .filter_map(|(i, p, trace)| {
-                let k = self
-                    .measured_at
-                    .binary_search_by_key(&trace, |m| m.0)
-                    .ok()?;
-                Some((i, p, self.measured_at[k].1))
+            .current_marked()
+            .filter_map(|(i, p, marker)| {
+                let by_trace = || {
+                    let trace = self.identities.trace_of(i)?;
+                    let k = self
+                        .measured_at
+                        .binary_search_by_key(&trace, |m| m.0)
+                        .ok()?;
+                    Some((i, p, self.measured_at[k].1))
+                };
+                if marker == NO_MARKER {
+                    return by_trace();
+                }
+                // An identity measured in this frame has its trace, and the
+                // trace's marker is the one noted.
+                debug_assert_eq!(by_trace(), Some((i, p, marker as usize)));
+                Some((i, p, marker as usize))
             })
     }
 
@@ -351,7 +366,7 @@ impl Tracker {
                     trace.push(t, p, self.ids.get(col).copied().flatten());
                 }
             }
-            self.identities.measured(l.trace, p);
+            self.identities.measured(l.trace, p, self.src[col]);
         }
         for (col, p) in self.points.iter().enumerate() {
             if self.taken[col] {
