@@ -78,12 +78,21 @@ pub(crate) struct IdentitySettings {
 }
 
 /// A neighbour of an identity and how much their offset varies.
+///
+/// 40 bytes (the identity as a `u32`): every frame reads and writes all
+/// eight of every identity's, 320 KB at 1 000 markers.
 #[derive(Debug, Clone, Copy, Default)]
 struct Neighbour {
-    id: usize,
     mean: DVec3,
     var: f64,
+    id: u32,
     seen: bool,
+}
+
+impl Neighbour {
+    fn id(&self) -> usize {
+        self.id as usize
+    }
 }
 
 /// What an identity looked like when its current gap began.
@@ -106,19 +115,30 @@ struct Gap {
     ended: bool,
 }
 
-/// One marker: the traces that are its pieces, and its neighbourhood.
+/// One marker's state as a frame sees it: where it was last measured, the
+/// trace carrying it, its gap. 88 bytes: what a frame reads and writes of
+/// every identity it measures lies in one or two cache lines. The rest of a
+/// marker is kept in arrays of its own, by identity: its neighbours
+/// (`Identities::neighbours`, walked by the statistics' update in order),
+/// its pieces and its first position (`Identities::cold`, read only when a
+/// piece is joined, at the end, and by the live tips' matching). Together
+/// in one 536-byte record, every frame's measurements each missed the cache
+/// on a record of their own once the daemon's other work had evicted it.
 #[derive(Debug, Clone)]
 struct Ident {
-    pieces: Vec<usize>,
     /// The trace carrying it now, if any.
     trace: Option<usize>,
     last: (i64, DVec3),
     prev: (i64, DVec3),
-    /// Inline (see `InlineVec`): the frame walks them all.
-    neighbours: InlineVec<Neighbour, NEIGHBOURS>,
     /// Boxed: few identities are in a gap, and inline it would double the
     /// stride of the array every frame walks.
     gap: Option<Box<Gap>>,
+}
+
+/// What a frame does not read of a marker.
+#[derive(Debug, Clone)]
+struct IdentCold {
+    pieces: Vec<usize>,
     /// Mean and RMS spread of its first `confirm_frames` measurements: the
     /// live daemon matches identities to a tree's tips with it.
     first: (DVec3, f64),
@@ -250,6 +270,11 @@ impl Owners {
 pub(crate) struct Identities {
     s: IdentitySettings,
     idents: Vec<Ident>,
+    /// Per identity, its neighbours. Inline (see `InlineVec`), in an array
+    /// apart from `idents`: the frame walks them all, in order.
+    neighbours: Vec<InlineVec<Neighbour, NEIGHBOURS>>,
+    /// Per identity, its pieces and first position.
+    cold: Vec<IdentCold>,
     owner: Owners,
     /// By trace id (ordered, so that ties are broken the same every run).
     candidates: BTreeMap<usize, Candidate>,
@@ -281,6 +306,8 @@ impl Identities {
         Identities {
             s,
             idents: Vec::new(),
+            neighbours: Vec::new(),
+            cold: Vec::new(),
             owner: Owners::default(),
             candidates: BTreeMap::new(),
             dying: Vec::new(),
@@ -367,9 +394,9 @@ impl Identities {
         // marker's own motion can predict it better than its neighbours'
         // (checked everywhere, gusts and `all` lost more identities than
         // they kept: docs/tracking.md §4a).
-        let near = id.neighbours.iter().any(|n| {
+        let near = self.neighbours[i].iter().any(|n| {
             self.idents
-                .get(n.id)
+                .get(n.id())
                 .is_some_and(|j| j.last.0 >= self.frame - 2 && j.last.1.distance(p) <= COAST_NEAR_M)
         });
         !near || g.preds.is_empty() || p.distance(g.last_pred) <= gate.max(self.s.link_min_m)
@@ -446,7 +473,7 @@ impl Identities {
     /// be joined; returns the pieces of every identity.
     pub(crate) fn finish(&mut self) -> Vec<Vec<usize>> {
         self.evaluate(true);
-        self.idents.iter().map(|i| i.pieces.clone()).collect()
+        self.cold.iter().map(|c| c.pieces.clone()).collect()
     }
 
     /// Prefetches what a frame reads of the active identities
@@ -462,7 +489,9 @@ impl Identities {
                 continue;
             };
             prefetch_one(id);
-            prefetch(&id.neighbours[..]);
+            if let Some(n) = self.neighbours.get(i) {
+                prefetch_one(n);
+            }
             if let Some(g) = &id.gap {
                 prefetch(&g.snap);
             }
@@ -471,7 +500,7 @@ impl Identities {
 
     /// Mean and spread of identity `i`'s first measurements.
     pub(crate) fn first_position(&self, i: usize) -> Option<(DVec3, f64)> {
-        self.idents.get(i).map(|id| id.first)
+        self.cold.get(i).map(|c| c.first)
     }
 
     /// The identities measured in this frame, where, and the index of the
@@ -512,8 +541,8 @@ impl Identities {
         let from = id.last.0;
         let mut snap = Vec::new();
         let mut wsum = 0.0;
-        for n in id.neighbours.iter().filter(|n| n.seen) {
-            let Some(j) = self.idents.get(n.id) else {
+        for n in self.neighbours[i].iter().filter(|n| n.seen) {
+            let Some(j) = self.idents.get(n.id()) else {
                 continue;
             };
             let pj = if j.last.0 == from {
@@ -525,7 +554,7 @@ impl Identities {
             };
             let w = 1.0 / n.var.max(1e-8);
             wsum += w;
-            snap.push((n.id, pj, w));
+            snap.push((n.id(), pj, w));
         }
         let spread = if wsum > 0.0 {
             (2.0 / wsum).sqrt()
@@ -581,8 +610,8 @@ impl Identities {
         for &i in &self.active {
             let Some(pi) = self.cur[i] else { continue };
             let cur = &self.cur;
-            for n in self.idents[i].neighbours.iter_mut() {
-                let Some(pj) = cur.get(n.id).copied().flatten() else {
+            for n in self.neighbours[i].iter_mut() {
+                let Some(pj) = cur.get(n.id()).copied().flatten() else {
                     continue;
                 };
                 let o = pi - pj;
@@ -618,19 +647,24 @@ impl Identities {
             if near.is_empty() {
                 continue;
             }
-            let old = std::mem::take(&mut self.idents[i].neighbours);
-            self.idents[i].neighbours = near
+            let old = std::mem::take(&mut self.neighbours[i]);
+            // An identity past u32::MAX (four billion markers confirmed)
+            // could not be a neighbour; none will ever be.
+            self.neighbours[i] = near
                 .iter()
-                .map(|&(_, j)| {
-                    old.iter()
-                        .find(|n| n.id == j)
-                        .copied()
-                        .unwrap_or(Neighbour {
-                            id: j,
-                            mean: DVec3::ZERO,
-                            var: VAR0,
-                            seen: false,
-                        })
+                .filter_map(|&(_, j)| {
+                    let id = u32::try_from(j).ok()?;
+                    Some(
+                        old.iter()
+                            .find(|n| n.id == id)
+                            .copied()
+                            .unwrap_or(Neighbour {
+                                id,
+                                mean: DVec3::ZERO,
+                                var: VAR0,
+                                seen: false,
+                            }),
+                    )
                 })
                 .collect();
         }
@@ -760,8 +794,8 @@ impl Identities {
                 })
                 .min_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
             if let Some((_, i)) = best {
+                self.cold[i].pieces.push(trace);
                 let id = &mut self.idents[i];
-                id.pieces.push(trace);
                 if let Some(&last) = cand.samples.last() {
                     id.prev = id.last;
                     id.last = last;
@@ -774,8 +808,8 @@ impl Identities {
     /// Candidate `trace` is the next piece of identity `i`.
     fn join(&mut self, trace: usize, cand: Candidate, i: usize) {
         let last = *cand.samples.last().unwrap_or(&(self.frame, DVec3::ZERO));
+        self.cold[i].pieces.push(trace);
         let id = &mut self.idents[i];
-        id.pieces.push(trace);
         id.trace = Some(trace);
         id.prev = id.last;
         id.last = last;
@@ -803,12 +837,14 @@ impl Identities {
         let last = *cand.samples.last().unwrap_or(&(self.frame, mean));
         let prev = cand.samples.iter().rev().nth(1).copied().unwrap_or(last);
         self.idents.push(Ident {
-            pieces: vec![trace],
             trace: Some(trace),
             last,
             prev,
-            neighbours: InlineVec::new(),
             gap: None,
+        });
+        self.neighbours.push(InlineVec::new());
+        self.cold.push(IdentCold {
+            pieces: vec![trace],
             first: (mean, spread),
         });
         self.cur.push((last.0 == self.frame).then_some(last.1));
