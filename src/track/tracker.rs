@@ -472,7 +472,7 @@ impl Tracker {
             self.grid.build(&self.points, self.gate_m);
             for (row, l) in self.live.iter().enumerate() {
                 let q = l.prediction.to_array();
-                let hits = self.grid.within(&self.points, q, self.gate_m);
+                let hits = self.grid.within(q, self.gate_m);
                 if hits.is_empty() {
                     continue;
                 }
