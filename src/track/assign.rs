@@ -41,6 +41,11 @@ pub struct Assigner {
     rows: Vec<usize>,
     cols: Vec<usize>,
     cost: Vec<f64>,
+    /// Per row and per column, how many valid edges reach it (saturating).
+    row_edges: Vec<u8>,
+    col_edges: Vec<u8>,
+    /// The valid edges not alone in their component.
+    shared: Vec<Edge>,
     /// Components solved greedily because they were larger than `MAX_EXACT`.
     pub greedy_components: u64,
 }
@@ -67,11 +72,52 @@ impl Assigner {
     ) {
         out.clear();
         out.resize(n_rows, None);
+        let valid = |e: &&Edge| e.row < n_rows && e.col < n_cols && e.cost.is_finite();
+        // An edge whose row and column have no other edge is a component
+        // of its own, solved on the spot: nearly every edge of a tracking
+        // frame (a trace and its marker). Only the others go through the
+        // union-find and the grouping below, which at 1 000 markers cost
+        // a frame two passes over 2 000 rows and columns and every edge.
+        // The result is the same: components are solved independently, and
+        // the others keep their edges' order.
+        self.row_edges.clear();
+        self.row_edges.resize(n_rows, 0);
+        self.col_edges.clear();
+        self.col_edges.resize(n_cols, 0);
+        for e in edges.iter().filter(valid) {
+            self.row_edges[e.row] = self.row_edges[e.row].saturating_add(1);
+            self.col_edges[e.col] = self.col_edges[e.col].saturating_add(1);
+        }
+        let mut shared = std::mem::take(&mut self.shared);
+        shared.clear();
+        for e in edges.iter().filter(valid) {
+            if self.row_edges[e.row] == 1 && self.col_edges[e.col] == 1 {
+                if e.cost <= miss {
+                    out[e.row] = Some(e.col);
+                }
+            } else {
+                shared.push(*e);
+            }
+        }
+        if !shared.is_empty() {
+            self.solve_shared(n_rows, n_cols, &shared, miss, out);
+        }
+        self.shared = shared;
+    }
+
+    /// Solves the components of more than one edge (`edges`, all valid).
+    fn solve_shared(
+        &mut self,
+        n_rows: usize,
+        n_cols: usize,
+        edges: &[Edge],
+        miss: f64,
+        out: &mut [Option<usize>],
+    ) {
         // Union-find over rows (0..n_rows) and columns (n_rows..).
         self.parent.clear();
         self.parent.extend(0..n_rows + n_cols);
-        let valid = |e: &&Edge| e.row < n_rows && e.col < n_cols && e.cost.is_finite();
-        for e in edges.iter().filter(valid) {
+        for e in edges {
             let a = find(&mut self.parent, e.row);
             let b = find(&mut self.parent, n_rows + e.col);
             if a != b {

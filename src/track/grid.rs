@@ -17,7 +17,11 @@ pub(crate) struct Grid {
     cell: f64,
     /// Point indices grouped by cell: a cell's points are one run, in
     /// index order.
-    entries: Vec<u32>,
+    ///
+    /// Each with a copy of its point: a query reads a cell's points in a
+    /// row instead of looking each up among the frame's points (a load
+    /// that depended on the index before it, a tenth of the search).
+    entries: Vec<([f64; 3], u32)>,
     /// Open-addressing table of the occupied cells: `(key, start, end)`
     /// into `entries`; `EMPTY` keys are free slots.
     table: Vec<(u64, u32, u32)>,
@@ -112,10 +116,10 @@ impl Grid {
             start += count;
         }
         self.entries.clear();
-        self.entries.resize(points.len(), 0);
+        self.entries.resize(points.len(), ([0.0; 3], 0));
         for (i, &s) in self.slot_of.iter().enumerate() {
             let e = &mut self.table[s as usize];
-            self.entries[e.2 as usize] = i as u32;
+            self.entries[e.2 as usize] = (points[i], i as u32);
             e.2 += 1;
         }
     }
@@ -147,12 +151,23 @@ impl Grid {
         prefetch(&self.occupied);
     }
 
+    /// Whether cell `key` may hold points (a false positive now and then,
+    /// never a false negative).
+    fn maybe_occupied(&self, key: u64) -> bool {
+        let b = filter_bit(key);
+        self.occupied[b >> 6] & (1 << (b & 63)) != 0
+    }
+
     /// The cell's points (a run of `entries`), empty if none.
     fn run(&self, key: u64) -> std::ops::Range<usize> {
-        let b = filter_bit(key);
-        if self.occupied[b >> 6] & (1 << (b & 63)) == 0 {
+        if !self.maybe_occupied(key) {
             return 0..0;
         }
+        self.probe(key)
+    }
+
+    /// The cell's points, looked up in the table.
+    fn probe(&self, key: u64) -> std::ops::Range<usize> {
         let (table, mask) = (&self.table, self.mask);
         let mut s = slot(key, mask);
         loop {
@@ -170,12 +185,8 @@ impl Grid {
     /// The points within `radius` of `q` (`radius` at most the one the
     /// grid was built for), as `(squared distance, index)` nearest first,
     /// ties by index: the order a sorted k-d tree query gives.
-    pub(crate) fn within(
-        &mut self,
-        points: &[[f64; 3]],
-        q: [f64; 3],
-        radius: f64,
-    ) -> &[(f64, u32)] {
+    /// The points are those of the latest `build`.
+    pub(crate) fn within(&mut self, q: [f64; 3], radius: f64) -> &[(f64, u32)] {
         self.hits.clear();
         if self.entries.is_empty() {
             return &self.hits;
@@ -187,17 +198,43 @@ impl Grid {
         // inclusive ranges at that, a fifth of the search's instructions).
         let lo = q.map(|c| coordinate(c - radius, inv));
         let hi = q.map(|c| coordinate(c + radius, inv));
-        for x in lo[0]..hi[0] + 1 {
-            for y in lo[1]..hi[1] + 1 {
-                for z in lo[2]..hi[2] + 1 {
-                    let run = self.run(pack(x, y, z));
-                    for &i in &self.entries[run] {
-                        let p = points[i as usize];
-                        let d2 =
-                            (p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2);
-                        if d2 <= r2 {
-                            self.hits.push((d2, i));
-                        }
+        let scan = |grid: &mut Grid, run: std::ops::Range<usize>| {
+            for &(p, i) in &grid.entries[run] {
+                let d2 = (p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2);
+                if d2 <= r2 {
+                    grid.hits.push((d2, i));
+                }
+            }
+        };
+        if (0..3).all(|a| hi[a] == lo[a] + 1) {
+            // The usual box: 2 × 2 × 2 cells. Their filter bits are read
+            // into one mask first and only the cells it marks are looked
+            // up: a branch per cell on whether it is occupied (most are
+            // not, at random) was mispredicted often enough to be a fifth
+            // of the search. The cells are visited in the same order as
+            // below, so the hits are the same.
+            let mut keys = [0u64; 8];
+            let mut occupied = 0u32;
+            for (k, key) in keys.iter_mut().enumerate() {
+                *key = pack(
+                    lo[0] + (k >> 2) as i64,
+                    lo[1] + ((k >> 1) & 1) as i64,
+                    lo[2] + (k & 1) as i64,
+                );
+                occupied |= u32::from(self.maybe_occupied(*key)) << k;
+            }
+            while occupied != 0 {
+                let k = occupied.trailing_zeros() as usize;
+                occupied &= occupied - 1;
+                let run = self.probe(keys[k]);
+                scan(self, run);
+            }
+        } else {
+            for x in lo[0]..hi[0] + 1 {
+                for y in lo[1]..hi[1] + 1 {
+                    for z in lo[2]..hi[2] + 1 {
+                        let run = self.run(pack(x, y, z));
+                        scan(self, run);
                     }
                 }
             }
@@ -256,11 +293,7 @@ mod tests {
                 .filter(|h| h.0 <= radius * radius)
                 .collect();
             want.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
-            assert_eq!(
-                grid.within(&points, q, radius),
-                &want[..],
-                "query {k} at {q:?}"
-            );
+            assert_eq!(grid.within(q, radius), &want[..], "query {k} at {q:?}");
         }
     }
 }

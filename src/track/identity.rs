@@ -36,7 +36,6 @@ use glam::DVec3;
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
 
 use super::assign::{Assigner, Edge};
-use super::id_hash::IdMap;
 use super::inline_vec::InlineVec;
 
 /// Neighbours kept per identity.
@@ -79,12 +78,21 @@ pub(crate) struct IdentitySettings {
 }
 
 /// A neighbour of an identity and how much their offset varies.
+///
+/// 40 bytes (the identity as a `u32`): every frame reads and writes all
+/// eight of every identity's, 320 KB at 1 000 markers.
 #[derive(Debug, Clone, Copy, Default)]
 struct Neighbour {
-    id: usize,
     mean: DVec3,
     var: f64,
+    id: u32,
     seen: bool,
+}
+
+impl Neighbour {
+    fn id(&self) -> usize {
+        self.id as usize
+    }
 }
 
 /// What an identity looked like when its current gap began.
@@ -107,19 +115,30 @@ struct Gap {
     ended: bool,
 }
 
-/// One marker: the traces that are its pieces, and its neighbourhood.
+/// One marker's state as a frame sees it: where it was last measured, the
+/// trace carrying it, its gap. 88 bytes: what a frame reads and writes of
+/// every identity it measures lies in one or two cache lines. The rest of a
+/// marker is kept in arrays of its own, by identity: its neighbours
+/// (`Identities::neighbours`, walked by the statistics' update in order),
+/// its pieces and its first position (`Identities::cold`, read only when a
+/// piece is joined, at the end, and by the live tips' matching). Together
+/// in one 536-byte record, every frame's measurements each missed the cache
+/// on a record of their own once the daemon's other work had evicted it.
 #[derive(Debug, Clone)]
 struct Ident {
-    pieces: Vec<usize>,
     /// The trace carrying it now, if any.
     trace: Option<usize>,
     last: (i64, DVec3),
     prev: (i64, DVec3),
-    /// Inline (see `InlineVec`): the frame walks them all.
-    neighbours: InlineVec<Neighbour, NEIGHBOURS>,
     /// Boxed: few identities are in a gap, and inline it would double the
     /// stride of the array every frame walks.
     gap: Option<Box<Gap>>,
+}
+
+/// What a frame does not read of a marker.
+#[derive(Debug, Clone)]
+struct IdentCold {
+    pieces: Vec<usize>,
     /// Mean and RMS spread of its first `confirm_frames` measurements: the
     /// live daemon matches identities to a tree's tips with it.
     first: (DVec3, f64),
@@ -133,10 +152,117 @@ struct Candidate {
 }
 
 /// Who a live trace belongs to.
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 enum Owner {
     Ident(usize),
     Candidate,
+    /// The trace ended this frame: its entry is dropped at the end of the
+    /// frame (see [`Owners`]).
+    Gone,
+}
+
+/// `Identities::cur_marker` of an identity whose frame marker is not known
+/// (it was joined or confirmed this frame, not measured through
+/// [`Identities::measured`]): the tracker then looks it up by its trace.
+pub(crate) const NO_MARKER: u32 = u32::MAX;
+
+/// The owner of every live trace, by trace id: a vector sorted by trace.
+///
+/// It was a hash map, looked up once for every marker of every frame; its
+/// probes landed anywhere in a 48 KB table, a cache miss each once the
+/// daemon's other work had evicted it (a sixth of a live frame at 1 000
+/// markers). The tracker hands its traces over in increasing id, frame after
+/// frame (its live rows are in birth order, and new traces take the next
+/// id), so a cursor walking this vector finds each owner in a step or two,
+/// reading memory in order. Lookups out of that order fall back to a binary
+/// search. An ended trace's entry is marked [`Owner::Gone`] and dropped at
+/// the end of the frame, not removed from the middle one at a time.
+#[derive(Debug, Default)]
+struct Owners {
+    /// `(trace, owner)`, increasing trace.
+    entries: Vec<(usize, Owner)>,
+    /// Where the previous lookup ended.
+    cursor: usize,
+    /// Entries marked `Gone` and not dropped yet.
+    gone: usize,
+}
+
+impl Owners {
+    /// The index of `trace`'s entry, if it has one (a `Gone` one included).
+    fn find(&mut self, trace: usize) -> Option<usize> {
+        let e = &self.entries;
+        let mut k = self.cursor;
+        // Forward from the previous lookup, a few steps at most (the
+        // traces the tracker skips are those that missed the frame).
+        if k < e.len() && e[k].0 <= trace {
+            for _ in 0..8 {
+                match e.get(k) {
+                    Some(x) if x.0 < trace => k += 1,
+                    Some(x) if x.0 == trace => {
+                        self.cursor = k + 1;
+                        return Some(k);
+                    }
+                    _ => break,
+                }
+            }
+        }
+        let found = e.binary_search_by_key(&trace, |x| x.0).ok()?;
+        self.cursor = found + 1;
+        Some(found)
+    }
+
+    /// `trace`'s owner, without moving the cursor.
+    fn get(&self, trace: usize) -> Option<Owner> {
+        let k = self.entries.binary_search_by_key(&trace, |x| x.0).ok()?;
+        Some(self.entries[k].1).filter(|o| *o != Owner::Gone)
+    }
+
+    /// Sets `trace`'s owner; a trace new to the map is inserted in order
+    /// (at the end, for a trace just started).
+    fn insert(&mut self, trace: usize, owner: Owner) {
+        if self.entries.last().is_none_or(|x| x.0 < trace) {
+            self.entries.push((trace, owner));
+            return;
+        }
+        match self.entries.binary_search_by_key(&trace, |x| x.0) {
+            Ok(k) => {
+                if self.entries[k].1 == Owner::Gone {
+                    self.gone -= 1;
+                }
+                self.entries[k].1 = owner;
+            }
+            Err(k) => self.entries.insert(k, (trace, owner)),
+        }
+    }
+
+    /// Takes `trace`'s owner out (its entry is marked, dropped by `compact`).
+    fn remove(&mut self, trace: usize) -> Option<Owner> {
+        let k = self.find(trace)?;
+        let owner = std::mem::replace(&mut self.entries[k].1, Owner::Gone);
+        if owner == Owner::Gone {
+            return None;
+        }
+        self.gone += 1;
+        Some(owner)
+    }
+
+    /// Drops the entries of ended traces; rewinds the cursor for the next
+    /// frame.
+    fn compact(&mut self) {
+        if self.gone > 0 {
+            self.entries.retain(|x| x.1 != Owner::Gone);
+            self.gone = 0;
+        }
+        self.cursor = 0;
+    }
+
+    /// The traces owned, in increasing id.
+    fn traces(&self) -> impl Iterator<Item = usize> + '_ {
+        self.entries
+            .iter()
+            .filter(|x| x.1 != Owner::Gone)
+            .map(|x| x.0)
+    }
 }
 
 /// The identity layer; the tracker feeds it every frame.
@@ -144,7 +270,12 @@ enum Owner {
 pub(crate) struct Identities {
     s: IdentitySettings,
     idents: Vec<Ident>,
-    owner: IdMap<Owner>,
+    /// Per identity, its neighbours. Inline (see `InlineVec`), in an array
+    /// apart from `idents`: the frame walks them all, in order.
+    neighbours: Vec<InlineVec<Neighbour, NEIGHBOURS>>,
+    /// Per identity, its pieces and first position.
+    cold: Vec<IdentCold>,
+    owner: Owners,
     /// By trace id (ordered, so that ties are broken the same every run).
     candidates: BTreeMap<usize, Candidate>,
     /// Candidates whose trace ended this frame, before they were judged.
@@ -153,6 +284,11 @@ pub(crate) struct Identities {
     lost: Vec<usize>,
     /// Position of each identity measured in the current frame.
     cur: Vec<Option<DVec3>>,
+    /// Per identity measured in the current frame, the index among the
+    /// frame's markers of the marker it took ([`NO_MARKER`] if not known):
+    /// the live tips read it here instead of finding the identity's trace
+    /// and searching the tracker's list for it (two scattered reads per tip).
+    cur_marker: Vec<u32>,
     /// Identities with a trace or a joinable gap: the only ones a frame
     /// looks at, so the cost does not grow with the session.
     active: Vec<usize>,
@@ -170,11 +306,14 @@ impl Identities {
         Identities {
             s,
             idents: Vec::new(),
-            owner: IdMap::default(),
+            neighbours: Vec::new(),
+            cold: Vec::new(),
+            owner: Owners::default(),
             candidates: BTreeMap::new(),
             dying: Vec::new(),
             lost: Vec::new(),
             cur: Vec::new(),
+            cur_marker: Vec::new(),
             active: Vec::new(),
             frame: 0,
             next_refresh: 0,
@@ -210,12 +349,14 @@ impl Identities {
         );
     }
 
-    /// Trace `trace` was measured at `p` in this frame.
-    pub(crate) fn measured(&mut self, trace: usize, p: DVec3) {
-        match self.owner.get(&trace) {
+    /// Trace `trace` was measured at `p` in this frame, the frame's marker
+    /// `marker`.
+    pub(crate) fn measured(&mut self, trace: usize, p: DVec3, marker: usize) {
+        let owner = self.owner.find(trace).map(|k| self.owner.entries[k].1);
+        match owner {
             Some(Owner::Ident(i)) => {
-                let i = *i;
                 self.cur[i] = Some(p);
+                self.cur_marker[i] = u32::try_from(marker).unwrap_or(NO_MARKER);
                 let id = &mut self.idents[i];
                 id.prev = id.last;
                 id.last = (self.frame, p);
@@ -226,7 +367,7 @@ impl Identities {
                     c.samples.push((self.frame, p));
                 }
             }
-            None => {}
+            Some(Owner::Gone) | None => {}
         }
     }
 
@@ -240,10 +381,10 @@ impl Identities {
     /// instead, the identity is lost and its marker is joined again by the
     /// neighbours' prediction.
     pub(crate) fn coast_agrees(&self, trace: usize, p: DVec3, gate: f64) -> bool {
-        let Some(Owner::Ident(i)) = self.owner.get(&trace) else {
+        let Some(Owner::Ident(i)) = self.owner.get(trace) else {
             return true;
         };
-        let id = &self.idents[*i];
+        let id = &self.idents[i];
         let Some(g) = id.gap.as_ref() else {
             return true;
         };
@@ -253,9 +394,9 @@ impl Identities {
         // marker's own motion can predict it better than its neighbours'
         // (checked everywhere, gusts and `all` lost more identities than
         // they kept: docs/tracking.md §4a).
-        let near = id.neighbours.iter().any(|n| {
+        let near = self.neighbours[i].iter().any(|n| {
             self.idents
-                .get(n.id)
+                .get(n.id())
                 .is_some_and(|j| j.last.0 >= self.frame - 2 && j.last.1.distance(p) <= COAST_NEAR_M)
         });
         !near || g.preds.is_empty() || p.distance(g.last_pred) <= gate.max(self.s.link_min_m)
@@ -263,7 +404,7 @@ impl Identities {
 
     /// Trace `trace` ended (too long without a marker, or a restart).
     pub(crate) fn ended(&mut self, trace: usize) {
-        match self.owner.remove(&trace) {
+        match self.owner.remove(trace) {
             Some(Owner::Ident(i)) => {
                 if self.idents[i].gap.is_none() {
                     self.open_gap(i);
@@ -284,15 +425,14 @@ impl Identities {
                     }
                 }
             }
-            None => {}
+            Some(Owner::Gone) | None => {}
         }
     }
 
     /// Ends every trace and forgets the lost identities (a source restart:
     /// nothing may be joined across it).
     pub(crate) fn restart(&mut self) {
-        let mut traces: Vec<usize> = self.owner.keys().copied().collect();
-        traces.sort_unstable();
+        let traces: Vec<usize> = self.owner.traces().collect();
         for t in traces {
             self.ended(t);
         }
@@ -326,13 +466,14 @@ impl Identities {
         });
         self.active
             .retain(|&i| idents[i].trace.is_some() || idents[i].gap.is_some());
+        self.owner.compact();
     }
 
     /// At the end of the session: pending candidates get a last chance to
     /// be joined; returns the pieces of every identity.
     pub(crate) fn finish(&mut self) -> Vec<Vec<usize>> {
         self.evaluate(true);
-        self.idents.iter().map(|i| i.pieces.clone()).collect()
+        self.cold.iter().map(|c| c.pieces.clone()).collect()
     }
 
     /// Prefetches what a frame reads of the active identities
@@ -341,13 +482,16 @@ impl Identities {
         use super::warm::{prefetch, prefetch_one};
         prefetch(&self.active);
         prefetch(&self.cur);
-        self.owner.values().for_each(prefetch_one);
+        prefetch(&self.owner.entries);
+        prefetch(&self.cur_marker);
         for &i in &self.active {
             let Some(id) = self.idents.get(i) else {
                 continue;
             };
             prefetch_one(id);
-            prefetch(&id.neighbours[..]);
+            if let Some(n) = self.neighbours.get(i) {
+                prefetch_one(n);
+            }
             if let Some(g) = &id.gap {
                 prefetch(&g.snap);
             }
@@ -356,13 +500,19 @@ impl Identities {
 
     /// Mean and spread of identity `i`'s first measurements.
     pub(crate) fn first_position(&self, i: usize) -> Option<(DVec3, f64)> {
-        self.idents.get(i).map(|id| id.first)
+        self.cold.get(i).map(|c| c.first)
     }
 
-    /// The identities measured in this frame, where, and by which trace.
-    pub(crate) fn current_traces(&self) -> impl Iterator<Item = (usize, DVec3, usize)> + '_ {
-        self.current()
-            .filter_map(|(i, p)| self.idents[i].trace.map(|t| (i, p, t)))
+    /// The identities measured in this frame, where, and the index of the
+    /// frame's marker they took ([`NO_MARKER`] when not known: see
+    /// `cur_marker`).
+    pub(crate) fn current_marked(&self) -> impl Iterator<Item = (usize, DVec3, u32)> + '_ {
+        self.current().map(|(i, p)| (i, p, self.cur_marker[i]))
+    }
+
+    /// The trace carrying identity `i` now, if any.
+    pub(crate) fn trace_of(&self, i: usize) -> Option<usize> {
+        self.idents.get(i).and_then(|id| id.trace)
     }
 
     /// Identities measured in this frame, with their position.
@@ -391,8 +541,8 @@ impl Identities {
         let from = id.last.0;
         let mut snap = Vec::new();
         let mut wsum = 0.0;
-        for n in id.neighbours.iter().filter(|n| n.seen) {
-            let Some(j) = self.idents.get(n.id) else {
+        for n in self.neighbours[i].iter().filter(|n| n.seen) {
+            let Some(j) = self.idents.get(n.id()) else {
                 continue;
             };
             let pj = if j.last.0 == from {
@@ -404,7 +554,7 @@ impl Identities {
             };
             let w = 1.0 / n.var.max(1e-8);
             wsum += w;
-            snap.push((n.id, pj, w));
+            snap.push((n.id(), pj, w));
         }
         let spread = if wsum > 0.0 {
             (2.0 / wsum).sqrt()
@@ -460,8 +610,8 @@ impl Identities {
         for &i in &self.active {
             let Some(pi) = self.cur[i] else { continue };
             let cur = &self.cur;
-            for n in self.idents[i].neighbours.iter_mut() {
-                let Some(pj) = cur.get(n.id).copied().flatten() else {
+            for n in self.neighbours[i].iter_mut() {
+                let Some(pj) = cur.get(n.id()).copied().flatten() else {
                     continue;
                 };
                 let o = pi - pj;
@@ -497,19 +647,24 @@ impl Identities {
             if near.is_empty() {
                 continue;
             }
-            let old = std::mem::take(&mut self.idents[i].neighbours);
-            self.idents[i].neighbours = near
+            let old = std::mem::take(&mut self.neighbours[i]);
+            // An identity past u32::MAX (four billion markers confirmed)
+            // could not be a neighbour; none will ever be.
+            self.neighbours[i] = near
                 .iter()
-                .map(|&(_, j)| {
-                    old.iter()
-                        .find(|n| n.id == j)
-                        .copied()
-                        .unwrap_or(Neighbour {
-                            id: j,
-                            mean: DVec3::ZERO,
-                            var: VAR0,
-                            seen: false,
-                        })
+                .filter_map(|&(_, j)| {
+                    let id = u32::try_from(j).ok()?;
+                    Some(
+                        old.iter()
+                            .find(|n| n.id == id)
+                            .copied()
+                            .unwrap_or(Neighbour {
+                                id,
+                                mean: DVec3::ZERO,
+                                var: VAR0,
+                                seen: false,
+                            }),
+                    )
                 })
                 .collect();
         }
@@ -639,8 +794,8 @@ impl Identities {
                 })
                 .min_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
             if let Some((_, i)) = best {
+                self.cold[i].pieces.push(trace);
                 let id = &mut self.idents[i];
-                id.pieces.push(trace);
                 if let Some(&last) = cand.samples.last() {
                     id.prev = id.last;
                     id.last = last;
@@ -653,14 +808,15 @@ impl Identities {
     /// Candidate `trace` is the next piece of identity `i`.
     fn join(&mut self, trace: usize, cand: Candidate, i: usize) {
         let last = *cand.samples.last().unwrap_or(&(self.frame, DVec3::ZERO));
+        self.cold[i].pieces.push(trace);
         let id = &mut self.idents[i];
-        id.pieces.push(trace);
         id.trace = Some(trace);
         id.prev = id.last;
         id.last = last;
         id.gap = None;
         if last.0 == self.frame {
             self.cur[i] = Some(last.1);
+            self.cur_marker[i] = NO_MARKER;
         }
         self.owner.insert(trace, Owner::Ident(i));
         self.joins += 1;
@@ -681,15 +837,18 @@ impl Identities {
         let last = *cand.samples.last().unwrap_or(&(self.frame, mean));
         let prev = cand.samples.iter().rev().nth(1).copied().unwrap_or(last);
         self.idents.push(Ident {
-            pieces: vec![trace],
             trace: Some(trace),
             last,
             prev,
-            neighbours: InlineVec::new(),
             gap: None,
+        });
+        self.neighbours.push(InlineVec::new());
+        self.cold.push(IdentCold {
+            pieces: vec![trace],
             first: (mean, spread),
         });
         self.cur.push((last.0 == self.frame).then_some(last.1));
+        self.cur_marker.push(NO_MARKER);
         self.active.push(i);
         self.owner.insert(trace, Owner::Ident(i));
         // Neighbours at once, so that a marker hidden soon after it was
@@ -865,14 +1024,14 @@ mod tests {
             }
             match t {
                 0 => ids.started(0, p),
-                1..30 => ids.measured(0, p),
+                1..30 => ids.measured(0, p, 0),
                 35 => {
                     ids.started(1, p + DVec3::X * 0.0004);
                     ids.started(2, q);
                 }
                 36.. => {
-                    ids.measured(1, p + DVec3::X * 0.0004);
-                    ids.measured(2, q);
+                    ids.measured(1, p + DVec3::X * 0.0004, 0);
+                    ids.measured(2, q, 1);
                 }
                 _ => {}
             }

@@ -25,7 +25,6 @@ pub mod adopt;
 pub mod assign;
 pub mod gaps;
 mod grid;
-mod id_hash;
 mod identity;
 mod inline_vec;
 mod jitter;

@@ -41,7 +41,7 @@ use serde::Serialize;
 
 use super::assign::{Assigner, Edge};
 use super::grid::Grid;
-use super::identity::{Identities, IdentitySettings};
+use super::identity::{Identities, IdentitySettings, NO_MARKER};
 use super::jitter::{third_difference, Jitter};
 use super::motion::{Motion, MotionParams};
 use super::radix;
@@ -168,6 +168,8 @@ pub struct Tracker {
     radix_scratch: Vec<(u64, usize)>,
     keep: Vec<bool>,
     edges: Vec<Edge>,
+    /// Per marker of the frame, how many edges reach it (saturating).
+    col_edges: Vec<u8>,
     /// The frame's markers bucketed for the gate search (beyond
     /// `DIRECT_SCAN_MAX` pairs).
     grid: Grid,
@@ -215,6 +217,7 @@ impl Tracker {
             radix_scratch: Vec::new(),
             keep: Vec::new(),
             edges: Vec::new(),
+            col_edges: Vec::new(),
             grid: Grid::default(),
             out: Vec::new(),
             taken: Vec::new(),
@@ -249,15 +252,30 @@ impl Tracker {
     /// Like [`Tracker::current`], with the index among the latest frame's
     /// markers of the marker each identity took: the daemon shows which
     /// markers are tips without searching the frame for their positions.
+    ///
+    /// An identity measured through its trace names its marker itself (the
+    /// identity layer notes it as the trace is measured); one joined or
+    /// confirmed in this very frame is looked up by its trace among the
+    /// frame's measured traces, as every identity was before.
     pub fn current_markers(&self) -> impl Iterator<Item = (usize, DVec3, usize)> + '_ {
         self.identities
-            .current_traces()
-            .filter_map(|(i, p, trace)| {
-                let k = self
-                    .measured_at
-                    .binary_search_by_key(&trace, |m| m.0)
-                    .ok()?;
-                Some((i, p, self.measured_at[k].1))
+            .current_marked()
+            .filter_map(|(i, p, marker)| {
+                let by_trace = || {
+                    let trace = self.identities.trace_of(i)?;
+                    let k = self
+                        .measured_at
+                        .binary_search_by_key(&trace, |m| m.0)
+                        .ok()?;
+                    Some((i, p, self.measured_at[k].1))
+                };
+                if marker == NO_MARKER {
+                    return by_trace();
+                }
+                // An identity measured in this frame has its trace, and the
+                // trace's marker is the one noted.
+                debug_assert_eq!(by_trace(), Some((i, p, marker as usize)));
+                Some((i, p, marker as usize))
             })
     }
 
@@ -351,7 +369,7 @@ impl Tracker {
                     trace.push(t, p, self.ids.get(col).copied().flatten());
                 }
             }
-            self.identities.measured(l.trace, p);
+            self.identities.measured(l.trace, p, self.src[col]);
         }
         for (col, p) in self.points.iter().enumerate() {
             if self.taken[col] {
@@ -428,27 +446,24 @@ impl Tracker {
         // Within a fifth of the gate a marker is always a candidate, however
         // sure the prediction: real markers jitter in ways no model expects.
         let floor2 = r2 / 25.0;
-        // A trace's variance and its log are the same for all its markers:
-        // taken once per row (the log per edge was 4 % of a live frame).
-        let row_terms = |l: &Live| {
-            let s = l.variance.max(r);
-            (s, (s / r).ln().min(LOG_VARIANCE_ALLOWANCE))
-        };
-        let edge = |row: usize, col: usize, (s, log_s): (f64, f64), d2: f64| -> Option<Edge> {
+        // An edge's cost is its normalised distance plus its trace's log
+        // variance, the latter added below, only where it can matter.
+        let row_variance = |l: &Live| l.variance.max(r);
+        let edge = |row: usize, col: usize, s: f64, d2: f64| -> Option<Edge> {
             let m = d2 / s;
             (d2 <= r2 && (m <= g2 || d2 <= floor2)).then(|| Edge {
                 row,
                 col,
-                cost: m.min(g2) + log_s,
+                cost: m.min(g2),
             })
         };
         if self.points.len() * self.live.len() <= DIRECT_SCAN_MAX {
             // Few markers: comparing every pair is cheaper than building a tree.
             for (row, l) in self.live.iter().enumerate() {
-                let terms = row_terms(l);
+                let s = row_variance(l);
                 for (col, p) in self.points.iter().enumerate() {
                     let d2 = l.prediction.distance_squared(DVec3::from_array(*p));
-                    if let Some(e) = edge(row, col, terms, d2) {
+                    if let Some(e) = edge(row, col, s, d2) {
                         self.edges.push(e);
                     }
                 }
@@ -457,17 +472,54 @@ impl Tracker {
             self.grid.build(&self.points, self.gate_m);
             for (row, l) in self.live.iter().enumerate() {
                 let q = l.prediction.to_array();
-                let hits = self.grid.within(&self.points, q, self.gate_m);
+                let hits = self.grid.within(q, self.gate_m);
                 if hits.is_empty() {
                     continue;
                 }
-                let terms = row_terms(l);
+                let s = row_variance(l);
                 for &(d2, col) in hits {
-                    if let Some(e) = edge(row, col as usize, terms, d2) {
+                    if let Some(e) = edge(row, col as usize, s, d2) {
                         self.edges.push(e);
                     }
                 }
             }
+        }
+        self.add_log_variance(r);
+    }
+
+    /// Adds each trace's log variance to the cost of its edges, wherever
+    /// the cost can decide anything: in components of the candidate graph
+    /// with more than one edge. An edge alone (its trace has no other
+    /// marker, its marker no other trace: nearly every edge) is taken
+    /// whatever its cost, which is at most `g2 + LOG_VARIANCE_ALLOWANCE`,
+    /// the miss cost, with the log term or without. The log was taken for
+    /// every trace, 1 000 a frame at 1 000 markers (a twentieth of the
+    /// frame), where a few are needed. Edges come grouped by row.
+    fn add_log_variance(&mut self, r: f64) {
+        let edges = &mut self.edges;
+        self.col_edges.clear();
+        self.col_edges.resize(self.points.len(), 0);
+        for e in edges.iter() {
+            if let Some(n) = self.col_edges.get_mut(e.col) {
+                *n = n.saturating_add(1);
+            }
+        }
+        let mut start = 0;
+        while start < edges.len() {
+            let row = edges[start].row;
+            let end = start + edges[start..].iter().take_while(|e| e.row == row).count();
+            let shared = end - start > 1
+                || edges[start..end]
+                    .iter()
+                    .any(|e| self.col_edges.get(e.col).is_some_and(|&n| n > 1));
+            if let (true, Some(l)) = (shared, self.live.get(row)) {
+                let s = l.variance.max(r);
+                let log_s = (s / r).ln().min(LOG_VARIANCE_ALLOWANCE);
+                for e in &mut edges[start..end] {
+                    e.cost += log_s;
+                }
+            }
+            start = end;
         }
     }
 
