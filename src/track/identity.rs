@@ -719,7 +719,7 @@ impl Identities {
                     id.last = last;
                 }
                 self.joins += 1;
-            } else if let Some(chain) = extend_chain(trace, cand, self.s.link_min_m) {
+            } else if let Some(chain) = extend_chain(trace, cand, &self.s) {
                 self.dormant.push(chain);
             }
         }
@@ -811,11 +811,20 @@ fn take_chain(dormant: &mut Vec<Chain>, samples: &[(i64, DVec3)], radius: f64) -
 
 /// The chain `cand` (a candidate that ended unclaimed) leaves: its own
 /// chain with it appended, or a new one; `None` when it moved (RMS spread
-/// about its mean beyond `radius`: a moving marker's pieces are joined by
-/// its neighbours' motion, not here), in which case a chain it continued
-/// stays as it was.
-fn extend_chain(trace: usize, cand: Candidate, radius: f64) -> Option<Chain> {
+/// about its mean beyond `link_min`: a moving marker's pieces are joined
+/// by its neighbours' motion, not here) or was measured in fewer than
+/// `link_frames` frames, in which case a chain it continued stays as it
+/// was. Short pieces are left to the later steps: a marker seen as two
+/// blobs flips between two traces a few millimetres apart every few frames
+/// (the Motive fixture `cmuphyscomp_sample_take_v1.21.csv`), and its
+/// flipping pieces, chained, became a marker of their own instead of being
+/// adopted by the marker they hand over to (`adopt`).
+fn extend_chain(trace: usize, cand: Candidate, s: &IdentitySettings) -> Option<Chain> {
+    let radius = s.link_min_m;
     let n = cand.samples.len();
+    if n < s.link_frames.max(3) {
+        return cand.chain;
+    }
     let last = cand.samples.last()?.0;
     let mean = cand.samples.iter().map(|s| s.1).sum::<DVec3>() / n as f64;
     let spread = (cand
