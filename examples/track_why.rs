@@ -30,8 +30,14 @@ fn main() {
     for f in &syn.frames {
         tracker.push(f);
     }
-    let (tips, _) = track::clean(tracker.finish(), &cfg, "sim", 240.0);
+    let tracked = tracker.finish();
+    let before = tracked.clone();
+    let (tips, summary) = track::clean(tracked, &cfg, "sim", 240.0);
     let truth = &syn.truth;
+    if std::env::var_os("SUMMARY").is_some() {
+        println!("{summary}");
+    }
+    missing(&tips, &before, truth);
     if let Ok(spec) = std::env::var("PAIR") {
         pair(&spec, &tips, truth);
     }
@@ -141,5 +147,60 @@ fn pair(spec: &str, tips: &treemocap::model::tips::Tips, truth: &sim::Truth) {
             if hidden(b, f) { "hid" } else { "   " },
             holder.get(&(b, f))
         );
+    }
+}
+
+/// Every true tip no output tip holds most samples of: which of the
+/// tracker's traces hold its samples (identity or ghost, frames, samples).
+fn missing(tips: &treemocap::model::tips::Tips, tracked: &track::Tracked, truth: &sim::Truth) {
+    let mut claimed = vec![false; truth.tips.len()];
+    for tip in &tips.tips {
+        let mut counts = std::collections::HashMap::new();
+        for (_, who) in sim::score::owners(&tip.trace, truth) {
+            *counts.entry(who).or_insert(0usize) += 1;
+        }
+        if let Some((Some(k), _)) = counts
+            .into_iter()
+            .max_by_key(|(k, n)| (*n, k.map_or(0, |v| v + 1)))
+        {
+            claimed[k] = true;
+        }
+    }
+    let identity_of = |t: usize| tracked.identities.iter().position(|ids| ids.contains(&t));
+    for k in (0..truth.tips.len()).filter(|&k| !claimed[k]) {
+        println!("true tip {k} held by no output tip; its samples in the tracker's traces:");
+        for tr in &tracked.traces {
+            let runs: Vec<(i64, i64, usize)> = {
+                let mut v: Vec<(i64, i64, usize)> = Vec::new();
+                for (f, who) in sim::score::owners(tr, truth) {
+                    if who != Some(k) {
+                        continue;
+                    }
+                    match v.last_mut() {
+                        Some(l) if f - l.1 <= 1 => {
+                            l.1 = f;
+                            l.2 += 1;
+                        }
+                        _ => v.push((f, f, 1)),
+                    }
+                }
+                v
+            };
+            let n: usize = runs.iter().map(|r| r.2).sum();
+            if n == 0 {
+                continue;
+            }
+            println!(
+                "  trace {} ({} samples, frames {}..{}, identity {:?}): {} of tip {k}, first {}..{}",
+                tr.id,
+                tr.measured(),
+                tr.first_frame(),
+                tr.last_frame(),
+                identity_of(tr.id),
+                n,
+                runs[0].0,
+                runs[runs.len() - 1].1
+            );
+        }
     }
 }

@@ -149,6 +149,36 @@ struct IdentCold {
 struct Candidate {
     samples: Vec<(i64, DVec3)>,
     next_eval: usize,
+    /// The earlier pieces of a still marker never confirmed that this
+    /// trace continues (see [`Chain`]).
+    chain: Option<Chain>,
+}
+
+/// Pieces of a still marker that ended before any was confirmed: under
+/// 1 mm of noise and 25 % occlusion a still marker's trace ends at every
+/// gap of more than about 20 frames (its acceleration is too unsure to
+/// coast), and some markers were never seen for `confirm_frames` in a row
+/// during the whole still phase, so they were dropped as ghosts and had
+/// no rest position (`all` on seeds 100–102: 7 of 210 tips missing, 4 with
+/// a rest position 14–18 mm off, and their wind pieces joined to other
+/// tips). A marker is something with a rest position: pieces measured at
+/// one place, one after another, are one marker, and their measurements
+/// together count towards its confirmation. A ghost reflection also sits
+/// still, but where the next one appears is independent of where the last
+/// one was (for the simulator, anywhere in the crown's box), and a ghost
+/// lives at most a fraction of `confirm_frames`: it would take several
+/// ghosts, each within `link_min` of the last, to be confirmed. A moving
+/// marker's piece is not still and starts no chain.
+#[derive(Debug, Clone)]
+struct Chain {
+    /// Its traces, oldest first.
+    pieces: Vec<usize>,
+    /// Measurements in them.
+    samples: usize,
+    /// Where it sits: the mean of its measurements.
+    anchor: DVec3,
+    /// Its last measured frame.
+    last: i64,
 }
 
 /// Who a live trace belongs to.
@@ -282,6 +312,9 @@ pub(crate) struct Identities {
     dying: Vec<(usize, Candidate)>,
     /// Identities whose trace ended, joinable for `keep_lost_frames`.
     lost: Vec<usize>,
+    /// Still pieces never confirmed, waiting for their next piece (for
+    /// `keep_lost_frames`).
+    dormant: Vec<Chain>,
     /// Position of each identity measured in the current frame.
     cur: Vec<Option<DVec3>>,
     /// Per identity measured in the current frame, the index among the
@@ -312,6 +345,7 @@ impl Identities {
             candidates: BTreeMap::new(),
             dying: Vec::new(),
             lost: Vec::new(),
+            dormant: Vec::new(),
             cur: Vec::new(),
             cur_marker: Vec::new(),
             active: Vec::new(),
@@ -345,6 +379,7 @@ impl Identities {
             Candidate {
                 samples: vec![(self.frame, p)],
                 next_eval: self.s.link_frames.max(1),
+                chain: None,
             },
         );
     }
@@ -402,6 +437,30 @@ impl Identities {
         !near || g.preds.is_empty() || p.distance(g.last_pred) <= gate.max(self.s.link_min_m)
     }
 
+    /// Whether trace `trace`, coasting through a gap, may take the marker at
+    /// `p`: its identity's neighbours must agree, `p` within the join
+    /// radius of where their motion since the gap began puts it (the radius
+    /// a new piece would be joined within: `path_cost`). Taking a marker
+    /// after a gap is a join across that gap, decided on the trace's own
+    /// extrapolation alone: a tip hidden as its neighbour reappears 20 mm
+    /// from that extrapolation (a gust, `all`) took the neighbour's marker
+    /// and kept it for 158 samples, and the replay's second pass cuts only
+    /// at gaps over 0.1 s. Refused, the trace coasts on or ends, and its
+    /// marker is joined again by the neighbours' prediction. True when the
+    /// trace is not in a gap of an identity or nothing predicts it.
+    pub(crate) fn reacquire_agrees(&self, trace: usize, p: DVec3) -> bool {
+        let Some(Owner::Ident(i)) = self.owner.get(trace) else {
+            return true;
+        };
+        let Some(g) = self.idents[i].gap.as_ref() else {
+            return true;
+        };
+        if g.preds.is_empty() || g.snap.is_empty() {
+            return true;
+        }
+        p.distance(g.last_pred) <= join_radius(g, &self.s)
+    }
+
     /// Trace `trace` ended (too long without a marker, or a restart).
     pub(crate) fn ended(&mut self, trace: usize) {
         match self.owner.remove(trace) {
@@ -422,6 +481,8 @@ impl Identities {
                 if let Some(c) = self.candidates.remove(&trace) {
                     if c.samples.len() >= 3 {
                         self.dying.push((trace, c));
+                    } else if let Some(chain) = c.chain {
+                        self.dormant.push(chain);
                     }
                 }
             }
@@ -440,6 +501,7 @@ impl Identities {
             self.idents[i].gap = None;
         }
         self.lost.clear();
+        self.dormant.clear();
         self.candidates.clear();
     }
 
@@ -464,6 +526,7 @@ impl Identities {
             }
             alive
         });
+        self.dormant.retain(|c| t - c.last <= keep);
         self.active
             .retain(|&i| idents[i].trace.is_some() || idents[i].gap.is_some());
         self.owner.compact();
@@ -718,7 +781,17 @@ impl Identities {
             let Some(cand) = self.candidates.get_mut(&trace) else {
                 continue;
             };
-            let last_chance = all || cand.samples.len() >= confirm_frames;
+            let mut last_chance = all || cand.samples.len() >= confirm_frames;
+            if claimed.is_none() {
+                if cand.chain.is_none() {
+                    cand.chain = take_chain(&mut self.dormant, &cand.samples, self.s.link_min_m);
+                }
+                // A still marker's pieces count together (see `Chain`).
+                if let Some(c) = &cand.chain {
+                    last_chance |= c.samples + cand.samples.len() >= confirm_frames;
+                }
+            }
+            let seen = cand.samples.len() + cand.chain.as_ref().map_or(0, |c| c.samples);
             match claimed {
                 // An ambiguous candidate is neither joined nor confirmed: it
                 // waits (and stays out of every tip) until one path wins or
@@ -735,7 +808,7 @@ impl Identities {
                     self.join(trace, cand, i);
                 }
                 None if last_chance
-                    && cand.samples.len() >= confirm_frames / 2
+                    && seen >= confirm_frames / 2
                     && (all || !follows_coasting(&self.idents, &self.active, cand, &self.s)) =>
                 {
                     let Some(cand) = self.candidates.remove(&trace) else {
@@ -801,6 +874,8 @@ impl Identities {
                     id.last = last;
                 }
                 self.joins += 1;
+            } else if let Some(chain) = extend_chain(trace, cand, &self.s) {
+                self.dormant.push(chain);
             }
         }
     }
@@ -822,7 +897,8 @@ impl Identities {
         self.joins += 1;
     }
 
-    /// Candidate `trace` is a marker of its own.
+    /// Candidate `trace` is a marker of its own, with the earlier pieces of
+    /// its chain if it continues one.
     fn confirm(&mut self, trace: usize, cand: Candidate) {
         let i = self.idents.len();
         let n = cand.samples.len().max(1) as f64;
@@ -836,6 +912,8 @@ impl Identities {
             .sqrt();
         let last = *cand.samples.last().unwrap_or(&(self.frame, mean));
         let prev = cand.samples.iter().rev().nth(1).copied().unwrap_or(last);
+        let mut pieces = cand.chain.map_or_else(Vec::new, |c| c.pieces);
+        pieces.push(trace);
         self.idents.push(Ident {
             trace: Some(trace),
             last,
@@ -844,7 +922,7 @@ impl Identities {
         });
         self.neighbours.push(InlineVec::new());
         self.cold.push(IdentCold {
-            pieces: vec![trace],
+            pieces,
             first: (mean, spread),
         });
         self.cur.push((last.0 == self.frame).then_some(last.1));
@@ -870,6 +948,70 @@ fn ambiguous(edges: &[Edge], row: usize, col: usize) -> bool {
     edges
         .iter()
         .any(|e| (e.row == row) != (e.col == col) && e.cost < own + AMBIGUOUS)
+}
+
+/// The dormant chain whose anchor `samples` (a new candidate) sit at: RMS
+/// distance within `radius`, the nearest; removed from `dormant`.
+fn take_chain(dormant: &mut Vec<Chain>, samples: &[(i64, DVec3)], radius: f64) -> Option<Chain> {
+    let born = samples.first()?.0;
+    let n = samples.len() as f64;
+    let (k, _) = dormant
+        .iter()
+        .enumerate()
+        .filter(|(_, c)| c.last < born)
+        .map(|(k, c)| {
+            let ss: f64 = samples.iter().map(|s| s.1.distance_squared(c.anchor)).sum();
+            (k, (ss / n).sqrt())
+        })
+        .filter(|&(_, rms)| rms <= radius)
+        .min_by(|a, b| a.1.total_cmp(&b.1).then(a.0.cmp(&b.0)))?;
+    Some(dormant.swap_remove(k))
+}
+
+/// The chain `cand` (a candidate that ended unclaimed) leaves: its own
+/// chain with it appended, or a new one; `None` when it moved (RMS spread
+/// about its mean beyond `link_min`: a moving marker's pieces are joined
+/// by its neighbours' motion, not here) or was measured in fewer than
+/// `link_frames` frames, in which case a chain it continued stays as it
+/// was. Short pieces are left to the later steps: a marker seen as two
+/// blobs flips between two traces a few millimetres apart every few frames
+/// (the Motive fixture `cmuphyscomp_sample_take_v1.21.csv`), and its
+/// flipping pieces, chained, became a marker of their own instead of being
+/// adopted by the marker they hand over to (`adopt`).
+fn extend_chain(trace: usize, cand: Candidate, s: &IdentitySettings) -> Option<Chain> {
+    let radius = s.link_min_m;
+    let n = cand.samples.len();
+    if n < s.link_frames.max(3) {
+        return cand.chain;
+    }
+    let last = cand.samples.last()?.0;
+    let mean = cand.samples.iter().map(|s| s.1).sum::<DVec3>() / n as f64;
+    let spread = (cand
+        .samples
+        .iter()
+        .map(|s| s.1.distance_squared(mean))
+        .sum::<f64>()
+        / n as f64)
+        .sqrt();
+    if spread > radius {
+        return cand.chain;
+    }
+    Some(match cand.chain {
+        Some(mut c) => {
+            let total = (c.samples + n) as f64;
+            c.anchor = (c.anchor * c.samples as f64 + mean * n as f64) / total;
+            c.samples += n;
+            c.pieces.push(trace);
+            c.last = last;
+            c
+        }
+        None => Chain {
+            pieces: vec![trace],
+            samples: n,
+            anchor: mean,
+            last,
+        },
+    })
 }
 
 /// The latest `n` samples of a candidate: the stretch the predicted paths
@@ -927,9 +1069,15 @@ fn path_cost(samples: &[(i64, DVec3)], g: &Gap, s: &IdentitySettings) -> Option<
         return None;
     }
     let rms = (sum / n as f64).sqrt();
-    let radius = (s.link_min_m + 3.0 * g.spread + MOVED_ERROR * g.moved).min(s.link_max_m);
+    let radius = join_radius(g, s);
     let c = rms / radius;
     (c <= 1.0).then(|| c * c + 2.0 * (radius / s.link_min_m.max(1e-6)).ln().max(0.0))
+}
+
+/// How far from its predicted path a piece of the identity in gap `g` may
+/// be: the prediction's expected error (m).
+fn join_radius(g: &Gap, s: &IdentitySettings) -> f64 {
+    (s.link_min_m + 3.0 * g.spread + MOVED_ERROR * g.moved).min(s.link_max_m)
 }
 
 /// The cost of leaving a candidate unjoined: above every path cost.

@@ -230,6 +230,7 @@ pub fn clean(
     } = tracked;
     let n_traces = traces.len();
     let joined_on_line = stats.joined as usize;
+    let seams = rejoin::seams_of(&traces, &identities);
     let (mut traces, ghosts) = assemble(traces, &identities);
     let frames = stats.frames;
     let mut warnings: Vec<String> = spacing_warning(&stats, cfg).into_iter().collect();
@@ -240,7 +241,7 @@ pub fn clean(
     let window = rest_window(cfg, &traces, &timeline, &mut warnings);
     let (ghosts, adopted) = adopt::adopt_ghosts(&mut traces, ghosts, cfg.gate_mm / 1000.0);
     let ghosts = ghosts.len();
-    let (traces, rejoined) = rejoin::rejoin(traces, window, one_second(&timeline));
+    let (traces, rejoined) = rejoin::rejoin(traces, &seams, window, one_second(&timeline));
     let (traces, joined_by_rest, joined_into_gaps) = join_pieces(traces, window, &timeline, cfg);
     let (mut kept, mut dropped) = noise::drop_noise(traces, frames, cfg.noise_fraction);
     dropped.sort_by(|a, b| b.measured.cmp(&a.measured).then(a.id.cmp(&b.id)));

@@ -22,6 +22,8 @@
 //! steps as before). The live daemon shows the tracker's identities frame
 //! by frame; this pass changes only pieces the tracker joined across a gap.
 
+use std::collections::HashMap;
+
 use glam::DVec3;
 
 use super::rest::{self, RestSource, RestWindow};
@@ -91,10 +93,32 @@ struct Anchor {
 /// against 348 MB).
 const MAX_TAKE_S: f64 = 600.0;
 
+/// Where the tracker joined the pieces of each identity on line: for the
+/// identity's first trace (whose id the assembled trace keeps), the first
+/// frame of each later piece.
+pub(crate) fn seams_of(traces: &[Trace], identities: &[Vec<usize>]) -> HashMap<usize, Vec<i64>> {
+    identities
+        .iter()
+        .filter(|ids| ids.len() > 1)
+        .filter_map(|ids| {
+            let first = traces.get(ids[0])?.id;
+            let mut at: Vec<i64> = ids[1..]
+                .iter()
+                .filter_map(|&i| traces.get(i).map(Trace::first_frame))
+                .collect();
+            at.sort_unstable();
+            Some((first, at))
+        })
+        .collect()
+}
+
 /// Re-decides which pieces after the still phase belong to which tip;
 /// returns the traces and the number of pieces moved to another tip.
+/// `seams`: where the tracker joined pieces on line ([`seams_of`]), cut
+/// across any gap as well as at gaps over [`CUT_S`].
 pub(crate) fn rejoin(
     traces: Vec<Trace>,
+    seams: &HashMap<usize, Vec<i64>>,
     window: RestWindow,
     one_second: i64,
 ) -> (Vec<Trace>, usize) {
@@ -117,7 +141,8 @@ pub(crate) fn rejoin(
     let n_traces = traces.len();
     let ids: Vec<(usize, Vec<usize>)> = traces.iter().map(|t| (t.id, t.pieces.clone())).collect();
     for (k, t) in traces.into_iter().enumerate() {
-        cut_trace(t, k, window.end, cut, step, &mut pieces);
+        let at = seams.get(&t.id).map_or(&[][..], Vec::as_slice);
+        cut_trace(t, k, window.end, (cut, at), step, &mut pieces);
     }
     let anchors = anchors(&pieces, window, step);
     if anchors.len() < 3 {
@@ -134,9 +159,21 @@ pub(crate) fn rejoin(
     (rebuild(pieces, &anchors, &owner, n_traces, &ids), moved)
 }
 
-/// Cuts trace `t` (index `k`) at its gaps longer than `cut` frames that end
-/// after frame `after`, into `out`.
-fn cut_trace(t: Trace, k: usize, after: i64, cut: i64, step: i64, out: &mut Vec<Piece>) {
+/// Cuts trace `t` (index `k`) at its gaps longer than `cut.0` frames, and
+/// at any gap where a piece the tracker joined on line begins (frames
+/// `cut.1`, sorted), that end after frame `after`, into `out`.
+///
+/// A join across a short gap is as much a decision of the tracker as one
+/// across a long gap: in a gust a tip hidden for 5 frames as its neighbour
+/// reappeared had that neighbour's marker joined to it (both tips' paths
+/// 60 mm from where their neighbours put them, the join radius at its
+/// largest), 158 samples of another tip (`all`, seed 102) that a cut at
+/// gaps over 0.1 s only left in place. A short piece's mean offset is
+/// unsure, so it stays with the tip the tracker gave it to unless it
+/// clearly fits another (`choose`).
+fn cut_trace(t: Trace, k: usize, after: i64, cut: (i64, &[i64]), step: i64, out: &mut Vec<Piece>) {
+    let (cut, seams) = cut;
+    let mut seams = seams.iter().peekable();
     let mut runs = t.sources().iter().peekable();
     let mut source = None;
     let mut cur: Option<Piece> = None;
@@ -145,7 +182,12 @@ fn cut_trace(t: Trace, k: usize, after: i64, cut: i64, step: i64, out: &mut Vec<
         while let Some(r) = runs.next_if(|r| r.frame <= f) {
             source = r.id;
         }
-        if f.saturating_sub(last) > cut && f > after {
+        let mut seam = false;
+        while seams.next_if(|&&s| s <= f).is_some() {
+            seam = true;
+        }
+        let gap = f.saturating_sub(last);
+        if (gap > cut || (seam && gap > 1)) && f > after {
             out.extend(cur.take().map(sealed));
         }
         last = f;

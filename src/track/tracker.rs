@@ -340,6 +340,7 @@ impl Tracker {
             self.check_spacing();
         }
         self.find_edges();
+        self.check_reacquired(t);
         self.assigner.solve(
             self.live.len(),
             self.points.len(),
@@ -433,6 +434,21 @@ impl Tracker {
                 identities.ended(l.trace);
             }
             alive
+        });
+    }
+
+    /// Drops the pairs of a trace coasting through a gap with a marker its
+    /// identity's neighbours put elsewhere (`Identities::reacquire_agrees`).
+    fn check_reacquired(&mut self, t: i64) {
+        let live = &self.live;
+        if !live.iter().any(|l| l.motion.t() < t - 1) {
+            return;
+        }
+        let (points, identities) = (&self.points, &self.identities);
+        self.edges.retain(|e| {
+            let l = &live[e.row];
+            l.motion.t() >= t - 1
+                || identities.reacquire_agrees(l.trace, DVec3::from_array(points[e.col]))
         });
     }
 

@@ -159,3 +159,53 @@ fn rest_window_is_on_the_time_column_when_the_take_starts_late() {
         assert!(best < 0.0005, "rest error {best}");
     }
 }
+
+/// Every stress combined (`all`: sway up to 150 mm, gusts, 10 ghosts/s,
+/// noise σ 1 mm, 25 % occluded, close pairs) on the sweep's 70-tip
+/// sessions of seeds 100–102: every true tip is found once, no more tips
+/// than markers, and every rest position within 0.5 mm. Before, 203 of
+/// 210 were found and 4 rest positions were 14–18 mm off: under that noise
+/// a still marker's trace ends at every gap of more than about 20 frames,
+/// and some markers were never seen for `confirm_s` in a row in the whole
+/// still phase, so they were dropped as ghosts. A still marker's pieces at
+/// one place now count together towards its confirmation
+/// (docs/tracking.md §2). Samples of another tip remain on `all` (406 on
+/// these seeds, README): not asserted here.
+#[test]
+fn every_tip_is_found_once_with_its_rest_position_under_all_stresses() {
+    for seed in 100..103 {
+        let base = stress::base(seed, 70, 8.0, 20.0);
+        let st = stress::all(&base)
+            .into_iter()
+            .find(|s| s.name == "all")
+            .unwrap();
+        let syn = sim::generate(&st.options).unwrap();
+        let cfg = TrackingSettings::default();
+        let mut tracker = Tracker::new(&cfg, Some(st.options.frame_rate));
+        for f in &syn.frames {
+            tracker.push(f);
+        }
+        let (tips, _) = track::clean(tracker.finish(), &cfg, "sim", st.options.frame_rate);
+        let s = score::score(&tips, &syn);
+        println!(
+            "all, seed {seed}: tips {}/{} wrong {} fragments {} missed {} rest max {:.3} mm",
+            s.tips_found,
+            s.tips_placed,
+            s.wrong_samples,
+            s.fragments,
+            s.missed_tips,
+            s.rest_max() * 1000.0
+        );
+        assert_eq!(s.tips_found, s.tips_placed, "all, seed {seed}: tip count");
+        assert_eq!(
+            (s.fragments, s.missed_tips),
+            (0, 0),
+            "all, seed {seed}: one tip per tip"
+        );
+        assert!(
+            s.rest_max() < 0.0005,
+            "all, seed {seed}: rest error {}",
+            s.rest_max()
+        );
+    }
+}
