@@ -132,6 +132,12 @@ pub struct DaemonConfig {
     /// Microseconds before the next frame is due at which the pipeline
     /// prefetches the live tracker's state (`track::warm`); 0 = never.
     pub warm_us: u32,
+    /// Run the analysis, the tree builder and the live sway under Linux's
+    /// `SCHED_IDLE` instead of nice +10: they then never delay the
+    /// pipeline's wake-up (at nice +10 a waking pipeline can wait for a
+    /// background thread's slice), but they only get CPU no other thread of
+    /// the machine wants.
+    pub background_idle: bool,
     /// HTTP and WebSocket address; `""` in the config (None) turns it off.
     #[serde(with = "optional_addr")]
     pub http: Option<SocketAddr>,

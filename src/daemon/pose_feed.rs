@@ -53,7 +53,8 @@ impl PoseFeed {
         let mut pose = LivePose::new();
         let has_osc = osc.is_some();
         let placement = shared.placement;
-        let worker = super::spawn_background("treemocap-pose", placement, move || {
+        let idle = c.daemon.background_idle;
+        let worker = super::spawn_background("treemocap-pose", placement, idle, move || {
             work(&s, &mut pose, osc, &rx)
         });
         Ok(PoseFeed {

@@ -786,6 +786,55 @@ fn allowed(status: &str) -> Vec<usize> {
 /// The threads `daemon.pipeline_cpu` keeps off the pipeline's CPU.
 const BACKGROUND: [&str; 3] = ["treemocap-analysis", "treemocap-builder", "treemocap-pose"];
 
+/// A thread's scheduling policy (0 normal, 5 `SCHED_IDLE`) and nice value
+/// from `/proc/PID/task/TID/stat` (fields 41 and 19; the name in
+/// parentheses may hold spaces, so fields are counted after it).
+fn policy_and_nice(task: &std::path::Path) -> (i64, i64) {
+    let stat = std::fs::read_to_string(task.join("stat")).unwrap();
+    let rest: Vec<&str> = stat[stat.rfind(')').unwrap() + 2..].split(' ').collect();
+    (rest[41 - 3].parse().unwrap(), rest[19 - 3].parse().unwrap())
+}
+
+/// `daemon.background_idle = true`: the analysis, the builder and the live
+/// sway run under `SCHED_IDLE`, the pipeline stays a normal thread; by
+/// default they are normal threads at nice +10.
+#[test]
+fn background_idle_runs_the_background_threads_only_on_idle_cpus() {
+    for idle in [true, false] {
+        let out_dir = tempfile::tempdir().unwrap();
+        let http_port = free_tcp();
+        let d = start_daemon(
+            out_dir.path(),
+            http_port,
+            &[
+                "daemon.replay_speed=1".into(),
+                format!("daemon.background_idle={idle}"),
+            ],
+        );
+        wait_status(http_port, "frames", 60, |v| {
+            v["frames"].as_u64() > Some(100)
+        });
+        let pid = d.0.id();
+        let mut seen = Vec::new();
+        for task in std::fs::read_dir(format!("/proc/{pid}/task")).unwrap() {
+            let task = task.unwrap().path();
+            let name = std::fs::read_to_string(task.join("comm")).unwrap();
+            let name = name.trim().to_string();
+            let tid: u32 = task.file_name().unwrap().to_str().unwrap().parse().unwrap();
+            let (policy, nice) = policy_and_nice(&task);
+            if tid == pid {
+                assert_eq!((policy, nice), (0, 0), "the pipeline (main thread)");
+            } else if BACKGROUND.iter().any(|b| b[..b.len().min(15)] == name) {
+                let want = if idle { 5 } else { 0 };
+                assert_eq!(policy, want, "{name}: policy with background_idle={idle}");
+                assert_eq!(nice, 10, "{name}: nice");
+                seen.push(name);
+            }
+        }
+        assert_eq!(seen.len(), BACKGROUND.len(), "{seen:?}");
+    }
+}
+
 #[test]
 fn pipeline_cpu_pins_the_pipeline_and_keeps_the_background_threads_off_it() {
     let mine = allowed(&std::fs::read_to_string("/proc/self/status").unwrap());
