@@ -786,6 +786,20 @@ fn allowed(status: &str) -> Vec<usize> {
 /// The threads `daemon.pipeline_cpu` keeps off the pipeline's CPU.
 const BACKGROUND: [&str; 3] = ["treemocap-analysis", "treemocap-builder", "treemocap-pose"];
 
+/// The threads of process `pid`: name (as /proc keeps it, 15 bytes), id and
+/// their /proc directory.
+fn threads_of(pid: u32) -> Vec<(String, u32, std::path::PathBuf)> {
+    std::fs::read_dir(format!("/proc/{pid}/task"))
+        .unwrap()
+        .map(|task| {
+            let task = task.unwrap().path();
+            let name = std::fs::read_to_string(task.join("comm")).unwrap();
+            let tid = task.file_name().unwrap().to_str().unwrap().parse().unwrap();
+            (name.trim().to_string(), tid, task)
+        })
+        .collect()
+}
+
 /// A thread's scheduling policy (0 normal, 5 `SCHED_IDLE`) and nice value
 /// from `/proc/PID/task/TID/stat` (fields 41 and 19; the name in
 /// parentheses may hold spaces, so fields are counted after it).
@@ -816,11 +830,7 @@ fn background_idle_runs_the_background_threads_only_on_idle_cpus() {
         });
         let pid = d.0.id();
         let mut seen = Vec::new();
-        for task in std::fs::read_dir(format!("/proc/{pid}/task")).unwrap() {
-            let task = task.unwrap().path();
-            let name = std::fs::read_to_string(task.join("comm")).unwrap();
-            let name = name.trim().to_string();
-            let tid: u32 = task.file_name().unwrap().to_str().unwrap().parse().unwrap();
+        for (name, tid, task) in threads_of(pid) {
             let (policy, nice) = policy_and_nice(&task);
             if tid == pid {
                 assert_eq!((policy, nice), (0, 0), "the pipeline (main thread)");
@@ -853,12 +863,8 @@ fn pipeline_cpu_pins_the_pipeline_and_keeps_the_background_threads_off_it() {
     wait_status(http_port, "a tree", 60, |v| v["trees"].as_u64() >= Some(1));
     let pid = d.0.id();
     let mut seen = Vec::new();
-    for task in std::fs::read_dir(format!("/proc/{pid}/task")).unwrap() {
-        let task = task.unwrap().path();
-        let name = std::fs::read_to_string(task.join("comm")).unwrap();
-        let name = name.trim().to_string();
+    for (name, tid, task) in threads_of(pid) {
         let cpus = allowed(&std::fs::read_to_string(task.join("status")).unwrap());
-        let tid: u32 = task.file_name().unwrap().to_str().unwrap().parse().unwrap();
         if tid == pid {
             assert_eq!(cpus, vec![cpu], "the pipeline (main thread) on CPU {cpu}");
         } else if BACKGROUND.iter().any(|b| b[..b.len().min(15)] == name) {
