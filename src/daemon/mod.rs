@@ -286,10 +286,15 @@ fn lower_priority() {
     // On Linux a thread's nice value is its own: PRIO_PROCESS with a thread
     // id sets it for this thread only. Raising one's own nice needs no
     // privilege; a failure (a sandbox refusing it) only costs the priority.
+    // Relative to the daemon's own nice value (a daemon started under
+    // `nice -n 7` keeps its background 10 steps below its pipeline), at
+    // most 19. getpriority's -1 is also its error value; read as a nice
+    // of -1 it only makes the thread one step less nice.
     // SAFETY: plain system calls with no pointers.
     let r = unsafe {
-        let tid = libc::gettid();
-        libc::setpriority(libc::PRIO_PROCESS, tid as libc::id_t, BACKGROUND_NICE)
+        let tid = libc::gettid() as libc::id_t;
+        let base = libc::getpriority(libc::PRIO_PROCESS, tid);
+        libc::setpriority(libc::PRIO_PROCESS, tid, (base + BACKGROUND_NICE).min(19))
     };
     if r != 0 {
         tracing::debug!("could not lower a background thread's priority");

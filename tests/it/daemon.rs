@@ -829,15 +829,18 @@ fn background_idle_runs_the_background_threads_only_on_idle_cpus() {
             v["frames"].as_u64() > Some(100)
         });
         let pid = d.0.id();
+        // The daemon inherits this test's nice value (a CI run under
+        // `nice`); the background threads are 10 nicer than that, at most 19.
+        let (_, base) = policy_and_nice(std::path::Path::new("/proc/thread-self"));
         let mut seen = Vec::new();
         for (name, tid, task) in threads_of(pid) {
             let (policy, nice) = policy_and_nice(&task);
             if tid == pid {
-                assert_eq!((policy, nice), (0, 0), "the pipeline (main thread)");
+                assert_eq!((policy, nice), (0, base), "the pipeline (main thread)");
             } else if BACKGROUND.iter().any(|b| b[..b.len().min(15)] == name) {
                 let want = if idle { 5 } else { 0 };
                 assert_eq!(policy, want, "{name}: policy with background_idle={idle}");
-                assert_eq!(nice, 10, "{name}: nice");
+                assert_eq!(nice, (base + 10).min(19), "{name}: nice");
                 seen.push(name);
             }
         }
