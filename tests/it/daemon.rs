@@ -787,15 +787,16 @@ fn allowed(status: &str) -> Vec<usize> {
 const BACKGROUND: [&str; 3] = ["treemocap-analysis", "treemocap-builder", "treemocap-pose"];
 
 /// The threads of process `pid`: name (as /proc keeps it, 15 bytes), id and
-/// their /proc directory.
+/// their /proc directory. A short-lived thread (the runtime's blocking
+/// pool) can end between the listing and the reading: it is left out.
 fn threads_of(pid: u32) -> Vec<(String, u32, std::path::PathBuf)> {
     std::fs::read_dir(format!("/proc/{pid}/task"))
         .unwrap()
-        .map(|task| {
-            let task = task.unwrap().path();
-            let name = std::fs::read_to_string(task.join("comm")).unwrap();
-            let tid = task.file_name().unwrap().to_str().unwrap().parse().unwrap();
-            (name.trim().to_string(), tid, task)
+        .filter_map(|task| {
+            let task = task.ok()?.path();
+            let name = std::fs::read_to_string(task.join("comm")).ok()?;
+            let tid = task.file_name()?.to_str()?.parse().ok()?;
+            Some((name.trim().to_string(), tid, task))
         })
         .collect()
 }
@@ -834,10 +835,11 @@ fn background_idle_runs_the_background_threads_only_on_idle_cpus() {
         let (_, base) = policy_and_nice(std::path::Path::new("/proc/thread-self"));
         let mut seen = Vec::new();
         for (name, tid, task) in threads_of(pid) {
-            let (policy, nice) = policy_and_nice(&task);
             if tid == pid {
+                let (policy, nice) = policy_and_nice(&task);
                 assert_eq!((policy, nice), (0, base), "the pipeline (main thread)");
             } else if BACKGROUND.iter().any(|b| b[..b.len().min(15)] == name) {
+                let (policy, nice) = policy_and_nice(&task);
                 let want = if idle { 5 } else { 0 };
                 assert_eq!(policy, want, "{name}: policy with background_idle={idle}");
                 assert_eq!(nice, (base + 10).min(19), "{name}: nice");
