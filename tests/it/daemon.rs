@@ -846,7 +846,14 @@ fn background_idle_runs_the_background_threads_only_on_idle_cpus() {
                 seen.push(name);
             }
         }
-        assert_eq!(seen.len(), BACKGROUND.len(), "{seen:?}");
+        // Threads the background work starts inherit its name and class
+        // (the analysis may run a second thread): each name at least once.
+        for want in BACKGROUND {
+            assert!(
+                seen.iter().any(|n| **n == want[..want.len().min(15)]),
+                "{want} among {seen:?}"
+            );
+        }
     }
 }
 
