@@ -203,9 +203,15 @@ impl Pull<'_> {
                 }
             }
             if let Some(c) = self.trunk {
+                // Every tip's mean with every tree in one pass over the
+                // pairs (the same sums, in the same order, as one
+                // `mean_with` per tip and tree).
+                let k = pulled.first().map_or(0, Vec::len);
+                let shared = c.means_with(&tree, k);
                 for (a, row) in pulled.iter_mut().enumerate() {
                     for (t, cost) in row.iter_mut().enumerate() {
-                        *cost -= self.trunk_weight * c.mean_with(&tree, a, t).unwrap_or(0.0);
+                        let with = shared.get(a).and_then(|m| m[t]);
+                        *cost -= self.trunk_weight * with.unwrap_or(0.0);
                     }
                 }
             }
