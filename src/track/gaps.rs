@@ -3,7 +3,10 @@
 //!
 //! By the gap's length (missing time):
 //! - under `MIN_OWN_S` (10 frames at 240 Hz): PCHIP (the cubic Hermite with
-//!   Fritsch–Carlson slopes, which never overshoots);
+//!   Fritsch–Carlson slopes, which never overshoots), except where the
+//!   marker is noisy (σ over `NOISY_M`), whose short gaps are filled as
+//!   the next ones, between fitted ends (PCHIP starts from two noisy
+//!   samples);
 //! - up to `MAX_OWN_S` (50 frames at 240 Hz): a cubic Hermite between the
 //!   ends of least-squares quadratics fitted to the marker's own samples
 //!   over `END_FIT_S` each side (noise averaged out of the end values and
@@ -80,7 +83,12 @@ pub struct GapSettings {
 const SLOPE_SPAN: usize = 3;
 /// Gaps shorter than this (s) are filled by PCHIP: 10 frames at 240 Hz,
 /// where the sweep's fills were already as good as PCHIP and nothing
-/// else did better.
+/// else did better, unless the ends are noisy (`NOISY_M`): PCHIP then
+/// passes each end sample's noise into the whole fill, and the Hermite
+/// between the ends fitted over `NOISY_END_FIT_S` is better (stress
+/// sweep's `noise` row, 1–10 frames: 0.60 × PCHIP with the ends fitted
+/// over 0.15 s; 0.66 × over 0.1 s, 0.75 × over 0.2 s, 1.00 × over 0.05 s,
+/// where a quadratic's end value is as noisy as the sample).
 const MIN_OWN_S: f64 = 0.044;
 /// Gaps up to this (s, 50 frames at 240 Hz) are filled from the marker's
 /// own samples: over a fifth of a second its own twig motion is most of
@@ -378,7 +386,7 @@ fn fill_one(
     } else {
         None
     };
-    let choice = choose(model.as_ref(), b - a, duration, settings);
+    let choice = choose(model.as_ref(), b - a, duration, noisy, settings);
     let pchip_ok = duration <= settings.max_pchip_s + 1e-9;
     // Where the model cannot be evaluated (a neighbour's hole, too few
     // residuals at an end), a gap PCHIP may fill is filled from the
@@ -430,8 +438,14 @@ fn noise_sigma(ctx: &Context<'_, '_>, span: i64) -> Option<f64> {
 }
 
 /// Decides one gap of `h` frames (`duration` s missing) with the fitted
-/// model, if any.
-fn choose(model: Option<&Model>, h: i64, duration: f64, settings: GapSettings) -> Choice {
+/// model, if any; `noisy`: the host's ends are noisy (`NOISY_M`).
+fn choose(
+    model: Option<&Model>,
+    h: i64,
+    duration: f64,
+    noisy: bool,
+    settings: GapSettings,
+) -> Choice {
     let pchip_ok = duration <= settings.max_pchip_s + 1e-9;
     if let Some(m) = model {
         if !m.plausible(h) {
@@ -447,7 +461,7 @@ fn choose(model: Option<&Model>, h: i64, duration: f64, settings: GapSettings) -
                 Choice::TooLong
             }
         }
-        _ if pchip_ok && duration < MIN_OWN_S => Choice::Pchip,
+        _ if pchip_ok && duration < MIN_OWN_S && !noisy => Choice::Pchip,
         _ if pchip_ok && duration <= MAX_OWN_S => Choice::Own,
         Some(_) => Choice::Model,
         None if pchip_ok => Choice::Own,
