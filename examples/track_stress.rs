@@ -84,7 +84,7 @@ fn row(
         for f in &syn.frames {
             tracker.push(f);
         }
-        let (tips, _) = track::clean(tracker.finish(), cfg, "sim", 240.0);
+        let (tips, summary) = track::clean(tracker.finish(), cfg, "sim", 240.0);
         total.merge(&score::score(&tips, &syn));
         if std::env::var_os("TRACK_FILL_DIAG").is_some() {
             // True tips' samples in the wind phase that no output tip holds.
@@ -109,8 +109,11 @@ fn row(
                     }
                 }
             }
+            let dropped: usize = summary.dropped.iter().map(|d| d.measured).sum();
             eprintln!(
-                "{name} seed {seed}: {lost} of {all} true samples in the wind phase in no tip"
+                "{name} seed {seed}: {lost} of {all} true samples in the wind phase in no tip; \
+                 {} traces dropped as noise ({dropped} samples, ghosts included)",
+                summary.dropped.len()
             );
         }
         sway = sway.max(score::largest_sway(&syn.truth));
