@@ -84,8 +84,38 @@ fn row(
         for f in &syn.frames {
             tracker.push(f);
         }
-        let (tips, _) = track::clean(tracker.finish(), cfg, "sim", 240.0);
+        let (tips, summary) = track::clean(tracker.finish(), cfg, "sim", 240.0);
         total.merge(&score::score(&tips, &syn));
+        if std::env::var_os("TRACK_FILL_DIAG").is_some() {
+            // True tips' samples in the wind phase that no output tip holds.
+            let mut held = std::collections::HashSet::new();
+            for t in &tips.tips {
+                for (f, who) in score::owners(&t.trace, &syn.truth) {
+                    held.insert((tips.timeline.source_frame(f).unwrap_or(-1), who));
+                }
+            }
+            let (mut lost, mut all) = (0, 0);
+            for fr in &syn.frames {
+                if syn.truth.time_of(fr.frame) < syn.truth.wind.0 {
+                    continue;
+                }
+                for m in &fr.markers {
+                    let who =
+                        m.id.and_then(|c| syn.truth.columns.get(c as usize))
+                            .and_then(|c| c.tip);
+                    if who.is_some() {
+                        all += 1;
+                        lost += usize::from(!held.contains(&(fr.frame, who)));
+                    }
+                }
+            }
+            let dropped: usize = summary.dropped.iter().map(|d| d.measured).sum();
+            eprintln!(
+                "{name} seed {seed}: {lost} of {all} true samples in the wind phase in no tip; \
+                 {} traces dropped as noise ({dropped} samples, ghosts included)",
+                summary.dropped.len()
+            );
+        }
         sway = sway.max(score::largest_sway(&syn.truth));
         spacing = spacing.min(score::smallest_spacing(&syn.truth));
     }
@@ -97,6 +127,24 @@ fn row(
             pchip * 1000.0
         )
     };
+    // The diagnosis of the fill error: gaps with the true marker's samples
+    // around them (the fill model's own error) apart from the others (the
+    // identity's), means and medians per gap.
+    if std::env::var_os("TRACK_FILL_DIAG").is_some() {
+        for (lo, hi) in bins {
+            for clean in [true, false] {
+                let (n, o, p, mo, mp) = total.fill_bin_split(lo, hi, clean);
+                eprintln!(
+                    "{name} {lo}-{hi} {}: {n} gaps, mean {:.2} / {:.2}, median {:.2} / {:.2} mm",
+                    if clean { "clean" } else { "other" },
+                    o * 1000.0,
+                    p * 1000.0,
+                    mo * 1000.0,
+                    mp * 1000.0
+                );
+            }
+        }
+    }
     println!(
         "| {name} | {}/{} | {} | {} | {:.3} | {} | {} | {} | {} | {:.0} | {:.1} |",
         total.tips_found,

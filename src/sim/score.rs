@@ -31,7 +31,17 @@ pub struct FillScore {
     /// The same for PCHIP on the true marker's own samples (perfect
     /// identity, no length limit).
     pub pchip: Option<f64>,
+    /// Whether every measured sample of our tip within [`CLEAN_SPAN`]
+    /// frames of the gap came from the true tip, and both bordering frames
+    /// are measured: the gap we filled is the true one, with the true
+    /// marker's samples around it. What separates the fill model's error
+    /// from the identity's (a fill anchored on another marker's sample).
+    pub clean: bool,
 }
+
+/// Frames each side of a gap that [`FillScore::clean`] checks: longer than
+/// the fill's end fits (0.15 s at 240 Hz).
+pub const CLEAN_SPAN: i64 = 48;
 
 /// What one session scored.
 #[derive(Debug, Clone, Default, PartialEq)]
@@ -83,6 +93,27 @@ impl Score {
         (sel.len(), filled, ours / n, pchip / n)
     }
 
+    /// (gaps, mean of ours, mean of PCHIP's, median of ours, median of
+    /// PCHIP's) over the gaps of `lo..=hi` frames both filled and whose
+    /// [`FillScore::clean`] is `clean`; means weighted by frames, medians
+    /// per gap. The diagnosis of `track_stress` (`TRACK_FILL_DIAG`).
+    pub fn fill_bin_split(&self, lo: i64, hi: i64, clean: bool) -> (usize, f64, f64, f64, f64) {
+        let mut sel: Vec<(f64, f64, f64)> = (self.fills.iter())
+            .filter(|f| (lo..=hi).contains(&f.len) && f.clean == clean)
+            .filter_map(|f| Some((f.ours?, f.pchip?, f.len as f64)))
+            .collect();
+        let frames = sel.iter().map(|x| x.2).sum::<f64>().max(1.0);
+        let ours = sel.iter().map(|x| x.0 * x.2).sum::<f64>() / frames;
+        let pchip = sel.iter().map(|x| x.1 * x.2).sum::<f64>() / frames;
+        let median = |v: &mut Vec<(f64, f64, f64)>, k: usize| {
+            let key = |x: &(f64, f64, f64)| if k == 0 { x.0 } else { x.1 };
+            v.sort_by(|x, y| key(x).total_cmp(&key(y)));
+            v.get(v.len() / 2).map_or(0.0, key)
+        };
+        let (mo, mp) = (median(&mut sel, 0), median(&mut sel, 1));
+        (sel.len(), ours, pchip, mo, mp)
+    }
+
     /// Adds another session's score.
     pub fn merge(&mut self, o: &Score) {
         self.tips_found += o.tips_found;
@@ -128,8 +159,20 @@ pub fn score(tips: &Tips, syn: &Synthetic) -> Score {
     let baseline = pchip_baseline(tips, syn);
     for (k, tip) in ours.iter().enumerate() {
         let filled = tip.map(|t| filled_positions(tips, t)).unwrap_or_default();
+        let owner: HashMap<i64, Option<usize>> = tip
+            .map(|t| {
+                owners(&t.trace, truth)
+                    .map(|(f, who)| (tips.timeline.source_frame(f).unwrap_or(-1), who))
+                    .collect()
+            })
+            .unwrap_or_default();
         for g in truth.gaps.iter().filter(|g| g.tip == k) {
-            if let Some(fill) = score_gap(truth, g, &filled, &baseline[k]) {
+            if let Some(mut fill) = score_gap(truth, g, &filled, &baseline[k]) {
+                let (a, b) = (g.first_frame - 1, g.last_frame + 1);
+                let near = (a - CLEAN_SPAN..=a).chain(b..=b + CLEAN_SPAN);
+                fill.clean = owner.get(&a) == Some(&Some(k))
+                    && owner.get(&b) == Some(&Some(k))
+                    && near.filter_map(|f| owner.get(&f)).all(|w| *w == Some(k));
                 s.fills.push(fill);
             }
         }
@@ -239,6 +282,7 @@ fn score_gap(
         len: g.last_frame - g.first_frame + 1,
         ours: err(&|f| filled.get(&f).copied()),
         pchip: err(&|f| base.get(&f).copied()),
+        clean: false,
     })
 }
 

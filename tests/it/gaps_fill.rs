@@ -5,8 +5,10 @@
 //! base noise (0.2 mm: 0.39 × here) and with noise σ 1 mm (0.61 ×); 51
 //! frames–2 s: better than PCHIP (the 0.7 × target is not met on these
 //! sessions yet: 0.87 × with 0.2 mm, 0.80 × with 1 mm of noise; 0.69 × and
-//! 0.65 × on the README's sweep); 1–10 frames: never worse. No fill
-//! bridges two markers, and every filled sample is flagged as filled.
+//! 0.65 × on the README's sweep); 1–10 frames: never worse, and with
+//! noise σ 1 mm at most 0.8 × (0.48 × here: the ends fitted over 0.15 s
+//! instead of PCHIP's two noisy samples). No fill bridges two markers, and
+//! every filled sample is flagged as filled.
 
 use treemocap::model::trace::SampleKind;
 use treemocap::sim::{self, score, stress};
@@ -83,7 +85,57 @@ fn fills_beat_pchip_on_gaps_over_ten_frames_and_match_it_below() {
 }
 
 #[test]
-fn under_noise_of_a_millimetre_fills_beat_pchip_by_the_target_on_11_to_50_frames() {
-    // 51 f–2 s: 0.80 × here, not yet 0.7 × (see the header).
-    check_bins(&sessions(1.0), [1.0, 0.7, 0.85]);
+fn under_noise_of_a_millimetre_fills_beat_pchip_on_every_gap_length() {
+    // 1–10 frames: the ends fitted over 0.15 s instead of PCHIP's two
+    // noisy samples (PCHIP itself before: 1.0 ×, which failed here);
+    // 11–50: the target; 51 f–2 s: 0.80 × here, not yet 0.7 × (see the
+    // header).
+    check_bins(&sessions(1.0), [0.8, 0.7, 0.85]);
+}
+
+/// All of issue 14's stresses combined (noise σ 1 mm, ghosts, 25 %
+/// occluded, sway and gusts up to 150 mm, close pairs) on a 30-tip
+/// session: on the gaps whose tip holds the true marker's samples on both
+/// sides (the fill model's own error; the others lie in holes the tracker
+/// left longer than the true gap, see the README), the fills meet issue
+/// 14's target: 1–10 frames better than PCHIP with perfect identity (the
+/// ends fitted, not PCHIP's two noisy samples: 1.0 × on main's build),
+/// 11–50 frames at most 0.7 ×.
+#[test]
+fn under_all_stresses_combined_fills_beside_the_true_marker_meet_the_target() {
+    let mut total = score::Score::default();
+    for seed in [14, 15] {
+        let st = stress::all(&stress::base(seed, 30, 4.0, 10.0))
+            .into_iter()
+            .find(|s| s.name == "all")
+            .unwrap();
+        let syn = sim::generate(&st.options).unwrap();
+        let cfg = TrackingSettings::default();
+        let mut tracker = Tracker::new(&cfg, Some(240.0));
+        for f in &syn.frames {
+            tracker.push(f);
+        }
+        let (tips, _) = track::clean(tracker.finish(), &cfg, "sim", 240.0);
+        total.merge(&score::score(&tips, &syn));
+    }
+    for ((lo, hi), limit) in score::fill_bins(240.0).into_iter().zip([0.85, 0.7]) {
+        let (n, ours, pchip, med_ours, med_pchip) = total.fill_bin_split(lo, hi, true);
+        let (others, ..) = total.fill_bin_split(lo, hi, false);
+        println!(
+            "gaps {lo}-{hi} frames beside the true marker: {n} ({others} others), mean {:.3} mm (PCHIP {:.3}), median {:.3} ({:.3})",
+            ours * 1000.0,
+            pchip * 1000.0,
+            med_ours * 1000.0,
+            med_pchip * 1000.0
+        );
+        // The others (on this short session 59 of 230 short gaps, 336 of
+        // 748 of 11–50 frames) are the identity's error, not the fill's:
+        // their tip lacks the marker's samples beside the gap (a longer
+        // hole) or holds another marker's there.
+        assert!(n >= 20, "{lo}-{hi}: {n} gaps beside the true marker");
+        assert!(
+            ours <= limit * pchip + 1e-6,
+            "{lo}-{hi}: {ours} > {limit} × PCHIP {pchip}"
+        );
+    }
 }
