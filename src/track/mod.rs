@@ -89,10 +89,6 @@ pub struct Summary {
     /// tip afterwards, from their offset to the neighbours over the whole
     /// take (`rejoin`).
     pub rejoined: usize,
-    /// Pieces of traces the identity layer never confirmed, given to a tip
-    /// after the session: a marker that came back from a gap as a new trace
-    /// no neighbour vouched for on line (`rejoin`); not counted in `ghosts`.
-    pub rescued: usize,
     /// Traces dropped as noise (measured in fewer than `noise_fraction` of
     /// the frames), longest first.
     pub dropped: Vec<DroppedTrace>,
@@ -120,8 +116,8 @@ impl fmt::Display for Summary {
         )?;
         writeln!(
             f,
-            "markers found: {} tips, from {} traces ({} ghosts never confirmed; pieces joined: {} from the neighbours' motion, {} handing over to their marker, {} by rest position, {} into a gap of their neighbourhood; {} given to another tip and {} unconfirmed given to their tip after the session)",
-            self.tips, self.traces, self.ghosts, self.joined_on_line, self.adopted, self.joined_by_rest, self.joined_into_gaps, self.rejoined, self.rescued
+            "markers found: {} tips, from {} traces ({} ghosts never confirmed; pieces joined: {} from the neighbours' motion, {} handing over to their marker, {} by rest position, {} into a gap of their neighbourhood; {} given to another tip after the session)",
+            self.tips, self.traces, self.ghosts, self.joined_on_line, self.adopted, self.joined_by_rest, self.joined_into_gaps, self.rejoined
         )?;
         let longest = self.dropped.first().map_or(String::new(), |d| {
             format!(
@@ -244,12 +240,8 @@ pub fn clean(
     // them: a marker seen as two blobs jumps by millimetres while still.
     let window = rest_window(cfg, &traces, &timeline, &mut warnings);
     let (ghosts, adopted) = adopt::adopt_ghosts(&mut traces, ghosts, cfg.gate_mm / 1000.0);
-    let rejoin::Rejoined {
-        traces,
-        moved: rejoined,
-        rescued,
-        ghosts,
-    } = rejoin::rejoin(traces, ghosts, &seams, window, one_second(&timeline));
+    let ghosts = ghosts.len();
+    let (traces, rejoined) = rejoin::rejoin(traces, &seams, window, one_second(&timeline));
     let (traces, joined_by_rest, joined_into_gaps) = join_pieces(traces, window, &timeline, cfg);
     let (mut kept, mut dropped) = noise::drop_noise(traces, frames, cfg.noise_fraction);
     dropped.sort_by(|a, b| b.measured.cmp(&a.measured).then(a.id.cmp(&b.id)));
@@ -278,7 +270,6 @@ pub fn clean(
         joined_by_rest,
         joined_into_gaps,
         rejoined,
-        rescued,
         dropped,
         noise_fraction: cfg.noise_fraction,
         gaps: gap_stats,

@@ -73,20 +73,7 @@ struct Piece {
     probes: Vec<(i64, DVec3)>,
     /// Whether it may move (it starts after the still phase).
     movable: bool,
-    /// Cut from a trace the identity layer never confirmed: it goes to a
-    /// tip only when it fits one clearly and moves with its neighbours,
-    /// else it stays a ghost.
-    ghost: bool,
 }
-
-/// Shortest unconfirmed piece offered to the tips (s): shorter ones have
-/// too few probes for their mean offset and their motion to tell.
-const GHOST_PIECE_S: f64 = 0.15;
-/// An unconfirmed piece must swing with its tip's neighbours: its offsets'
-/// RMS around their mean at most this many times the tip's own spread
-/// (plus [`SPREAD_MIN`]). A still reflection's offset follows the
-/// neighbours' whole sway instead.
-const GHOST_SWING: f64 = 2.0;
 
 /// A tip: a piece holding the still phase.
 struct Anchor {
@@ -131,25 +118,17 @@ pub(crate) fn seams_of(traces: &[Trace], identities: &[Vec<usize>]) -> HashMap<u
 /// across any gap as well as at gaps over [`CUT_S`].
 pub(crate) fn rejoin(
     traces: Vec<Trace>,
-    ghosts: Vec<Trace>,
     seams: &HashMap<usize, Vec<i64>>,
     window: RestWindow,
     one_second: i64,
-) -> Rejoined {
-    let n_ghosts = ghosts.len();
-    let unchanged = |traces| Rejoined {
-        traces,
-        moved: 0,
-        rescued: 0,
-        ghosts: n_ghosts,
-    };
+) -> (Vec<Trace>, usize) {
     let span = traces.iter().map(Trace::last_frame).max().unwrap_or(0)
         - traces.iter().map(Trace::first_frame).min().unwrap_or(0);
     if window.source == RestSource::WholeRecording
         || traces.len() < 3
         || span > (MAX_TAKE_S * one_second as f64) as i64
     {
-        return unchanged(traces);
+        return (traces, 0);
     }
     let cut = ((CUT_S * one_second as f64).round() as i64).max(1);
     // At most `MAX_PROBES` in all: an hour of 70 markers at 240 Hz keeps
@@ -165,60 +144,19 @@ pub(crate) fn rejoin(
         let at = seams.get(&t.id).map_or(&[][..], Vec::as_slice);
         cut_trace(t, k, window.end, (cut, at), step, &mut pieces);
     }
-    let confirmed = pieces.len();
-    // A marker hidden in a gust can come back as a trace the identity
-    // layer never confirms (no neighbour agreed on line): its pieces are
-    // offered to the tips like the others (`all`, seed 100: 9 750 true
-    // samples of the wind phase were left in such traces, up to 1 s long).
-    let min_ghost = (GHOST_PIECE_S * one_second as f64).round() as usize;
-    for (j, g) in ghosts.into_iter().enumerate() {
-        if g.last_frame() >= window.end && g.measured() >= min_ghost {
-            cut_trace(g, n_traces + j, window.end, (cut, &[]), step, &mut pieces);
-        }
-    }
-    pieces.retain_mut(|p| {
-        p.ghost = p.from >= n_traces;
-        !p.ghost || (p.movable && p.trace.measured() >= min_ghost)
-    });
     let anchors = anchors(&pieces, window, step);
     if anchors.len() < 3 {
-        pieces.truncate(confirmed);
-        return unchanged(rebuild(pieces, &[], &[], n_traces, &ids));
+        return (rebuild(pieces, &[], &[], n_traces, &ids), 0);
     }
     let owner = assign(&pieces, &anchors, step, one_second);
     let moved = pieces
         .iter()
         .enumerate()
         .filter(|(p, piece)| {
-            !piece.ghost
-                && piece.movable
-                && owner[*p].map(|a| pieces[anchors[a].piece].from) != Some(piece.from)
+            piece.movable && owner[*p].map(|a| pieces[anchors[a].piece].from) != Some(piece.from)
         })
         .count();
-    let mut taken_from: Vec<usize> = (confirmed..pieces.len())
-        .filter(|&p| owner[p].is_some())
-        .map(|p| pieces[p].from)
-        .collect();
-    let rescued = taken_from.len();
-    taken_from.dedup();
-    Rejoined {
-        traces: rebuild(pieces, &anchors, &owner, n_traces, &ids),
-        moved,
-        rescued,
-        ghosts: n_ghosts - taken_from.len(),
-    }
-}
-
-/// What [`rejoin`] gives back.
-pub(crate) struct Rejoined {
-    /// The tips' traces and the pieces of their own.
-    pub traces: Vec<Trace>,
-    /// Pieces moved to another tip than the tracker's.
-    pub moved: usize,
-    /// Pieces of unconfirmed traces given to a tip.
-    pub rescued: usize,
-    /// Unconfirmed traces none of whose pieces went to a tip.
-    pub ghosts: usize,
+    (rebuild(pieces, &anchors, &owner, n_traces, &ids), moved)
 }
 
 /// Cuts trace `t` (index `k`) at its gaps longer than `cut.0` frames, and
@@ -261,7 +199,6 @@ fn cut_trace(t: Trace, k: usize, after: i64, cut: (i64, &[i64]), step: i64, out:
                     from: k,
                     probes: Vec::new(),
                     movable: f >= after,
-                    ghost: false,
                 })
             }
         }
@@ -448,9 +385,6 @@ fn assign(pieces: &[Piece], anchors: &[Anchor], step: i64, one_second: i64) -> V
             .filter(|&a| free(a) && anchors[a].rest.distance(near) <= REACH)
             .filter_map(|a| {
                 let c = cost(pieces, anchors, &field, i, a, one_second)?;
-                if p.ghost && !swings_with(pieces, anchors, &field, i, a) {
-                    return None;
-                }
                 let seam = seams(pieces, anchors, &field, &taken[a], i, a, one_second);
                 Some((c + seam, c, a))
             })
@@ -549,24 +483,6 @@ fn cost(
     Some(mean.distance_squared(an.mean) / var)
 }
 
-/// Whether piece `i`'s offset from anchor `a`'s neighbours stays as close
-/// to its mean as the tip's own does ([`GHOST_SWING`]): a marker of the
-/// tip swings with them, a still reflection does not.
-fn swings_with(pieces: &[Piece], anchors: &[Anchor], field: &Field, i: usize, a: usize) -> bool {
-    let p = &pieces[i];
-    let offs: Vec<DVec3> = p
-        .probes
-        .iter()
-        .filter_map(|&(f, q)| field.offset(pieces, anchors, a, p.from, f, q))
-        .collect();
-    if offs.len() < 3 {
-        return false;
-    }
-    let mean = offs.iter().copied().sum::<DVec3>() / offs.len() as f64;
-    let ms = offs.iter().map(|o| o.distance_squared(mean)).sum::<f64>() / offs.len() as f64;
-    ms.sqrt() <= GHOST_SWING * anchors[a].spread + SPREAD_MIN
-}
-
 /// How badly piece `i` continues the pieces of anchor `a` next to it in
 /// time (`taken`), across gaps of up to [`SEAM_S`]: the offsets on each side,
 /// extrapolated linearly to the middle of the gap, in squared expected
@@ -646,8 +562,6 @@ fn rebuild(
     for (i, p) in pieces.into_iter().enumerate() {
         let g = match owner.get(i).copied().flatten() {
             Some(a) => a,
-            // An unconfirmed piece no tip took stays a ghost.
-            None if p.ghost => continue,
             None => anchors.len() + p.from,
         };
         groups[g].push((p.trace.first_frame(), p.trace));
