@@ -193,10 +193,11 @@ fn rest_window_is_on_the_time_column_when_the_take_starts_late() {
 /// and some markers were never seen for `confirm_s` in a row in the whole
 /// still phase, so they were dropped as ghosts. A still marker's pieces at
 /// one place now count together towards its confirmation
-/// (docs/tracking.md §2). Samples of another tip remain on `all` (113 on
-/// these seeds, README); more than 120 fail: there were 236 before ghosts
+/// (docs/tracking.md §2). Samples of another tip remain on `all` (12 on
+/// these seeds, README); more than 20 fail: there were 236 before ghosts
 /// measured for 0.25 s and an identity's pieces sharing frames were judged
-/// by their neighbours after the session.
+/// by their neighbours after the session (113), and before the seams alone
+/// could take a piece from a tip its mean offset fits best (12).
 #[test]
 fn every_tip_is_found_once_with_its_rest_position_under_all_stresses() {
     let mut wrong = 0;
@@ -237,7 +238,7 @@ fn every_tip_is_found_once_with_its_rest_position_under_all_stresses() {
         wrong += s.wrong_samples;
     }
     assert!(
-        wrong <= 120,
+        wrong <= 20,
         "all, seeds 100–102: {wrong} samples of another tip"
     );
 }
