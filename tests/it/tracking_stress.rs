@@ -89,6 +89,30 @@ fn close_pairs_keep_their_identities_through_a_gap() {
     check("close, seed 104", &st.options);
 }
 
+/// Close pairs on a seed held out of the tuning (109): every tip keeps its
+/// identity. Before, the tracker gave tip 66's identity 72 samples of its
+/// partner tip 8 (0.3 s fitting both tips' offsets) and then tip 66's own
+/// marker for 1.7 s in the same frames; the later piece was dropped as a
+/// ghost and the 72 samples stayed in tip 66, and a 93-sample piece of tip
+/// 37 between two hidden stretches, never confirmed on line, was dropped
+/// (its 4-frame gap filled 52 mm off). Both are now judged after the
+/// session by their offset from their neighbours like any piece
+/// (src/track/rejoin.rs).
+#[test]
+fn close_pairs_keep_their_identities_on_a_held_out_seed() {
+    let base = stress::base(109, 70, 8.0, 20.0);
+    let st = stress::all(&base)
+        .into_iter()
+        .find(|s| s.name == "close")
+        .unwrap();
+    let s = check("close, seed 109", &st.options);
+    let (_, _, ours, pchip) = s.fill_bin(1, 10);
+    assert!(
+        ours <= pchip * 1.0001,
+        "1–10 frames {ours} against PCHIP {pchip}"
+    );
+}
+
 /// A tip hidden for about 45 frames in a gust comes back 55–121 mm from
 /// where its neighbours' motion puts it: on line it became a second tip,
 /// and its lost identity took another tip's marker seconds later (seed
@@ -169,10 +193,14 @@ fn rest_window_is_on_the_time_column_when_the_take_starts_late() {
 /// and some markers were never seen for `confirm_s` in a row in the whole
 /// still phase, so they were dropped as ghosts. A still marker's pieces at
 /// one place now count together towards its confirmation
-/// (docs/tracking.md §2). Samples of another tip remain on `all` (406 on
-/// these seeds, README): not asserted here.
+/// (docs/tracking.md §2). Samples of another tip remain on `all` (12 on
+/// these seeds, README); more than 20 fail: there were 236 before ghosts
+/// measured for 0.25 s and an identity's pieces sharing frames were judged
+/// by their neighbours after the session (113), and before the seams alone
+/// could take a piece from a tip its mean offset fits best (12).
 #[test]
 fn every_tip_is_found_once_with_its_rest_position_under_all_stresses() {
+    let mut wrong = 0;
     for seed in 100..103 {
         let base = stress::base(seed, 70, 8.0, 20.0);
         let st = stress::all(&base)
@@ -206,6 +234,53 @@ fn every_tip_is_found_once_with_its_rest_position_under_all_stresses() {
             s.rest_max() < 0.0005,
             "all, seed {seed}: rest error {}",
             s.rest_max()
+        );
+        wrong += s.wrong_samples;
+    }
+    assert!(
+        wrong <= 20,
+        "all, seeds 100–102: {wrong} samples of another tip"
+    );
+}
+
+/// A marker hidden for a few frames in the wind that comes back as a new
+/// trace and is hidden again before that trace is confirmed (13 samples
+/// between gaps of 8 and 32 frames on `sway` seeds 101 and 102, 108
+/// samples between 37 and 8 on `close` seed 100): the piece is the
+/// marker's, since the motion at both edges of the short gap carries one
+/// to the other (src/track/adopt.rs), so the short gap is filled as
+/// itself. Before, the piece was dropped as a ghost and the 8 frames were
+/// filled as part of a gap of 53 or 153 (2.3 mm off where PCHIP with
+/// perfect identity is 0.3 mm): the gaps of 1–10 frames were worse than
+/// PCHIP's. Every gap of 1–10 frames is now within 0.5 mm of PCHIP's
+/// error, and all of them together no worse.
+#[test]
+fn a_marker_seen_between_two_gaps_keeps_its_short_gap() {
+    for (name, seed) in [("sway", 101), ("sway", 102), ("close", 100)] {
+        let base = stress::base(seed, 70, 8.0, 20.0);
+        let st = stress::all(&base)
+            .into_iter()
+            .find(|s| s.name == name)
+            .unwrap();
+        let s = check(&format!("{name}, seed {seed}"), &st.options);
+        let (mut ours, mut pchip) = (0.0, 0.0);
+        for f in s.fills.iter().filter(|f| f.len <= 10) {
+            let (Some(o), Some(p)) = (f.ours, f.pchip) else {
+                continue;
+            };
+            assert!(
+                o <= p + 0.0005,
+                "{name}, seed {seed}: a gap of {} frames filled {:.2} mm off (PCHIP {:.2} mm)",
+                f.len,
+                o * 1000.0,
+                p * 1000.0
+            );
+            ours += o * f.len as f64;
+            pchip += p * f.len as f64;
+        }
+        assert!(
+            ours <= pchip * 1.0001,
+            "{name}, seed {seed}: 1–10 frames {ours} against PCHIP {pchip}"
         );
     }
 }
