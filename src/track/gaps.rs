@@ -662,6 +662,22 @@ mod tests {
         }
     }
 
+    /// One marker's trace filled as the stage fills it and by PCHIP alone
+    /// (the baseline), with the stage's statistics.
+    fn ours_and_pchip(make: impl Fn() -> Trace, tl: &Timeline) -> (Trace, Trace, GapStats) {
+        let mut ours = [make()];
+        let st = fill_gaps(&mut ours, tl, settings());
+        let mut base = [make()];
+        let pchip_only = GapSettings {
+            neighbours: false,
+            ..settings()
+        };
+        fill_gaps(&mut base, tl, pchip_only);
+        let [ours] = ours;
+        let [base] = base;
+        (ours, base, st)
+    }
+
     fn trace_of(
         id: usize,
         f: impl Fn(i64) -> DVec3,
@@ -756,16 +772,9 @@ mod tests {
             times: (0..900).map(|i| i as f64 / 240.0).collect(),
             anchors: vec![(0, 0)],
         };
-        let mut ours = [trace_of(0, noisy, frames())];
-        let st = fill_gaps(&mut ours, &tl, settings());
+        let (ours, base, st) = ours_and_pchip(|| trace_of(0, noisy, frames()), &tl);
         assert_eq!((st.filled, st.from_neighbours), (2, 0));
-        let mut base = [trace_of(0, noisy, frames())];
-        let pchip_only = GapSettings {
-            neighbours: false,
-            ..settings()
-        };
-        fill_gaps(&mut base, &tl, pchip_only);
-        let (e, p) = (fill_error(&ours[0], truth), fill_error(&base[0], truth));
+        let (e, p) = (fill_error(&ours, truth), fill_error(&base, truth));
         assert!(e <= 0.7 * p, "ours {e} PCHIP {p}");
     }
 
@@ -775,15 +784,8 @@ mod tests {
         // baseline fills it.
         let f = |n: i64| DVec3::new(0.03 * (n as f64 / 7.0).sin(), 1.0, 0.0);
         let frames = || (0..50).chain(54..100);
-        let mut ours = [trace_of(0, f, frames())];
-        let mut base = [trace_of(0, f, frames())];
-        fill_gaps(&mut ours, &timeline(100), settings());
-        let pchip_only = GapSettings {
-            neighbours: false,
-            ..settings()
-        };
-        fill_gaps(&mut base, &timeline(100), pchip_only);
-        assert_eq!(ours[0].fills(), base[0].fills());
+        let (ours, base, _) = ours_and_pchip(|| trace_of(0, f, frames()), &timeline(100));
+        assert_eq!(ours.fills(), base.fills());
     }
 
     #[test]
@@ -806,19 +808,12 @@ mod tests {
             times: (0..2400).map(|i| i as f64 / 240.0).collect(),
             anchors: vec![(0, 0)],
         };
-        let mut ours = [trace_of(0, noisy, frames())];
-        let st = fill_gaps(&mut ours, &tl, settings());
+        let (ours, base, st) = ours_and_pchip(|| trace_of(0, noisy, frames()), &tl);
         assert_eq!(st.filled, 18);
-        let mut base = [trace_of(0, noisy, frames())];
-        let pchip_only = GapSettings {
-            neighbours: false,
-            ..settings()
-        };
-        fill_gaps(&mut base, &tl, pchip_only);
-        let (e, p) = (fill_error(&ours[0], truth), fill_error(&base[0], truth));
+        let (e, p) = (fill_error(&ours, truth), fill_error(&base, truth));
         assert!(e <= 0.8 * p, "ours {e} PCHIP {p}");
         // Measured samples stay as measured (stored to 0.01 mm).
-        for s in ours[0].samples().filter(|s| s.kind == SampleKind::Measured) {
+        for s in ours.samples().filter(|s| s.kind == SampleKind::Measured) {
             assert!(s.position.distance(noisy(s.frame)) < 1e-5);
         }
     }
