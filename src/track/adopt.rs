@@ -65,20 +65,17 @@ pub fn adopt_ghosts(marks: &mut [Trace], ghosts: Vec<Trace>, gate_m: f64) -> (Ve
     // runs: those frames' positions are all that is kept of each mark (its
     // whole list of measurements is 32 bytes a sample, 1.8 GB for an hour
     // of 70 markers at 240 Hz).
-    let mut near: Vec<i64> = ghosts
-        .iter()
-        .flat_map(|g| runs(g).into_iter())
+    // Each ghost's runs, found once: they do not change while marks adopt.
+    let ghost_runs: Vec<Vec<Run>> = ghosts.iter().map(runs).collect();
+    let all_runs = || ghost_runs.iter().flatten();
+    let mut near: Vec<i64> = all_runs()
         .flat_map(|r| (1..=HANDOVER_FRAMES).flat_map(move |d| [r.a - d, r.b + d]))
         .collect();
     near.sort_unstable();
     near.dedup();
     // The ends of the ghosts' runs: a mark keeps the edges of its gaps
     // that hold one (for a run that lies inside a gap of the mark).
-    let mut ends: Vec<i64> = ghosts
-        .iter()
-        .flat_map(|g| runs(g).into_iter())
-        .flat_map(|r| [r.a, r.b])
-        .collect();
+    let mut ends: Vec<i64> = all_runs().flat_map(|r| [r.a, r.b]).collect();
     ends.sort_unstable();
     ends.dedup();
     let of = |m: &Trace| Beside::of(m, &near, &ends);
@@ -90,11 +87,10 @@ pub fn adopt_ghosts(marks: &mut [Trace], ghosts: Vec<Trace>, gate_m: f64) -> (Ve
     let mut adopted = 0;
     loop {
         let mut changed = false;
-        for slot in left.iter_mut() {
+        for (slot, runs) in left.iter_mut().zip(&ghost_runs) {
             let Some(ghost) = slot.as_ref() else {
                 continue;
             };
-            let runs = runs(ghost);
             let mut fits = marks
                 .iter()
                 .zip(&cache)
@@ -103,7 +99,7 @@ pub fn adopt_ghosts(marks: &mut [Trace], ghosts: Vec<Trace>, gate_m: f64) -> (Ve
                     m.first_frame() <= ghost.last_frame() + REACH
                         && ghost.first_frame() <= m.last_frame() + REACH
                 })
-                .filter(|(_, (m, seen))| hands_over(m, seen, &runs, gate_m))
+                .filter(|(_, (m, seen))| hands_over(m, seen, runs, gate_m))
                 .map(|(k, _)| k);
             // Only a ghost that one marker alone could have handed over to:
             // where two hidden markers pass close, it stays a ghost.

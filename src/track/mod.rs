@@ -179,7 +179,8 @@ const LOOSE_GHOST_S: f64 = 0.25;
 /// One trace per identity (its pieces appended in time order, or merged
 /// where they interleave); returns them in order of first appearance, the
 /// traces in none (ghosts), in order of id, and the pieces of an identity
-/// that share a frame with its earlier pieces (loose), in order of id.
+/// that share a frame with its earlier pieces (loose; `clean` orders them
+/// with the long ghosts it adds).
 fn assemble(
     traces: Vec<crate::model::trace::Trace>,
     identities: &[Vec<usize>],
@@ -209,7 +210,6 @@ fn assemble(
     }
     let mut ghosts: Vec<Trace> = slots.into_iter().flatten().collect();
     ghosts.sort_by_key(|t| t.id);
-    loose.sort_by_key(|t| t.id);
     out.sort_by_key(|t| (t.first_frame(), t.id));
     (out, ghosts, loose)
 }
@@ -246,7 +246,7 @@ pub fn clean(
     let n_traces = traces.len();
     let joined_on_line = stats.joined as usize;
     let seams = rejoin::seams_of(&traces, &identities);
-    let (mut traces, ghosts, loose) = assemble(traces, &identities);
+    let (mut traces, ghosts, mut loose) = assemble(traces, &identities);
     let frames = stats.frames;
     let mut warnings: Vec<String> = spacing_warning(&stats, cfg).into_iter().collect();
 
@@ -261,7 +261,6 @@ pub fn clean(
     let min_len = (LOOSE_GHOST_S * one_second(&timeline) as f64).ceil() as usize;
     let (long, ghosts): (Vec<Trace>, Vec<Trace>) =
         ghosts.into_iter().partition(|g| g.measured() >= min_len);
-    let mut loose = loose;
     loose.extend(long);
     loose.sort_by_key(|t| t.id);
     let (traces, rejoined, loose) =

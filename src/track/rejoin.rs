@@ -160,7 +160,8 @@ pub(crate) fn rejoin(
     }
     let anchors = anchors(&pieces, window, step, n_tips);
     if anchors.len() < 3 {
-        return rebuild(pieces, &[], &[], (n_traces, n_tips), &ids);
+        let (out, left) = rebuild(pieces, &[], &[], (n_traces, n_tips), &ids);
+        return (out, 0, left);
     }
     let owner = assign(&pieces, &anchors, step, one_second);
     let moved = pieces
@@ -170,7 +171,7 @@ pub(crate) fn rejoin(
             piece.movable && owner[*p].map(|a| pieces[anchors[a].piece].from) != Some(piece.from)
         })
         .count();
-    let (out, _, left) = rebuild(pieces, &anchors, &owner, (n_traces, n_tips), &ids);
+    let (out, left) = rebuild(pieces, &anchors, &owner, (n_traces, n_tips), &ids);
     (out, moved, left)
 }
 
@@ -575,15 +576,14 @@ fn seams(
 
 /// One trace per anchor (its pieces in time order) and one per group of
 /// unassigned pieces cut from the same trace; such groups of the loose
-/// traces (from `n.1` of the `n.0` traces on) are returned apart. The
-/// middle of the answer is always 0 (the shape of [`rejoin`]'s).
+/// traces (from `n.1` of the `n.0` traces on) are returned apart.
 fn rebuild(
     pieces: Vec<Piece>,
     anchors: &[Anchor],
     owner: &[Option<usize>],
     n: (usize, usize),
     ids: &[(usize, Vec<usize>)],
-) -> (Vec<Trace>, usize, Vec<Trace>) {
+) -> (Vec<Trace>, Vec<Trace>) {
     let (n_traces, n_tips) = n;
     let loose_from = anchors.len() + n_tips;
     let mut groups: Vec<Vec<(i64, Trace)>> =
@@ -635,7 +635,7 @@ fn rebuild(
             out.push(b);
         }
     }
-    (out, 0, left)
+    (out, left)
 }
 
 /// Per-axis median.
