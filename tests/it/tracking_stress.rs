@@ -8,6 +8,15 @@
 use treemocap::sim::{self, score, stress};
 use treemocap::track::{self, Tracker, TrackingSettings};
 
+/// The stress named `name` on the sweep's session of `seed` (70 tips at
+/// 240 Hz, 8 s still, 20 s of wind: `examples/track_stress.rs`).
+fn sweep_stress(name: &str, seed: u64) -> stress::Stress {
+    stress::all(&stress::base(seed, 70, 8.0, 20.0))
+        .into_iter()
+        .find(|s| s.name == name)
+        .unwrap()
+}
+
 fn check(name: &str, opts: &sim::SynthOptions) -> score::Score {
     let syn = sim::generate(opts).unwrap();
     let cfg = TrackingSettings::default();
@@ -65,11 +74,7 @@ fn every_stress_alone_holds_on_a_short_session() {
 /// averaged and a rest position came out 9.2 mm off.
 #[test]
 fn the_still_phase_is_found_under_noise_above_noise_mm() {
-    let base = stress::base(101, 70, 8.0, 20.0);
-    let st = stress::all(&base)
-        .into_iter()
-        .find(|s| s.name == "noise")
-        .unwrap();
+    let st = sweep_stress("noise", 101);
     check("noise, seed 101", &st.options);
 }
 
@@ -81,11 +86,7 @@ fn the_still_phase_is_found_under_noise_above_noise_mm() {
 /// neighbours put it elsewhere (docs/tracking.md §4a).
 #[test]
 fn close_pairs_keep_their_identities_through_a_gap() {
-    let base = stress::base(104, 70, 8.0, 20.0);
-    let st = stress::all(&base)
-        .into_iter()
-        .find(|s| s.name == "close")
-        .unwrap();
+    let st = sweep_stress("close", 104);
     check("close, seed 104", &st.options);
 }
 
@@ -100,11 +101,7 @@ fn close_pairs_keep_their_identities_through_a_gap() {
 /// (src/track/rejoin.rs).
 #[test]
 fn close_pairs_keep_their_identities_on_a_held_out_seed() {
-    let base = stress::base(109, 70, 8.0, 20.0);
-    let st = stress::all(&base)
-        .into_iter()
-        .find(|s| s.name == "close")
-        .unwrap();
+    let st = sweep_stress("close", 109);
     let s = check("close, seed 109", &st.options);
     let (_, _, ours, pchip) = s.fill_bin(1, 10);
     assert!(
@@ -202,11 +199,7 @@ fn rest_window_is_on_the_time_column_when_the_take_starts_late() {
 fn every_tip_is_found_once_with_its_rest_position_under_all_stresses() {
     let mut wrong = 0;
     for seed in 100..103 {
-        let base = stress::base(seed, 70, 8.0, 20.0);
-        let st = stress::all(&base)
-            .into_iter()
-            .find(|s| s.name == "all")
-            .unwrap();
+        let st = sweep_stress("all", seed);
         let syn = sim::generate(&st.options).unwrap();
         let cfg = TrackingSettings::default();
         let mut tracker = Tracker::new(&cfg, Some(st.options.frame_rate));
@@ -257,11 +250,7 @@ fn every_tip_is_found_once_with_its_rest_position_under_all_stresses() {
 #[test]
 fn a_marker_seen_between_two_gaps_keeps_its_short_gap() {
     for (name, seed) in [("sway", 101), ("sway", 102), ("close", 100)] {
-        let base = stress::base(seed, 70, 8.0, 20.0);
-        let st = stress::all(&base)
-            .into_iter()
-            .find(|s| s.name == name)
-            .unwrap();
+        let st = sweep_stress(name, seed);
         let s = check(&format!("{name}, seed {seed}"), &st.options);
         let (mut ours, mut pchip) = (0.0, 0.0);
         for f in s.fills.iter().filter(|f| f.len <= 10) {
