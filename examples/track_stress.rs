@@ -112,8 +112,9 @@ fn row(
             let dropped: usize = summary.dropped.iter().map(|d| d.measured).sum();
             eprintln!(
                 "{name} seed {seed}: {lost} of {all} true samples in the wind phase in no tip; \
-                 {} traces dropped as noise ({dropped} samples, ghosts included)",
-                summary.dropped.len()
+                 {} traces dropped as noise ({dropped} samples, ghosts included); {} taken back into gaps",
+                summary.dropped.len(),
+                summary.reclaimed
             );
         }
         sway = sway.max(score::largest_sway(&syn.truth));

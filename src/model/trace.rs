@@ -365,7 +365,9 @@ impl Trace {
     }
 
     /// The measurements (with their source IDs) in frame order.
-    fn measurements_with_source(&self) -> impl Iterator<Item = (i64, DVec3, Option<i64>)> + '_ {
+    pub(crate) fn measurements_with_source(
+        &self,
+    ) -> impl Iterator<Item = (i64, DVec3, Option<i64>)> + '_ {
         let mut runs = self.sources.iter().peekable();
         let mut source = None;
         self.measurements().map(move |(frame, p)| {

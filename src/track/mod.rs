@@ -14,6 +14,8 @@
 //!    positions); [`noise`]:
 //!    pieces of one marker still apart are joined by rest position;
 //! 4. [`noise`]: traces measured in fewer than 1/4 of the frames are dropped;
+//!    `reclaim`: samples no tip holds (ghosts, loose pieces, the dropped
+//!    traces) that continue a tip from a gap's edge go back into its gap;
 //! 5. [`gaps`]: gaps are filled from the neighbours' motion, or by PCHIP,
 //!    where plausible;
 //! 6. [`rest`]: each remaining trace's rest position → [`Tips`].
@@ -32,6 +34,7 @@ pub mod live;
 mod motion;
 pub mod noise;
 mod radix;
+mod reclaim;
 mod rejoin;
 pub mod rest;
 pub mod settings;
@@ -89,6 +92,10 @@ pub struct Summary {
     /// tip afterwards, from their offset to the neighbours over the whole
     /// take (`rejoin`).
     pub rejoined: usize,
+    /// Samples of ghosts and dropped traces taken into a tip's gap, where
+    /// they continue the tip from the gap's edge by the step its
+    /// neighbours predict (`reclaim`).
+    pub reclaimed: usize,
     /// Traces dropped as noise (measured in fewer than `noise_fraction` of
     /// the frames), longest first.
     pub dropped: Vec<DroppedTrace>,
@@ -265,9 +272,9 @@ pub fn clean(
     loose.sort_by_key(|t| t.id);
     let (traces, rejoined, loose) =
         rejoin::rejoin(traces, loose, &seams, window, one_second(&timeline));
-    let ghosts = ghosts.len() + loose.len();
+    let n_ghosts = ghosts.len() + loose.len();
     let (traces, joined_by_rest, joined_into_gaps) = join_pieces(traces, window, &timeline, cfg);
-    let (mut kept, mut dropped) = noise::drop_noise(traces, frames, cfg.noise_fraction);
+    let (mut kept, mut dropped, noise) = noise::drop_noise(traces, frames, cfg.noise_fraction);
     dropped.sort_by(|a, b| b.measured.cmp(&a.measured).then(a.id.cmp(&b.id)));
 
     let settings = gaps::GapSettings {
@@ -275,6 +282,10 @@ pub fn clean(
         max_pchip_s: cfg.max_pchip_s,
         neighbours: true,
     };
+    let pool: Vec<Trace> = ghosts.into_iter().chain(loose).chain(noise).collect();
+    let sigma = jitter::noise_of(&kept).max(cfg.noise_mm / 1000.0);
+    let reclaimed = reclaim::reclaim(&mut kept, &pool, &timeline, settings, sigma);
+    drop(pool);
     let gap_stats = gaps::fill_gaps(&mut kept, &timeline, settings);
 
     kept.sort_by_key(|t| (t.first_frame(), t.id));
@@ -288,12 +299,13 @@ pub fn clean(
         duration_s: duration_of(&timeline),
         tracking: stats,
         traces: n_traces,
-        ghosts,
+        ghosts: n_ghosts,
         joined_on_line,
         adopted,
         joined_by_rest,
         joined_into_gaps,
         rejoined,
+        reclaimed,
         dropped,
         noise_fraction: cfg.noise_fraction,
         gaps: gap_stats,

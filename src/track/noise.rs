@@ -115,15 +115,17 @@ pub fn join_by_rest(
 }
 
 /// Splits traces into those measured in at least `fraction` of `frames`
-/// and the noise.
+/// and the noise: (kept, what was dropped, the dropped traces themselves,
+/// whose samples a tip may still take back).
 pub fn drop_noise(
     traces: Vec<Trace>,
     frames: u64,
     fraction: f64,
-) -> (Vec<Trace>, Vec<DroppedTrace>) {
+) -> (Vec<Trace>, Vec<DroppedTrace>, Vec<Trace>) {
     let min = fraction * frames as f64;
     let mut kept = Vec::new();
     let mut dropped = Vec::new();
+    let mut noise = Vec::new();
     for t in traces {
         if (t.measured() as f64) < min {
             dropped.push(DroppedTrace {
@@ -133,11 +135,12 @@ pub fn drop_noise(
                 first_frame: t.first_frame(),
                 last_frame: t.last_frame(),
             });
+            noise.push(t);
         } else {
             kept.push(t);
         }
     }
-    (kept, dropped)
+    (kept, dropped, noise)
 }
 
 #[cfg(test)]
@@ -181,7 +184,8 @@ mod tests {
     fn quarter_rule() {
         let p = |_n: i64| DVec3::ZERO;
         let traces = vec![piece(0, 0..25, p), piece(1, 0..24, p)];
-        let (kept, dropped) = drop_noise(traces, 100, 0.25);
+        let (kept, dropped, noise) = drop_noise(traces, 100, 0.25);
+        assert_eq!(noise.len(), 1);
         assert_eq!(kept.len(), 1);
         assert_eq!(dropped.len(), 1);
         assert_eq!(dropped[0].id, 1);

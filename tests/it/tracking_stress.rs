@@ -195,9 +195,17 @@ fn rest_window_is_on_the_time_column_when_the_take_starts_late() {
 /// measured for 0.25 s and an identity's pieces sharing frames were judged
 /// by their neighbours after the session (113), and before the seams alone
 /// could take a piece from a tip its mean offset fits best (12).
+///
+/// The fills of all the true gaps in the wind phase, whatever the tracker
+/// left around them, against PCHIP with perfect identity: 11–50 frames at
+/// most 0.75 × (0.74 ×; issue 14's target is 0.7 ×), 1–10 frames at most
+/// 0.85 × (0.79 ×). Before the samples the tracker left in no tip were
+/// taken back into the gaps (`src/track/reclaim.rs`) they were 0.87 × and
+/// 0.89 ×: the tip's hole was longer than the marker's gap.
 #[test]
 fn every_tip_is_found_once_with_its_rest_position_under_all_stresses() {
     let mut wrong = 0;
+    let mut total = score::Score::default();
     for seed in 100..103 {
         let st = sweep_stress("all", seed);
         let syn = sim::generate(&st.options).unwrap();
@@ -229,11 +237,28 @@ fn every_tip_is_found_once_with_its_rest_position_under_all_stresses() {
             s.rest_max()
         );
         wrong += s.wrong_samples;
+        total.merge(&s);
     }
     assert!(
         wrong <= 20,
         "all, seeds 100–102: {wrong} samples of another tip"
     );
+    for ((lo, hi), limit) in score::fill_bins(240.0).into_iter().zip([0.85, 0.75]) {
+        let (gaps, filled, ours, pchip) = total.fill_bin(lo, hi);
+        println!(
+            "gaps {lo}-{hi} frames: {filled}/{gaps} filled, {:.2} mm (PCHIP {:.2} mm)",
+            ours * 1000.0,
+            pchip * 1000.0
+        );
+        assert!(
+            filled * 100 >= gaps * 99,
+            "{lo}-{hi}: {filled}/{gaps} filled"
+        );
+        assert!(
+            ours <= limit * pchip,
+            "{lo}-{hi}: {ours} > {limit} × PCHIP {pchip}"
+        );
+    }
 }
 
 /// A marker hidden for a few frames in the wind that comes back as a new

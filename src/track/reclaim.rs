@@ -1,0 +1,392 @@
+//! Samples of a tip that ended up in no tip, taken back at the edges of its
+//! gaps.
+//!
+//! Under strong sway with noise and ghosts the tracker sometimes loses a
+//! marker for a few frames and follows it again as a new trace that is
+//! never confirmed, or too short for its offset from the neighbours to say
+//! whose it is. Those samples stay ghosts or are dropped as noise, and the
+//! tip's gap becomes longer than the marker's real one: a fill across the
+//! longer hole is worse than a fill across the true gap could be.
+//!
+//! The evidence that such a sample is the tip's is local: it continues the
+//! tip's last measured sample by the step the neighbours' motion predicts
+//! (the gap's fill), frame after frame from the gap's edge. So each gap is
+//! walked from both ends through the samples no tip holds, one frame at a
+//! time, taking the sample within the noise of that step and near the
+//! fill; frames without one are passed over (the marker's real gap), but
+//! a run found after them needs [`MIN_RUN`] samples. A sample two walks
+//! want, or with another tip's position nearly as close as the fill
+//! ([`VETO_RATIO`]), is not taken and ends its walk there (a close pair's
+//! partner, which also has a gap, could own it). Gaps that got samples back are
+//! shorter and their fills better: the passes repeat while they take
+//! samples.
+
+use std::collections::HashMap;
+
+use glam::DVec3;
+
+use super::gaps::{self, GapSettings};
+use crate::model::trace::{Timeline, Trace};
+
+/// How far (in σ of the measurement noise per axis) a sample may lie from
+/// the step the fill predicts: the 99.9 % quantile of the 3-D distance
+/// between two noisy samples of one point (χ with 3 degrees of freedom,
+/// √2 σ per axis).
+const STEP_SIGMAS: f64 = 5.7;
+
+/// Smallest step radius (m): noise measured on a quiet capture can be
+/// far below what a marker does between two frames.
+const MIN_STEP_M: f64 = 0.0015;
+
+/// How far the fill itself may be off, per frame from the gap's edge (m);
+/// a sample further than the step radius plus this from the fill is not
+/// the tip's, however well it continues the previous one (a walk that
+/// drifted).
+const DRIFT_PER_FRAME_M: f64 = 0.0002;
+
+/// Samples in a row a run needs when it starts after frames where the
+/// walk found nothing.
+const MIN_RUN: usize = 4;
+
+/// Passes at most: each previews the fills of every gap (the cost of a
+/// gap fill); two in three sessions under strong sway need no more.
+const PASSES: usize = 8;
+
+/// Frames a walk may pass over and still take the next sample alone,
+/// when it lies within the step radius of the prediction.
+const SHORT_SKIP: i64 = 10;
+
+/// A sample is doubtful when another tip lies within this many times its
+/// distance from the host's fill (or the step radius, if larger): in a long
+/// hole the fill is some millimetres off, and a neighbour passing nearer
+/// than three times that could as well own it (held-out sweep: ratio 0 or
+/// 1.5 took 76 and 50 more samples of another tip than no reclaim at all,
+/// 3 took 12, for a 11–50 frame fill of 0.72, 0.73 and 0.77 × PCHIP's).
+const VETO_RATIO: f64 = 3.0;
+
+/// One sample a walk wants to take.
+#[derive(Clone, Copy)]
+struct Claim {
+    /// Index of the tip (into the traces given).
+    host: usize,
+    frame: i64,
+    /// Distance from the host's fill at `frame`.
+    off: f64,
+    position: DVec3,
+    source: Option<i64>,
+    /// Index of the sample among the pool's samples of its frame.
+    slot: usize,
+    /// Which walk took it, and its place in the walk.
+    walk: usize,
+    step: usize,
+}
+
+/// Takes samples of `pool` (traces no tip holds: ghosts, pieces nobody
+/// fitted, traces dropped as noise) into the gaps of `tips` where they
+/// continue a tip from a gap's edge (module docs). `sigma`: the capture's
+/// measurement noise per axis (m). Returns the number of samples taken.
+pub(crate) fn reclaim(
+    tips: &mut [Trace],
+    pool: &[Trace],
+    timeline: &Timeline,
+    settings: GapSettings,
+    sigma: f64,
+) -> usize {
+    let mut at: Pool = HashMap::new();
+    for t in pool {
+        for (f, p, s) in t.measurements_with_source() {
+            at.entry(f).or_default().push(Some((p, s)));
+        }
+    }
+    if at.is_empty() || tips.is_empty() {
+        return 0;
+    }
+    let r_step = (STEP_SIGMAS * std::f64::consts::SQRT_2 * sigma).max(MIN_STEP_M);
+    // A gap that got samples back is shorter, and its fill closer to the
+    // marker: the next pass may reach the pieces the first could not.
+    let mut count = 0;
+    for _ in 0..PASSES {
+        let n = pass(tips, &mut at, timeline, settings, r_step);
+        count += n;
+        if n == 0 {
+            break;
+        }
+    }
+    count
+}
+
+/// The pool's samples by frame; `None` once a tip took one.
+type Pool = HashMap<i64, Vec<Option<(DVec3, Option<i64>)>>>;
+
+/// One pass of [`reclaim`]: previews the fills, walks every gap, takes
+/// the samples no doubt falls on. Returns how many it took.
+fn pass(
+    tips: &mut [Trace],
+    at: &mut Pool,
+    timeline: &Timeline,
+    settings: GapSettings,
+    r_step: f64,
+) -> usize {
+    // The fills the gaps would get now: the walks follow their steps.
+    let mut preview: Vec<Trace> = tips.to_vec();
+    gaps::fill_gaps(&mut preview, timeline, settings);
+
+    let mut claims: Vec<Claim> = Vec::new();
+    let mut walks = 0usize;
+    for (host, t) in preview.iter().enumerate() {
+        let ends = edge_positions(t);
+        for fill in t.fills() {
+            let (Some(&a), Some(&b)) = (ends.get(&fill.from), ends.get(&fill.to)) else {
+                continue;
+            };
+            let expect = |f: i64| match f {
+                f if f == fill.from => a,
+                f if f == fill.to => b,
+                f => fill.at(f),
+            };
+            let forward = walk(fill.from, fill.to, 1, a, &expect, at, r_step);
+            let reached = forward.last().map_or(fill.from, |c| c.0);
+            let backward = walk(fill.to, reached, -1, b, &expect, at, r_step);
+            for run in [forward, backward] {
+                for (step, (frame, slot)) in run.into_iter().enumerate() {
+                    let Some((position, source)) = at[&frame][slot] else {
+                        continue;
+                    };
+                    claims.push(Claim {
+                        host,
+                        frame,
+                        off: position.distance(expect(frame)),
+                        position,
+                        source,
+                        slot,
+                        walk: walks,
+                        step,
+                    });
+                }
+                walks += 1;
+            }
+        }
+    }
+    if claims.is_empty() {
+        return 0;
+    }
+
+    // A walk ends before its first doubtful sample.
+    let mut cut: Vec<usize> = vec![usize::MAX; walks];
+    let mut wanted: HashMap<(i64, usize), usize> = HashMap::new();
+    for c in &claims {
+        *wanted.entry((c.frame, c.slot)).or_default() += 1;
+    }
+    let mut by_frame: HashMap<i64, Vec<usize>> = HashMap::new();
+    for (k, c) in claims.iter().enumerate() {
+        // Two walks want the sample: two tips with a gap at once, their
+        // fills as near it (seen: 10 and 12 mm from it).
+        if wanted[&(c.frame, c.slot)] > 1 {
+            cut[c.walk] = cut[c.walk].min(c.step);
+        }
+        by_frame.entry(c.frame).or_default().push(k);
+    }
+    for (j, t) in preview.iter().enumerate() {
+        for s in t.samples() {
+            let Some(ks) = by_frame.get(&s.frame) else {
+                continue;
+            };
+            for &k in ks {
+                let c = &claims[k];
+                let doubt = r_step.max(VETO_RATIO * c.off);
+                if c.host != j && c.position.distance(s.position) < doubt {
+                    cut[c.walk] = cut[c.walk].min(c.step);
+                }
+            }
+        }
+    }
+
+    let mut taken: Vec<Vec<&Claim>> = vec![Vec::new(); tips.len()];
+    for c in claims.iter().filter(|c| c.step < cut[c.walk]) {
+        taken[c.host].push(c);
+    }
+    let mut count = 0;
+    for (tip, mut mine) in tips.iter_mut().zip(taken) {
+        if mine.is_empty() {
+            continue;
+        }
+        mine.sort_by_key(|c| c.frame);
+        let mut piece = Trace::new(tip.id, mine[0].frame, mine[0].position, mine[0].source);
+        for c in &mine[1..] {
+            piece.push(c.frame, c.position, c.source);
+        }
+        piece.pieces.clear();
+        // The walks only enter frames the tip does not measure.
+        if let Some(joined) = tip.merged(&piece) {
+            count += mine.len();
+            *tip = joined;
+            for c in &mine {
+                if let Some(v) = at.get_mut(&c.frame) {
+                    v[c.slot] = None;
+                }
+            }
+        }
+    }
+    count
+}
+
+/// The measured positions of `t` at the ends of its fills.
+fn edge_positions(t: &Trace) -> HashMap<i64, DVec3> {
+    let ends: std::collections::HashSet<i64> =
+        t.fills().iter().flat_map(|f| [f.from, f.to]).collect();
+    t.measurements().filter(|(f, _)| ends.contains(f)).collect()
+}
+
+/// Walks from the measured frame `start` (position `p`) towards `stop`
+/// (exclusive) in direction `dir`, taking at each frame the pool's sample
+/// nearest the step `expect` predicts from the last sample taken. Frames
+/// without one are passed over (the marker's real gap, before the piece
+/// the tracker lost), but a run of samples that begins after such frames
+/// is kept only once it is [`MIN_RUN`] frames long: one or two samples far
+/// from the tip's last are as likely another marker's. (frame, slot) of
+/// each sample taken.
+fn walk(
+    start: i64,
+    stop: i64,
+    dir: i64,
+    p: DVec3,
+    expect: &dyn Fn(i64) -> DVec3,
+    at: &Pool,
+    r_step: f64,
+) -> Vec<(i64, usize)> {
+    let mut out = Vec::new();
+    // The last sample kept, and the run being tried after a skip.
+    let (mut kept_p, mut kept_f) = (p, start);
+    let mut run: Vec<(i64, usize, DVec3)> = Vec::new();
+    let mut f = start + dir;
+    while f != stop {
+        let (p, last) = run.last().map_or((kept_p, kept_f), |r| (r.2, r.0));
+        let e = expect(f);
+        let predicted = p + (e - expect(last));
+        let reach = r_step + DRIFT_PER_FRAME_M * (f - last).abs() as f64;
+        let near_fill = reach + DRIFT_PER_FRAME_M * (f - start).abs() as f64;
+        let best = at.get(&f).and_then(|v| {
+            v.iter()
+                .enumerate()
+                .filter_map(|(k, x)| x.map(|(q, _)| (k, q.distance(predicted), q)))
+                .filter(|(_, d, q)| *d < reach && q.distance(e) < near_fill)
+                .min_by(|x, y| x.1.total_cmp(&y.1))
+        });
+        match best {
+            Some((k, d, q))
+                if run.is_empty()
+                    && (f == last + dir || (d < r_step && (f - last).abs() <= SHORT_SKIP)) =>
+            {
+                out.push((f, k));
+                (kept_p, kept_f) = (q, f);
+            }
+            Some((k, _, q)) if run.is_empty() || f == last + dir => run.push((f, k, q)),
+            // The run broke before it was long enough: not the tip's.
+            _ => run.clear(),
+        }
+        if run.len() >= MIN_RUN {
+            out.extend(run.iter().map(|r| (r.0, r.1)));
+            (kept_p, kept_f) = (run[run.len() - 1].2, run[run.len() - 1].0);
+            run.clear();
+        }
+        f += dir;
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// 100 Hz, 3 s.
+    fn timeline() -> Timeline {
+        Timeline {
+            times: (0..300).map(|i| i as f64 / 100.0).collect(),
+            anchors: vec![(0, 0)],
+        }
+    }
+
+    fn settings() -> GapSettings {
+        GapSettings {
+            max_fill_s: 3.0,
+            max_pchip_s: 0.5,
+            neighbours: true,
+        }
+    }
+
+    /// Tip `k` of a tree swaying 60 mm at 0.7 Hz, the tips 100 mm apart and
+    /// moving more the higher they sit, with 0.2 mm of deterministic
+    /// measurement noise.
+    fn tip(k: usize, n: i64) -> DVec3 {
+        let t = n as f64 / 100.0;
+        let gain = 1.0 + 0.15 * k as f64;
+        let sway = 0.06 * gain * (std::f64::consts::TAU * 0.7 * t).sin();
+        let jitter = |s: f64| 0.0002 * ((n as f64 * 12.9898 + s).sin() * 43758.545).fract();
+        DVec3::new(
+            0.1 * k as f64 + sway + jitter(1.0),
+            1.0 + 0.02 * k as f64 + jitter(2.0),
+            0.3 * sway + jitter(3.0),
+        )
+    }
+
+    fn trace(id: usize, f: impl Fn(i64) -> DVec3, frames: impl IntoIterator<Item = i64>) -> Trace {
+        let mut it = frames.into_iter();
+        let first = it.next().unwrap();
+        let mut t = Trace::new(id, first, f(first), Some(id as i64));
+        for n in it {
+            t.push(n, f(n), Some(id as i64));
+        }
+        t
+    }
+
+    /// Four tips measured throughout and tip 0, which the tracker lost for
+    /// frames 100..160 although its marker was only hidden for 100..110.
+    fn tips() -> Vec<Trace> {
+        let mut v = vec![trace(0, |n| tip(0, n), (0..100).chain(160..300))];
+        v.extend((1..5).map(|k| trace(k, move |n| tip(k, n), 0..300)));
+        v
+    }
+
+    #[test]
+    fn a_lost_piece_after_the_true_gap_goes_back_to_its_tip() {
+        let mut tips = tips();
+        let pool = vec![trace(50, |n| tip(0, n), 110..160)];
+        let n = reclaim(&mut tips, &pool, &timeline(), settings(), 0.0002);
+        assert_eq!(n, 50);
+        let t = &tips[0];
+        assert_eq!(t.measured(), 290);
+        assert!((100..110).all(|f| !t.is_measured(f)));
+        assert!((110..160).all(|f| t.is_measured(f)));
+        // The samples keep the marker they came from.
+        assert!(t.sources().iter().any(|s| s.id == Some(50)));
+        // The other tips are untouched.
+        assert!(tips[1..].iter().all(|t| t.measured() == 300));
+    }
+
+    #[test]
+    fn another_markers_piece_in_the_gap_is_left_alone() {
+        let mut tips = tips();
+        // A marker passing 25 mm from where tip 0 is, and a ghost of two
+        // frames sitting on tip 0's path after the true gap: neither
+        // continues the tip from the gap's edge for long enough.
+        let passing = trace(60, |n| tip(0, n) + DVec3::new(0.0, 0.025, 0.0), 110..160);
+        let blink = trace(61, |n| tip(0, n), 130..132);
+        let pool = vec![passing, blink];
+        let n = reclaim(&mut tips, &pool, &timeline(), settings(), 0.0002);
+        assert_eq!(n, 0);
+        assert_eq!(tips[0].measured(), 240);
+    }
+
+    #[test]
+    fn a_sample_as_close_to_another_tip_is_not_taken() {
+        // Tip 1's marker sits a millimetre from tip 0's all along (a
+        // close pair): the piece in tip 0's gap could be either's and
+        // stays in the pool.
+        let mut tips = tips();
+        tips[1] = trace(1, |n| tip(0, n) + DVec3::new(0.001, 0.0, 0.0), 0..300);
+        let pool = vec![trace(50, |n| tip(0, n), 110..160)];
+        let n = reclaim(&mut tips, &pool, &timeline(), settings(), 0.0002);
+        assert_eq!(n, 0);
+        assert_eq!(tips[0].measured(), 240);
+    }
+}
