@@ -239,6 +239,12 @@ impl Trace {
         self.fills.insert(at, fill);
     }
 
+    /// Forgets the fills: the trace's gaps are to be filled again (they
+    /// changed, or its neighbours did).
+    pub(crate) fn clear_fills(&mut self) {
+        self.fills = Vec::new();
+    }
+
     /// Records a trace's fills (see [`Trace::add_fill`]). A list in frame
     /// order given to a trace without fills becomes its list as it is: gap
     /// filling makes each trace's list whole, and copying it in held every

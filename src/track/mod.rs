@@ -145,8 +145,8 @@ impl fmt::Display for Summary {
         let g = &self.gaps;
         writeln!(
             f,
-            "gaps: {} filled ({} frames, {} from the neighbours' motion); left open: {} too long ({} frames), {} whose ends are not one marker ({} frames)",
-            g.filled, g.filled_frames, g.from_neighbours, g.too_long, g.too_long_frames, g.rejected, g.rejected_frames
+            "gaps: {} samples no tip held taken back into them; {} filled ({} frames, {} from the neighbours' motion); left open: {} too long ({} frames), {} whose ends are not one marker ({} frames)",
+            self.reclaimed, g.filled, g.filled_frames, g.from_neighbours, g.too_long, g.too_long_frames, g.rejected, g.rejected_frames
         )?;
         let source = match self.rest_source {
             RestSource::Auto => "found automatically",
@@ -284,9 +284,8 @@ pub fn clean(
     };
     let pool: Vec<Trace> = ghosts.into_iter().chain(loose).chain(noise).collect();
     let sigma = jitter::noise_of(&kept).max(cfg.noise_mm / 1000.0);
-    let reclaimed = reclaim::reclaim(&mut kept, &pool, &timeline, settings, sigma);
+    let (reclaimed, gap_stats) = reclaim::reclaim(&mut kept, &pool, &timeline, settings, sigma);
     drop(pool);
-    let gap_stats = gaps::fill_gaps(&mut kept, &timeline, settings);
 
     kept.sort_by_key(|t| (t.first_frame(), t.id));
     let tips = tips_of(kept, window, total, frames, &mut warnings);

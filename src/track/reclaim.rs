@@ -25,7 +25,7 @@ use std::collections::HashMap;
 
 use glam::DVec3;
 
-use super::gaps::{self, GapSettings};
+use super::gaps::{self, GapSettings, GapStats};
 use crate::model::trace::{Timeline, Trace};
 
 /// How far (in σ of the measurement noise per axis) a sample may lie from
@@ -48,8 +48,10 @@ const DRIFT_PER_FRAME_M: f64 = 0.0002;
 /// walk found nothing.
 const MIN_RUN: usize = 4;
 
-/// Passes at most: each previews the fills of every gap (the cost of a
-/// gap fill); two in three sessions under strong sway need no more.
+/// Passes at most: each fills every gap (the last one's fills are kept).
+/// Held out, `all`, 11–50 frame fills against PCHIP's: 0.79 × after one
+/// pass, 0.74 × after 2, 0.73 × after 3, 0.72 × after 8 (measured without
+/// the veto of [`VETO_RATIO`]).
 const PASSES: usize = 8;
 
 /// Frames a walk may pass over and still take the next sample alone,
@@ -83,15 +85,16 @@ struct Claim {
 
 /// Takes samples of `pool` (traces no tip holds: ghosts, pieces nobody
 /// fitted, traces dropped as noise) into the gaps of `tips` where they
-/// continue a tip from a gap's edge (module docs). `sigma`: the capture's
-/// measurement noise per axis (m). Returns the number of samples taken.
+/// continue a tip from a gap's edge (module docs), then fills the gaps
+/// left. `sigma`: the capture's measurement noise per axis (m). Returns
+/// the number of samples taken and what the gap filling did.
 pub(crate) fn reclaim(
     tips: &mut [Trace],
     pool: &[Trace],
     timeline: &Timeline,
     settings: GapSettings,
     sigma: f64,
-) -> usize {
+) -> (usize, GapStats) {
     let mut at: Pool = HashMap::new();
     for t in pool {
         for (f, p, s) in t.measurements_with_source() {
@@ -99,41 +102,38 @@ pub(crate) fn reclaim(
         }
     }
     if at.is_empty() || tips.is_empty() {
-        return 0;
+        return (0, gaps::fill_gaps(tips, timeline, settings));
     }
     let r_step = (STEP_SIGMAS * std::f64::consts::SQRT_2 * sigma).max(MIN_STEP_M);
     // A gap that got samples back is shorter, and its fill closer to the
     // marker: the next pass may reach the pieces the first could not.
     let mut count = 0;
     for _ in 0..PASSES {
-        let n = pass(tips, &mut at, timeline, settings, r_step);
+        // The walks follow the fills' steps; the gaps are filled in place
+        // (a copy of the traces would double the hour's memory).
+        let stats = gaps::fill_gaps(tips, timeline, settings);
+        let n = pass(tips, &mut at, r_step);
         count += n;
         if n == 0 {
-            break;
+            return (count, stats);
+        }
+        for t in tips.iter_mut() {
+            t.clear_fills();
         }
     }
-    count
+    (count, gaps::fill_gaps(tips, timeline, settings))
 }
 
 /// The pool's samples by frame; `None` once a tip took one.
 type Pool = HashMap<i64, Vec<Option<(DVec3, Option<i64>)>>>;
 
-/// One pass of [`reclaim`]: previews the fills, walks every gap, takes
-/// the samples no doubt falls on. Returns how many it took.
-fn pass(
-    tips: &mut [Trace],
-    at: &mut Pool,
-    timeline: &Timeline,
-    settings: GapSettings,
-    r_step: f64,
-) -> usize {
-    // The fills the gaps would get now: the walks follow their steps.
-    let mut preview: Vec<Trace> = tips.to_vec();
-    gaps::fill_gaps(&mut preview, timeline, settings);
-
+/// One pass of [`reclaim`] over `tips` with their gaps filled: walks
+/// every gap, takes the samples no doubt falls on. Returns how many it
+/// took.
+fn pass(tips: &mut [Trace], at: &mut Pool, r_step: f64) -> usize {
     let mut claims: Vec<Claim> = Vec::new();
     let mut walks = 0usize;
-    for (host, t) in preview.iter().enumerate() {
+    for (host, t) in tips.iter().enumerate() {
         let ends = edge_positions(t);
         for fill in t.fills() {
             let (Some(&a), Some(&b)) = (ends.get(&fill.from), ends.get(&fill.to)) else {
@@ -186,7 +186,7 @@ fn pass(
         }
         by_frame.entry(c.frame).or_default().push(k);
     }
-    for (j, t) in preview.iter().enumerate() {
+    for (j, t) in tips.iter().enumerate() {
         for s in t.samples() {
             let Some(ks) = by_frame.get(&s.frame) else {
                 continue;
@@ -230,11 +230,27 @@ fn pass(
     count
 }
 
-/// The measured positions of `t` at the ends of its fills.
+/// The measured positions of `t` at the ends of its fills. Decodes the
+/// trace only up to its last fill, with no hashing per sample: this runs
+/// on every tip in every pass.
 fn edge_positions(t: &Trace) -> HashMap<i64, DVec3> {
-    let ends: std::collections::HashSet<i64> =
-        t.fills().iter().flat_map(|f| [f.from, f.to]).collect();
-    t.measurements().filter(|(f, _)| ends.contains(f)).collect()
+    let mut ends: Vec<i64> = t.fills().iter().flat_map(|f| [f.from, f.to]).collect();
+    ends.sort_unstable();
+    ends.dedup();
+    let mut out = HashMap::with_capacity(ends.len());
+    let mut next = ends.iter().peekable();
+    for (f, p) in t.measurements() {
+        while next.next_if(|&&e| e < f).is_some() {}
+        match next.peek() {
+            None => break,
+            Some(&&e) if e == f => {
+                out.insert(f, p);
+                next.next();
+            }
+            Some(_) => {}
+        }
+    }
+    out
 }
 
 /// Walks from the measured frame `start` (position `p`) towards `stop`
@@ -351,7 +367,7 @@ mod tests {
     fn a_lost_piece_after_the_true_gap_goes_back_to_its_tip() {
         let mut tips = tips();
         let pool = vec![trace(50, |n| tip(0, n), 110..160)];
-        let n = reclaim(&mut tips, &pool, &timeline(), settings(), 0.0002);
+        let (n, _) = reclaim(&mut tips, &pool, &timeline(), settings(), 0.0002);
         assert_eq!(n, 50);
         let t = &tips[0];
         assert_eq!(t.measured(), 290);
@@ -372,7 +388,7 @@ mod tests {
         let passing = trace(60, |n| tip(0, n) + DVec3::new(0.0, 0.025, 0.0), 110..160);
         let blink = trace(61, |n| tip(0, n), 130..132);
         let pool = vec![passing, blink];
-        let n = reclaim(&mut tips, &pool, &timeline(), settings(), 0.0002);
+        let (n, _) = reclaim(&mut tips, &pool, &timeline(), settings(), 0.0002);
         assert_eq!(n, 0);
         assert_eq!(tips[0].measured(), 240);
     }
@@ -385,7 +401,7 @@ mod tests {
         let mut tips = tips();
         tips[1] = trace(1, |n| tip(0, n) + DVec3::new(0.001, 0.0, 0.0), 0..300);
         let pool = vec![trace(50, |n| tip(0, n), 110..160)];
-        let n = reclaim(&mut tips, &pool, &timeline(), settings(), 0.0002);
+        let (n, _) = reclaim(&mut tips, &pool, &timeline(), settings(), 0.0002);
         assert_eq!(n, 0);
         assert_eq!(tips[0].measured(), 240);
     }
