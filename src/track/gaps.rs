@@ -643,18 +643,20 @@ fn pchip_slope(d1: DVec3, h1: f64, d2: DVec3, h2: f64) -> DVec3 {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use crate::model::trace::SampleKind;
 
-    fn timeline(n: usize) -> Timeline {
+    /// `n` frames at 100 Hz (also `reclaim`'s tests' clock).
+    pub(crate) fn timeline(n: usize) -> Timeline {
         Timeline {
             times: (0..n).map(|i| i as f64 / 100.0).collect(),
             anchors: vec![(0, 0)],
         }
     }
 
-    fn settings() -> GapSettings {
+    /// Fills up to 3 s, PCHIP up to 0.5 s, from the neighbours.
+    pub(crate) fn settings() -> GapSettings {
         GapSettings {
             max_fill_s: 3.0,
             max_pchip_s: 0.5,

@@ -313,21 +313,11 @@ fn walk(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::track::gaps::tests::settings;
 
     /// 100 Hz, 3 s.
     fn timeline() -> Timeline {
-        Timeline {
-            times: (0..300).map(|i| i as f64 / 100.0).collect(),
-            anchors: vec![(0, 0)],
-        }
-    }
-
-    fn settings() -> GapSettings {
-        GapSettings {
-            max_fill_s: 3.0,
-            max_pchip_s: 0.5,
-            neighbours: true,
-        }
+        gaps::tests::timeline(300)
     }
 
     /// Tip `k` of a tree swaying 60 mm at 0.7 Hz, the tips 100 mm apart and
