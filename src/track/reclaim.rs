@@ -115,6 +115,9 @@ pub(crate) fn reclaim(
         for t in tips.iter_mut() {
             t.clear_fills();
         }
+        // The fills just dropped would otherwise stay resident beside the
+        // next pass's (an hour's 115 000 fills: 17 MB).
+        crate::memory::release_freed();
     }
     (count, gaps::fill_gaps(tips, timeline, settings))
 }
@@ -122,8 +125,7 @@ pub(crate) fn reclaim(
 /// A sample of the pool: position and source ID, `None` once taken.
 type PoolSample = Option<(DVec3, Option<i64>)>;
 
-/// The pool's samples in frame order (one list, not a list per frame: on
-/// an hour's take a vector per frame held 17 MB more at the peak).
+/// The pool's samples in frame order (one list, not a vector per frame).
 struct Pool {
     /// Frame of each sample.
     frames: Vec<i64>,
