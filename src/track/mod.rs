@@ -283,8 +283,8 @@ pub fn clean(
         neighbours: true,
     };
     let pool: Vec<Trace> = ghosts.into_iter().chain(loose).chain(noise).collect();
-    let sigma = jitter::noise_of(&kept).max(cfg.noise_mm / 1000.0);
-    let (reclaimed, gap_stats) = reclaim::reclaim(&mut kept, &pool, &timeline, settings, sigma);
+    let (reclaimed, gap_stats) =
+        reclaim::reclaim(&mut kept, &pool, &timeline, settings, cfg.noise_mm / 1000.0);
     drop(pool);
 
     kept.sort_by_key(|t| (t.first_frame(), t.id));

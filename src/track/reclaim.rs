@@ -86,14 +86,15 @@ struct Claim {
 /// Takes samples of `pool` (traces no tip holds: ghosts, pieces nobody
 /// fitted, traces dropped as noise) into the gaps of `tips` where they
 /// continue a tip from a gap's edge (module docs), then fills the gaps
-/// left. `sigma`: the capture's measurement noise per axis (m). Returns
+/// left. `noise_m`: the measurement noise per axis (m) the settings
+/// assume; the noise measured on `tips` counts where it is larger. Returns
 /// the number of samples taken and what the gap filling did.
 pub(crate) fn reclaim(
     tips: &mut [Trace],
     pool: &[Trace],
     timeline: &Timeline,
     settings: GapSettings,
-    sigma: f64,
+    noise_m: f64,
 ) -> (usize, GapStats) {
     // An hour's take: up to 8 fills of every gap cost 2.7 × the cleaning
     // (28 → 76 s) and 8 MB more at the peak, past its 300 MB; like the
@@ -107,6 +108,7 @@ pub(crate) fn reclaim(
     if at.samples.is_empty() || tips.is_empty() {
         return (0, gaps::fill_gaps(tips, timeline, settings));
     }
+    let sigma = super::jitter::noise_of(tips).max(noise_m);
     let r_step = (STEP_SIGMAS * std::f64::consts::SQRT_2 * sigma).max(MIN_STEP_M);
     // A gap that got samples back is shorter, and its fill closer to the
     // marker: the next pass may reach the pieces the first could not.
