@@ -211,15 +211,16 @@ fn pass(tips: &mut [Trace], at: &mut Pool, r_step: f64) -> usize {
 
     // A walk ends before its first doubtful sample.
     let mut cut: Vec<usize> = vec![usize::MAX; walks];
-    let mut wanted: HashMap<(i64, usize), usize> = HashMap::new();
+    // Walks wanted by each pool sample (a slot is unique in the pool).
+    let mut wanted: Vec<u32> = vec![0; at.samples.len()];
     for c in &claims {
-        *wanted.entry((c.frame, c.slot)).or_default() += 1;
+        wanted[c.slot] += 1;
     }
     let mut by_frame: HashMap<i64, Vec<usize>> = HashMap::new();
     for (k, c) in claims.iter().enumerate() {
         // Two walks want the sample: two tips with a gap at once, their
         // fills as near it (seen: 10 and 12 mm from it).
-        if wanted[&(c.frame, c.slot)] > 1 {
+        if wanted[c.slot] > 1 {
             cut[c.walk] = cut[c.walk].min(c.step);
         }
         by_frame.entry(c.frame).or_default().push(k);
