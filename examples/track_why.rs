@@ -5,6 +5,16 @@
 //! changing the tracker.
 //!
 //! `cargo run --release --example track_why STRESS SEED [WIND_S] [NOISE_MM]`
+//!
+//! More, by environment variable: `ORIGIN=1` names the tracker's traces
+//! (and their identities) behind each run of a mixed tip; `FILLS=1` lists
+//! the true gaps of 11–50 frames whose fill misses by more than 4 mm
+//! (`ALLFILLS=1`: every one), with the fill around each and the true
+//! samples inside it that no tip holds or another tip holds;
+//! `LOST=tip,from,to` names the tracker's traces holding a true tip's
+//! samples in a frame range; `PAIR=a,b,from,to` follows two true tips
+//! frame by frame; `SUMMARY=1` prints the cleaning's summary;
+//! `REJOIN_DEBUG=1` prints every decision of `src/track/rejoin.rs`.
 
 use treemocap::sim::{self, stress};
 use treemocap::track::{self, Tracker, TrackingSettings};
@@ -38,6 +48,33 @@ fn main() {
         println!("{summary}");
     }
     missing(&tips, &before, truth);
+    if std::env::var_os("FILLS").is_some() {
+        fills(&tips, truth);
+    }
+    if let Ok(spec) = std::env::var("LOST") {
+        let v: Vec<i64> = spec.split(',').filter_map(|x| x.parse().ok()).collect();
+        if let [k, from, to] = v[..] {
+            let identity_of = |t: usize| before.identities.iter().position(|ids| ids.contains(&t));
+            for tr in &before.traces {
+                let n = sim::score::owners(tr, truth)
+                    .filter(|&(f, w)| w == Some(k as usize) && f >= from && f <= to)
+                    .count();
+                if n > 0 {
+                    let owners: std::collections::BTreeSet<Option<usize>> =
+                        sim::score::owners(tr, truth).map(|x| x.1).collect();
+                    println!(
+                        "trace {} [{}..{}, {} meas] identity {:?}: {n} samples of tip {k} in {from}..{to}; owners {:?}",
+                        tr.id,
+                        tr.first_frame(),
+                        tr.last_frame(),
+                        tr.measured(),
+                        identity_of(tr.id),
+                        owners
+                    );
+                }
+            }
+        }
+    }
     if let Ok(spec) = std::env::var("PAIR") {
         pair(&spec, &tips, truth);
     }
@@ -46,6 +83,7 @@ fn main() {
         tips.tips.len(),
         truth.tips.len()
     );
+    let tracked_before = &before;
     for (n, tip) in tips.tips.iter().enumerate() {
         let (k, err) = (0..truth.tips.len())
             .map(|k| (k, truth.tips[k].rest.distance(tip.rest)))
@@ -84,6 +122,53 @@ fn main() {
             );
             before = Some(r);
         }
+        if std::env::var_os("ORIGIN").is_some() {
+            origin(&runs, tip, tracked_before, truth);
+        }
+    }
+}
+
+/// For each run of an output tip: the tracker's traces that held its
+/// samples and the identity each was in (or none: a ghost).
+fn origin(
+    runs: &[(Option<usize>, i64, i64, usize)],
+    tip: &treemocap::model::tips::Tip,
+    tracked: &track::Tracked,
+    truth: &sim::Truth,
+) {
+    let identity_of = |t: usize| tracked.identities.iter().position(|ids| ids.contains(&t));
+    for r in runs {
+        let mut seen: Vec<usize> = Vec::new();
+        for (f, p) in tip.trace.measurements() {
+            if f < r.1 || f > r.2 {
+                continue;
+            }
+            for tr in &tracked.traces {
+                if tr.first_frame() <= f && f <= tr.last_frame() && !seen.contains(&tr.id) {
+                    let hit = tr
+                        .measurements()
+                        .any(|(g, q)| g == f && q.distance(p) < 1e-9);
+                    if hit {
+                        seen.push(tr.id);
+                    }
+                }
+            }
+        }
+        let _ = truth;
+        let desc: Vec<String> = seen
+            .iter()
+            .map(|&t| {
+                let tr = &tracked.traces[t];
+                format!(
+                    "trace {t} [{}..{}, {} meas] id {:?}",
+                    tr.first_frame(),
+                    tr.last_frame(),
+                    tr.measured(),
+                    identity_of(t)
+                )
+            })
+            .collect();
+        println!("      {:?} {}..{}: {}", r.0, r.1, r.2, desc.join("; "));
     }
 }
 
@@ -200,6 +285,95 @@ fn missing(tips: &treemocap::model::tips::Tips, tracked: &track::Tracked, truth:
                 n,
                 runs[0].0,
                 runs[runs.len() - 1].1
+            );
+        }
+    }
+}
+
+/// `FILLS=1`: every true gap of 11–50 frames in the wind phase whose fill
+/// misses the truth by more than 4 mm on average: the fill around it (its
+/// ends and who they belong to, neighbour or PCHIP) and its error.
+fn fills(tips: &treemocap::model::tips::Tips, truth: &sim::Truth) {
+    let mut holder: std::collections::HashMap<(i64, usize), usize> = Default::default();
+    for (n, tip) in tips.tips.iter().enumerate() {
+        for (f, who) in sim::score::owners(&tip.trace, truth) {
+            if let Some(w) = who {
+                holder.insert((f, w), n);
+            }
+        }
+    }
+    let hidden = |k: usize, f: i64| {
+        truth
+            .gaps
+            .iter()
+            .any(|g| g.tip == k && g.first_frame <= f && f <= g.last_frame)
+    };
+    for (n, tip) in tips.tips.iter().enumerate() {
+        let runs = owner_runs(tip, truth);
+        let Some(k) = runs.iter().max_by_key(|r| r.3).and_then(|r| r.0) else {
+            continue;
+        };
+        let owner: std::collections::HashMap<i64, Option<usize>> =
+            sim::score::owners(&tip.trace, truth).collect();
+        for g in truth.gaps.iter().filter(|g| g.tip == k) {
+            let len = g.last_frame - g.first_frame + 1;
+            if !(11..=50).contains(&len) || truth.time_of(g.first_frame) < truth.wind.0 + 2.0 {
+                continue;
+            }
+            let Some(fill) = tip
+                .trace
+                .fills()
+                .iter()
+                .find(|f| f.from < g.first_frame && f.to > g.last_frame)
+            else {
+                continue;
+            };
+            let err: f64 = (g.first_frame..=g.last_frame)
+                .map(|f| fill.at(f).distance(truth_position(truth, k, f)))
+                .sum::<f64>()
+                / len as f64;
+            if err < 0.004 && std::env::var_os("ALLFILLS").is_none() {
+                continue;
+            }
+            let lost = (fill.from + 1..fill.to)
+                .filter(|f| *f < g.first_frame || *f > g.last_frame)
+                .count();
+            let mut runs: Vec<(i64, i64, Option<usize>)> = Vec::new();
+            for f in fill.from + 1..fill.to {
+                if hidden(k, f) {
+                    continue;
+                }
+                let h = holder.get(&(f, k)).copied();
+                match runs.last_mut() {
+                    Some(r) if r.1 == f - 1 && r.2 == h => r.1 = f,
+                    _ => runs.push((f, f, h)),
+                }
+            }
+            let runs: Vec<String> = runs
+                .iter()
+                .map(|r| {
+                    let off = fill.at(r.0).distance(truth_position(truth, k, r.0)) * 1000.0;
+                    let edge = (r.0 - fill.from).min(fill.to - r.1);
+                    format!(
+                        "{}..{} in {:?} off {off:.1} mm {edge} f from an edge",
+                        r.0, r.1, r.2
+                    )
+                })
+                .collect();
+            println!(
+                "tip {k} (out {n}) gap {}..{} ({len} f) lost [{}]: fill {}..{} ({} f, {lost} beyond the true gap, {}), ends {:?} {:?}, error {:.1} mm, ends off {:.1} / {:.1} mm",
+                g.first_frame,
+                g.last_frame,
+                runs.join(", "),
+                fill.from,
+                fill.to,
+                fill.to - fill.from - 1,
+                if fill.from_neighbours() { "neighbours" } else { "pchip" },
+                owner.get(&fill.from),
+                owner.get(&fill.to),
+                err * 1000.0,
+                fill.at(fill.from).distance(truth_position(truth, k, fill.from)) * 1000.0,
+                fill.at(fill.to).distance(truth_position(truth, k, fill.to)) * 1000.0,
             );
         }
     }
