@@ -10,7 +10,8 @@
 //! (and their identities) behind each run of a mixed tip; `FILLS=1` lists
 //! the true gaps of 11–50 frames whose fill misses by more than 4 mm
 //! (`ALLFILLS=1`: every one), with the fill around each and the true
-//! samples inside it that no tip holds or another tip holds;
+//! samples inside it that no tip holds or another tip holds (`FILLS=1,10`:
+//! the gaps of 1–10 frames);
 //! `LOST=tip,from,to` names the tracker's traces holding a true tip's
 //! samples in a frame range; `PAIR=a,b,from,to` follows two true tips
 //! frame by frame; `SUMMARY=1` prints the cleaning's summary;
@@ -290,8 +291,9 @@ fn missing(tips: &treemocap::model::tips::Tips, tracked: &track::Tracked, truth:
     }
 }
 
-/// `FILLS=1`: every true gap of 11–50 frames in the wind phase whose fill
-/// misses the truth by more than 4 mm on average: the fill around it (its
+/// `FILLS=1`: every true gap of 11–50 frames (`FILLS=lo,hi`: of `lo` to
+/// `hi`) in the wind phase whose fill misses the truth by more than 4 mm
+/// on average: the fill around it (its
 /// ends and who they belong to, neighbour or PCHIP) and its error.
 fn fills(tips: &treemocap::model::tips::Tips, truth: &sim::Truth) {
     let mut holder: std::collections::HashMap<(i64, usize), usize> = Default::default();
@@ -317,7 +319,16 @@ fn fills(tips: &treemocap::model::tips::Tips, truth: &sim::Truth) {
             sim::score::owners(&tip.trace, truth).collect();
         for g in truth.gaps.iter().filter(|g| g.tip == k) {
             let len = g.last_frame - g.first_frame + 1;
-            if !(11..=50).contains(&len) || truth.time_of(g.first_frame) < truth.wind.0 + 2.0 {
+            let bin: Vec<i64> = std::env::var("FILLS")
+                .unwrap_or_default()
+                .split(',')
+                .filter_map(|x| x.parse().ok())
+                .collect();
+            let (lo, hi) = match bin[..] {
+                [lo, hi] => (lo, hi),
+                _ => (11, 50),
+            };
+            if !(lo..=hi).contains(&len) || truth.time_of(g.first_frame) < truth.wind.0 + 2.0 {
                 continue;
             }
             let Some(fill) = tip
