@@ -450,7 +450,8 @@ fn assign(pieces: &[Piece], anchors: &[Anchor], step: i64, one_second: i64) -> V
 /// The tracker's anchor `was` when its mean offset fits and no other
 /// continues the piece clearly better while fitting its mean better too
 /// (`(cost with seams, cost of the mean alone, anchor)`), else the one
-/// that does, when its mean fits.
+/// that does, when its mean fits; else `was` while nothing speaks against
+/// it (below), else none: a piece of its own.
 fn choose(costs: &[(f64, f64, usize)], was: Option<usize>) -> Option<usize> {
     let of = |a: usize| costs.iter().find(|c| c.2 == a).copied();
     let mut sorted = costs.to_vec();
@@ -479,10 +480,11 @@ fn choose(costs: &[(f64, f64, usize)], was: Option<usize>) -> Option<usize> {
     // is near its tip, ends included (its mean alone when no other tip
     // is free to take it: held-out `sway` seed 108, 74 samples of a tip
     // swinging 40 mm off its neighbours' path, mean cost 23, 46 with the
-    // seams), and no other tip's mean offset fits it better than its own. A piece whose own tip cannot be judged (out
-    // of reach of its rest position, or its neighbours hidden) stays only
-    // when no tip can be. The others are judged by the later steps, as
-    // pieces of their own or samples `reclaim` may take back into a gap.
+    // seams), and no other tip's mean offset fits it better than its
+    // own. A piece whose own tip cannot be judged (out of reach of its
+    // rest position, or its neighbours hidden) stays only when no tip can
+    // be. The others are judged by the later steps, as pieces of their
+    // own or samples `reclaim` may take back into a gap.
     // `all`, seeds 100–109: 508 samples of another tip were kept here,
     // 392 now; among them 50 and 6 samples whose own tip's mean fitted
     // them with costs 4.2 and 4.1 against 12.9 and 11.3 at the tracker's
