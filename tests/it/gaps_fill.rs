@@ -10,6 +10,7 @@
 //! instead of PCHIP's two noisy samples). No fill bridges two markers, and
 //! every filled sample is flagged as filled.
 
+use crate::common::fills::{self, Bin};
 use treemocap::model::trace::SampleKind;
 use treemocap::sim::{self, score, stress};
 use treemocap::track::{self, Tracker, TrackingSettings};
@@ -57,14 +58,15 @@ fn sessions(noise_mm: f64) -> score::Score {
 /// PCHIP's (1–10, 11–50, 51 f–2 s).
 fn check_bins(total: &score::Score, limits: [f64; 3]) {
     assert_eq!(total.bridged, 0, "fills bridging two markers");
-    let bins = score::fill_bins(240.0);
-    for (k, (lo, hi)) in bins.into_iter().enumerate() {
-        let (gaps, filled, ours, pchip) = total.fill_bin(lo, hi);
-        println!(
-            "gaps {lo}-{hi} frames: {filled}/{gaps} filled, {:.3} mm (PCHIP, perfect identity: {:.3} mm)",
-            ours * 1000.0,
-            pchip * 1000.0
-        );
+    for (k, b) in fills::bins(total).into_iter().enumerate() {
+        let Bin {
+            lo,
+            hi,
+            gaps,
+            filled,
+            ours,
+            pchip,
+        } = b;
         assert!(
             filled >= 3 && filled * 10 >= gaps * 9,
             "{lo}-{hi}: {filled}/{gaps}"

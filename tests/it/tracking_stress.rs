@@ -5,6 +5,7 @@
 //! markers, and fills from the neighbours at least as good as PCHIP with
 //! perfect identity.
 
+use crate::common::fills::{self, Bin};
 use treemocap::sim::{self, score, stress};
 use treemocap::track::{self, Tracker, TrackingSettings};
 
@@ -247,13 +248,15 @@ fn every_tip_is_found_once_with_its_rest_position_under_all_stresses() {
         wrong <= 6,
         "all, seeds 100–102: {wrong} samples of another tip"
     );
-    for ((lo, hi), limit) in score::fill_bins(240.0).into_iter().zip([0.85, 0.76]) {
-        let (gaps, filled, ours, pchip) = total.fill_bin(lo, hi);
-        println!(
-            "gaps {lo}-{hi} frames: {filled}/{gaps} filled, {:.2} mm (PCHIP {:.2} mm)",
-            ours * 1000.0,
-            pchip * 1000.0
-        );
+    for (b, limit) in fills::bins(&total).into_iter().zip([0.85, 0.76]) {
+        let Bin {
+            lo,
+            hi,
+            gaps,
+            filled,
+            ours,
+            pchip,
+        } = b;
         assert!(
             filled * 100 >= gaps * 99,
             "{lo}-{hi}: {filled}/{gaps} filled"

@@ -1,4 +1,5 @@
 pub mod crowns;
+pub mod fills;
 pub mod gltf;
 pub mod natnet;
 pub mod running;

@@ -1,0 +1,41 @@
+//! The stress sweep's gap fills by length, scored and logged the one way
+//! the tests that bound them read them.
+
+use treemocap::sim::score::{self, Score};
+
+/// One gap-length bin of a sweep's score.
+pub struct Bin {
+    /// Shortest and longest gap (frames).
+    pub lo: i64,
+    pub hi: i64,
+    /// True gaps in the wind phase, and how many of them were filled.
+    pub gaps: usize,
+    pub filled: usize,
+    /// Mean error of our fills and of PCHIP with perfect identity (m).
+    pub ours: f64,
+    pub pchip: f64,
+}
+
+/// The bins of `total` at 240 Hz (1–10, 11–50, 51 f–2 s), each printed so
+/// a failing test's log shows all of them.
+pub fn bins(total: &Score) -> Vec<Bin> {
+    score::fill_bins(240.0)
+        .into_iter()
+        .map(|(lo, hi)| {
+            let (gaps, filled, ours, pchip) = total.fill_bin(lo, hi);
+            println!(
+                "gaps {lo}-{hi} frames: {filled}/{gaps} filled, {:.3} mm (PCHIP, perfect identity: {:.3} mm)",
+                ours * 1000.0,
+                pchip * 1000.0
+            );
+            Bin {
+                lo,
+                hi,
+                gaps,
+                filled,
+                ours,
+                pchip,
+            }
+        })
+        .collect()
+}
