@@ -53,28 +53,7 @@ fn main() {
         fills(&tips, truth);
     }
     if let Ok(spec) = std::env::var("LOST") {
-        let v: Vec<i64> = spec.split(',').filter_map(|x| x.parse().ok()).collect();
-        if let [k, from, to] = v[..] {
-            let identity_of = |t: usize| before.identities.iter().position(|ids| ids.contains(&t));
-            for tr in &before.traces {
-                let n = sim::score::owners(tr, truth)
-                    .filter(|&(f, w)| w == Some(k as usize) && f >= from && f <= to)
-                    .count();
-                if n > 0 {
-                    let owners: std::collections::BTreeSet<Option<usize>> =
-                        sim::score::owners(tr, truth).map(|x| x.1).collect();
-                    println!(
-                        "trace {} [{}..{}, {} meas] identity {:?}: {n} samples of tip {k} in {from}..{to}; owners {:?}",
-                        tr.id,
-                        tr.first_frame(),
-                        tr.last_frame(),
-                        tr.measured(),
-                        identity_of(tr.id),
-                        owners
-                    );
-                }
-            }
-        }
+        lost(&spec, &before, truth);
     }
     if let Ok(spec) = std::env::var("PAIR") {
         pair(&spec, &tips, truth);
@@ -84,7 +63,6 @@ fn main() {
         tips.tips.len(),
         truth.tips.len()
     );
-    let tracked_before = &before;
     for (n, tip) in tips.tips.iter().enumerate() {
         let (k, err) = (0..truth.tips.len())
             .map(|k| (k, truth.tips[k].rest.distance(tip.rest)))
@@ -104,9 +82,9 @@ fn main() {
             continue;
         }
         println!("output tip {n} (marker {}):", tip.marker);
-        let mut before: Option<&(Option<usize>, i64, i64, usize)> = None;
+        let mut previous: Option<&(Option<usize>, i64, i64, usize)> = None;
         for r in &runs {
-            let apart = match (before, r) {
+            let apart = match (previous, r) {
                 (Some(&(Some(a), _, _, _)), &(Some(b), f, _, _)) => {
                     let pa = truth_position(truth, a, f);
                     let pb = truth_position(truth, b, f);
@@ -121,10 +99,10 @@ fn main() {
                 r.2,
                 r.3
             );
-            before = Some(r);
+            previous = Some(r);
         }
         if std::env::var_os("ORIGIN").is_some() {
-            origin(&runs, tip, tracked_before, truth);
+            origin(&runs, tip, &before);
         }
     }
 }
@@ -135,9 +113,7 @@ fn origin(
     runs: &[(Option<usize>, i64, i64, usize)],
     tip: &treemocap::model::tips::Tip,
     tracked: &track::Tracked,
-    truth: &sim::Truth,
 ) {
-    let identity_of = |t: usize| tracked.identities.iter().position(|ids| ids.contains(&t));
     for r in runs {
         let mut seen: Vec<usize> = Vec::new();
         for (f, p) in tip.trace.measurements() {
@@ -155,7 +131,6 @@ fn origin(
                 }
             }
         }
-        let _ = truth;
         let desc: Vec<String> = seen
             .iter()
             .map(|&t| {
@@ -165,7 +140,7 @@ fn origin(
                     tr.first_frame(),
                     tr.last_frame(),
                     tr.measured(),
-                    identity_of(t)
+                    identity_of(tracked, t)
                 )
             })
             .collect();
@@ -252,7 +227,6 @@ fn missing(tips: &treemocap::model::tips::Tips, tracked: &track::Tracked, truth:
             claimed[k] = true;
         }
     }
-    let identity_of = |t: usize| tracked.identities.iter().position(|ids| ids.contains(&t));
     for k in (0..truth.tips.len()).filter(|&k| !claimed[k]) {
         println!("true tip {k} held by no output tip; its samples in the tracker's traces:");
         for tr in &tracked.traces {
@@ -282,7 +256,7 @@ fn missing(tips: &treemocap::model::tips::Tips, tracked: &track::Tracked, truth:
                 tr.measured(),
                 tr.first_frame(),
                 tr.last_frame(),
-                identity_of(tr.id),
+                identity_of(tracked, tr.id),
                 n,
                 runs[0].0,
                 runs[runs.len() - 1].1
@@ -296,6 +270,15 @@ fn missing(tips: &treemocap::model::tips::Tips, tracked: &track::Tracked, truth:
 /// on average: the fill around it (its
 /// ends and who they belong to, neighbour or PCHIP) and its error.
 fn fills(tips: &treemocap::model::tips::Tips, truth: &sim::Truth) {
+    let bin: Vec<i64> = std::env::var("FILLS")
+        .unwrap_or_default()
+        .split(',')
+        .filter_map(|x| x.parse().ok())
+        .collect();
+    let (lo, hi) = match bin[..] {
+        [lo, hi] => (lo, hi),
+        _ => (11, 50),
+    };
     let mut holder: std::collections::HashMap<(i64, usize), usize> = Default::default();
     for (n, tip) in tips.tips.iter().enumerate() {
         for (f, who) in sim::score::owners(&tip.trace, truth) {
@@ -319,15 +302,6 @@ fn fills(tips: &treemocap::model::tips::Tips, truth: &sim::Truth) {
             sim::score::owners(&tip.trace, truth).collect();
         for g in truth.gaps.iter().filter(|g| g.tip == k) {
             let len = g.last_frame - g.first_frame + 1;
-            let bin: Vec<i64> = std::env::var("FILLS")
-                .unwrap_or_default()
-                .split(',')
-                .filter_map(|x| x.parse().ok())
-                .collect();
-            let (lo, hi) = match bin[..] {
-                [lo, hi] => (lo, hi),
-                _ => (11, 50),
-            };
             if !(lo..=hi).contains(&len) || truth.time_of(g.first_frame) < truth.wind.0 + 2.0 {
                 continue;
             }
@@ -387,5 +361,37 @@ fn fills(tips: &treemocap::model::tips::Tips, truth: &sim::Truth) {
                 fill.at(fill.to).distance(truth_position(truth, k, fill.to)) * 1000.0,
             );
         }
+    }
+}
+
+/// The identity (marker found on line) trace `t` belongs to, if any.
+fn identity_of(tracked: &track::Tracked, t: usize) -> Option<usize> {
+    tracked.identities.iter().position(|ids| ids.contains(&t))
+}
+
+/// `LOST=tip,from,to`: the tracker's traces holding true tip `tip`'s
+/// samples in frames `from..=to`, with their identity and every true tip
+/// they hold samples of.
+fn lost(spec: &str, tracked: &track::Tracked, truth: &sim::Truth) {
+    let v: Vec<i64> = spec.split(',').filter_map(|x| x.parse().ok()).collect();
+    let [k, from, to] = v[..] else { return };
+    for tr in &tracked.traces {
+        let n = sim::score::owners(tr, truth)
+            .filter(|&(f, w)| w == Some(k as usize) && f >= from && f <= to)
+            .count();
+        if n == 0 {
+            continue;
+        }
+        let owners: std::collections::BTreeSet<Option<usize>> =
+            sim::score::owners(tr, truth).map(|x| x.1).collect();
+        println!(
+            "trace {} [{}..{}, {} meas] identity {:?}: {n} samples of tip {k} in {from}..{to}; owners {:?}",
+            tr.id,
+            tr.first_frame(),
+            tr.last_frame(),
+            tr.measured(),
+            identity_of(tracked, tr.id),
+            owners
+        );
     }
 }
