@@ -170,24 +170,11 @@ impl fmt::Display for Summary {
     }
 }
 
-/// A trace never confirmed but measured for at least this long (s) is judged
-/// by its neighbours after the session like a piece of a tip (rejoin.rs)
-/// before it is dropped as a ghost. In the wind a marker hidden for 40–50
-/// frames on either side is seen for 0.2–0.5 s, too short a time for the
-/// on-line layer (`confirm_s`): on `close` seed 109 a 93-sample piece of
-/// tip 37 was dropped and its 4-frame gap filled as part of a 138-frame
-/// one (52 mm off). A reflection lives for a few frames (the simulator's up
-/// to 50, 0.21 s) and fits no tip's offset from its neighbours. On `all`
-/// (seeds 100–102, the tuning seeds) from 0.1 to 0.5 s give the same wrong
-/// samples (113); with `noise_mm` 1.5, 0.25–0.3 s gave the fewest (395;
-/// 0.1–0.2 s: 452, 0.4–0.5 s: 403).
-const LOOSE_GHOST_S: f64 = 0.25;
-
 /// One trace per identity (its pieces appended in time order, or merged
 /// where they interleave); returns them in order of first appearance, the
 /// traces in none (ghosts), in order of id, and the pieces of an identity
 /// that share a frame with its earlier pieces (loose; `clean` orders them
-/// with the long ghosts it adds).
+/// with the ghosts).
 fn assemble(
     traces: Vec<crate::model::trace::Trace>,
     identities: &[Vec<usize>],
@@ -262,17 +249,21 @@ pub fn clean(
     // them: a marker seen as two blobs jumps by millimetres while still.
     let window = rest_window(cfg, &traces, &timeline, &mut warnings);
     let (ghosts, adopted) = adopt::adopt_ghosts(&mut traces, ghosts, cfg.gate_mm / 1000.0);
-    // Ghosts measured for longer than a reflection lives, and an
-    // identity's loose pieces, go to the tip whose neighbours they fit
-    // (rejoin.rs); the rest stay ghosts, as all of them were before.
-    let min_len = (LOOSE_GHOST_S * one_second(&timeline) as f64).ceil() as usize;
-    let (long, ghosts): (Vec<Trace>, Vec<Trace>) =
-        ghosts.into_iter().partition(|g| g.measured() >= min_len);
-    loose.extend(long);
+    // Every trace never confirmed, and an identity's loose pieces, go to
+    // the tip whose neighbours they fit (rejoin.rs); the rest stay ghosts.
+    // A reflection fits no tip's offset from its neighbours and sits
+    // still while the tree sways; a marker seen between two gaps for less
+    // than `confirm_s` is often a tip's own piece, which left among the
+    // ghosts made the tip's hole longer than its true gap. Judging only
+    // those measured for 0.25 s (a reflection's life, as before) left
+    // such pieces of up to 59 samples out: `all`, 11–50 frame fills 2.20
+    // → 2.09 mm with every trace judged (PCHIP 2.92; held out 2.35 →
+    // 2.15 / 3.01), wrong samples 3 → 3 (389 → 395).
+    loose.extend(ghosts);
     loose.sort_by_key(|t| t.id);
     let (traces, rejoined, loose) =
         rejoin::rejoin(traces, loose, &seams, window, one_second(&timeline));
-    let n_ghosts = ghosts.len() + loose.len();
+    let n_ghosts = loose.len();
     let (traces, joined_by_rest, joined_into_gaps) = join_pieces(traces, window, &timeline, cfg);
     let (mut kept, mut dropped, noise) = noise::drop_noise(traces, frames, cfg.noise_fraction);
     dropped.sort_by(|a, b| b.measured.cmp(&a.measured).then(a.id.cmp(&b.id)));
@@ -282,7 +273,7 @@ pub fn clean(
         max_pchip_s: cfg.max_pchip_s,
         neighbours: true,
     };
-    let pool: Vec<Trace> = ghosts.into_iter().chain(loose).chain(noise).collect();
+    let pool: Vec<Trace> = loose.into_iter().chain(noise).collect();
     let (reclaimed, gap_stats) =
         reclaim::reclaim(&mut kept, &pool, &timeline, settings, cfg.noise_mm / 1000.0);
     drop(pool);

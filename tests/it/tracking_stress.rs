@@ -201,12 +201,13 @@ fn rest_window_is_on_the_time_column_when_the_take_starts_late() {
 ///
 /// The fills of all the true gaps in the wind phase, whatever the tracker
 /// left around them, against PCHIP with perfect identity: 11–50 frames at
-/// most 0.76 × (0.75 ×; issue 14's target is 0.7 ×), 1–10 frames at most
-/// 0.85 × (0.81 ×). Before the samples the tracker left in no tip were
-/// taken back into the gaps (`src/track/reclaim.rs`) they were 0.87 × and
-/// 0.89 ×: the tip's hole was longer than the marker's gap. (0.74 × before
-/// pieces whose own tip fits them worse than another stopped staying
-/// there: some were the tip's own, and their holes are filled now.)
+/// most 0.7 × (issue 14's target; measured 2.037 / 2.923 = 0.697 ×), 1–10
+/// frames at most 0.8 × (0.78 ×). Before the samples the tracker left in
+/// no tip were taken back into the gaps (`src/track/reclaim.rs`) they were
+/// 0.87 × and 0.89 ×: the tip's hole was longer than the marker's gap;
+/// before every trace never confirmed was judged by its neighbours, and
+/// one near a single tip given to it while it moves (`src/track/
+/// rejoin.rs`), 0.75 × and 0.81 ×.
 #[test]
 fn every_tip_is_found_once_with_its_rest_position_under_all_stresses() {
     let mut wrong = 0;
@@ -248,7 +249,7 @@ fn every_tip_is_found_once_with_its_rest_position_under_all_stresses() {
         wrong <= 6,
         "all, seeds 100–102: {wrong} samples of another tip"
     );
-    for (b, limit) in fills::bins(&total).into_iter().zip([0.85, 0.76]) {
+    for (b, limit) in fills::bins(&total).into_iter().zip([0.8, 0.7]) {
         let Bin {
             lo,
             hi,
