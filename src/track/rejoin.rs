@@ -538,22 +538,21 @@ fn choose(
 /// piece with fewer than two probes (under 0.1 s) cannot show it.
 fn moves_like(pieces: &[Piece], anchors: &[Anchor], field: &Field, i: usize, a: usize) -> bool {
     let p = &pieces[i];
-    let pairs: Vec<(DVec3, DVec3)> = p
+    let (own, expected): (Vec<DVec3>, Vec<DVec3>) = p
         .probes
         .iter()
         .filter_map(|&(f, q)| Some((q, q - field.offset(pieces, anchors, a, p.from, f, q)?)))
-        .collect();
-    if pairs.len() < 2 {
+        .unzip();
+    if own.len() < 2 {
         return false;
     }
-    let rms = |v: &mut dyn Iterator<Item = DVec3>| {
-        let v: Vec<DVec3> = v.collect();
-        let m = v.iter().copied().sum::<DVec3>() / v.len() as f64;
-        (v.iter().map(|x| x.distance_squared(m)).sum::<f64>() / v.len() as f64).sqrt()
-    };
-    let own = rms(&mut pairs.iter().map(|x| x.0));
-    let expected = rms(&mut pairs.iter().map(|x| x.1));
-    own >= STILL_RATIO * expected
+    rms_about_mean(&own) >= STILL_RATIO * rms_about_mean(&expected)
+}
+
+/// Root mean square distance of `v` from its mean.
+fn rms_about_mean(v: &[DVec3]) -> f64 {
+    let m = v.iter().copied().sum::<DVec3>() / v.len() as f64;
+    (v.iter().map(|x| x.distance_squared(m)).sum::<f64>() / v.len() as f64).sqrt()
 }
 
 /// How far piece `i`'s mean offset is from anchor `a`'s, in squared

@@ -10,7 +10,7 @@
 //! instead of PCHIP's two noisy samples). No fill bridges two markers, and
 //! every filled sample is flagged as filled.
 
-use crate::common::fills::{self, Bin};
+use crate::common::fills;
 use treemocap::model::trace::SampleKind;
 use treemocap::sim::{self, score, stress};
 use treemocap::track::{self, Tracker, TrackingSettings};
@@ -58,23 +58,22 @@ fn sessions(noise_mm: f64) -> score::Score {
 /// PCHIP's (1–10, 11–50, 51 f–2 s).
 fn check_bins(total: &score::Score, limits: [f64; 3]) {
     assert_eq!(total.bridged, 0, "fills bridging two markers");
-    for (k, b) in fills::bins(total).into_iter().enumerate() {
-        let Bin {
-            lo,
-            hi,
-            gaps,
-            filled,
-            ours,
-            pchip,
-        } = b;
+    for (b, limit) in fills::bins(total).into_iter().zip(limits) {
         assert!(
-            filled >= 3 && filled * 10 >= gaps * 9,
-            "{lo}-{hi}: {filled}/{gaps}"
+            b.filled >= 3 && b.filled * 10 >= b.gaps * 9,
+            "{}-{}: {}/{}",
+            b.lo,
+            b.hi,
+            b.filled,
+            b.gaps
         );
-        let limit = limits[k];
         assert!(
-            ours <= limit * pchip + 1e-6,
-            "{lo}-{hi}: {ours} > {limit} × PCHIP {pchip}"
+            b.ours <= limit * b.pchip + 1e-6,
+            "{}-{}: {} > {limit} × PCHIP {}",
+            b.lo,
+            b.hi,
+            b.ours,
+            b.pchip
         );
     }
 }

@@ -5,7 +5,7 @@
 //! markers, and fills from the neighbours at least as good as PCHIP with
 //! perfect identity.
 
-use crate::common::fills::{self, Bin};
+use crate::common::fills;
 use treemocap::sim::{self, score, stress};
 use treemocap::track::{self, Tracker, TrackingSettings};
 
@@ -250,21 +250,21 @@ fn every_tip_is_found_once_with_its_rest_position_under_all_stresses() {
         "all, seeds 100–102: {wrong} samples of another tip"
     );
     for (b, limit) in fills::bins(&total).into_iter().zip([0.8, 0.7]) {
-        let Bin {
-            lo,
-            hi,
-            gaps,
-            filled,
-            ours,
-            pchip,
-        } = b;
         assert!(
-            filled * 100 >= gaps * 99,
-            "{lo}-{hi}: {filled}/{gaps} filled"
+            b.filled * 100 >= b.gaps * 99,
+            "{}-{}: {}/{} filled",
+            b.lo,
+            b.hi,
+            b.filled,
+            b.gaps
         );
         assert!(
-            ours <= limit * pchip,
-            "{lo}-{hi}: {ours} > {limit} × PCHIP {pchip}"
+            b.ours <= limit * b.pchip,
+            "{}-{}: {} > {limit} × PCHIP {}",
+            b.lo,
+            b.hi,
+            b.ours,
+            b.pchip
         );
     }
 }
