@@ -764,6 +764,32 @@ fn median(v: &mut [f64]) -> f64 {
 mod tests {
     use super::*;
 
+    /// A movable piece cut from trace `from`, measured at its probes.
+    fn piece(from: usize, probes: Vec<(i64, DVec3)>) -> Piece {
+        let mut trace = Trace::new(from, probes[0].0, probes[0].1, None);
+        for &(f, p) in &probes[1..] {
+            trace.push(f, p, None);
+        }
+        Piece {
+            trace,
+            from,
+            probes,
+            movable: true,
+        }
+    }
+
+    /// A tip held by `piece`, resting at `rest`, with offset 0 and the
+    /// least spread.
+    fn anchor(piece: usize, rest: DVec3, near: Vec<(usize, f64)>) -> Anchor {
+        Anchor {
+            piece,
+            rest,
+            near,
+            mean: DVec3::ZERO,
+            spread: SPREAD_MIN,
+        }
+    }
+
     /// Costs measured on the stress sweep's `all` sessions (`REJOIN_DEBUG`
     /// output of `--example track_why`): (cost with seams, cost of the
     /// mean, anchor); the tracker's tip is anchor 0.
@@ -850,25 +876,6 @@ mod tests {
                 .map(|k| (k * 12, DVec3::new(step * k as f64, 0.0, 0.0)))
                 .collect()
         };
-        let piece = |from: usize, probes: Vec<(i64, DVec3)>| {
-            let mut trace = Trace::new(from, probes[0].0, probes[0].1, None);
-            for &(f, p) in &probes[1..] {
-                trace.push(f, p, None);
-            }
-            Piece {
-                trace,
-                from,
-                probes,
-                movable: true,
-            }
-        };
-        let anchor = |piece: usize, rest: DVec3, near: Vec<(usize, f64)>| Anchor {
-            piece,
-            rest,
-            near,
-            mean: DVec3::ZERO,
-            spread: SPREAD_MIN,
-        };
         let swing = probes(0.01)
             .into_iter()
             .map(|(f, p)| (f, p + DVec3::new(0.1, 0.0, 0.0)))
@@ -902,18 +909,6 @@ mod tests {
                 .map(|f| (f, DVec3::new(x, 0.0, 0.0)))
                 .collect()
         };
-        let piece = |from: usize, probes: Vec<(i64, DVec3)>| {
-            let mut trace = Trace::new(from, probes[0].0, probes[0].1, None);
-            for &(f, p) in &probes[1..] {
-                trace.push(f, p, None);
-            }
-            Piece {
-                trace,
-                from,
-                probes,
-                movable: true,
-            }
-        };
         // Tip 0 still at the origin, measured until frame 24 and again
         // from 96; its neighbour, tip 1, still and measured throughout.
         let pieces = vec![
@@ -924,20 +919,8 @@ mod tests {
             piece(5, at(48..73, 0.05)),
         ];
         let anchors = vec![
-            Anchor {
-                piece: 0,
-                rest: DVec3::ZERO,
-                near: vec![(1, 1.0)],
-                mean: DVec3::ZERO,
-                spread: SPREAD_MIN,
-            },
-            Anchor {
-                piece: 1,
-                rest: DVec3::new(0.1, 0.0, 0.0),
-                near: vec![(0, 1.0)],
-                mean: DVec3::ZERO,
-                spread: SPREAD_MIN,
-            },
+            anchor(0, DVec3::ZERO, vec![(1, 1.0)]),
+            anchor(1, DVec3::new(0.1, 0.0, 0.0), vec![(0, 1.0)]),
         ];
         let field = Field::new(&pieces, &anchors, 12);
         let around = [(0, 24, 0), (96, 120, 3)];
