@@ -59,22 +59,8 @@ fn sessions(noise_mm: f64) -> score::Score {
 fn check_bins(total: &score::Score, limits: [f64; 3]) {
     assert_eq!(total.bridged, 0, "fills bridging two markers");
     for (b, limit) in fills::bins(total).into_iter().zip(limits) {
-        assert!(
-            b.filled >= 3 && b.filled * 10 >= b.gaps * 9,
-            "{}-{}: {}/{}",
-            b.lo,
-            b.hi,
-            b.filled,
-            b.gaps
-        );
-        assert!(
-            b.ours <= limit * b.pchip + 1e-6,
-            "{}-{}: {} > {limit} × PCHIP {}",
-            b.lo,
-            b.hi,
-            b.ours,
-            b.pchip
-        );
+        b.assert_filled(90, 3);
+        b.assert_within(limit, 1e-6);
     }
 }
 

@@ -248,22 +248,8 @@ fn every_tip_is_found_once_with_its_rest_position_under_all_stresses() {
         "all, seeds 100–102: {wrong} samples of another tip"
     );
     for (b, limit) in fills::bins(&total).into_iter().zip([0.8, 0.7]) {
-        assert!(
-            b.filled * 100 >= b.gaps * 99,
-            "{}-{}: {}/{} filled",
-            b.lo,
-            b.hi,
-            b.filled,
-            b.gaps
-        );
-        assert!(
-            b.ours <= limit * b.pchip,
-            "{}-{}: {} > {limit} × PCHIP {}",
-            b.lo,
-            b.hi,
-            b.ours,
-            b.pchip
-        );
+        b.assert_filled(99, 0);
+        b.assert_within(limit, 0.0);
     }
 }
 

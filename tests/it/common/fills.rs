@@ -39,3 +39,30 @@ pub fn bins(total: &Score) -> Vec<Bin> {
         })
         .collect()
 }
+
+impl Bin {
+    /// Asserts that at least `min` gaps and `percent` % of them were filled.
+    pub fn assert_filled(&self, percent: usize, min: usize) {
+        assert!(
+            self.filled >= min && self.filled * 100 >= self.gaps * percent,
+            "{}-{}: {}/{} filled",
+            self.lo,
+            self.hi,
+            self.filled,
+            self.gaps
+        );
+    }
+
+    /// Asserts that our mean error is at most `limit` × PCHIP's (plus
+    /// `slack`, m).
+    pub fn assert_within(&self, limit: f64, slack: f64) {
+        assert!(
+            self.ours <= limit * self.pchip + slack,
+            "{}-{}: {} > {limit} × PCHIP {}",
+            self.lo,
+            self.hi,
+            self.ours,
+            self.pchip
+        );
+    }
+}
