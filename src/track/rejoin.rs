@@ -707,10 +707,11 @@ fn cost(
 /// nothing.
 ///
 /// Judged on the positions, not on the offsets from the neighbours: in a
-/// gust a tip's offset swings by 50 mm within a second and the offsets,
-/// taken 20 times a second, missed its own seams across 22 frames, while
-/// the positions at 240 Hz carry it across (`all` seed 112: tip 56's
-/// marker, back after 0.15 s as a new identity, became a 71st tip).
+/// gust a tip's offset swings by tens of millimetres within a second, and
+/// the offsets, taken 20 times a second, missed a tip's own seams (`all`
+/// seed 112: tip 56's marker, back after 35 frames as a new identity,
+/// seams +77 on the offsets and its 395 samples cost 115 at their own
+/// tip; on the positions −11 and 27, and the 71st tip it made is gone).
 fn seams(pieces: &[Piece], taken: &[(i64, i64, usize)], i: usize, one_second: i64) -> f64 {
     let p = &pieces[i];
     let (s, e) = (p.trace.first_frame(), p.trace.last_frame());
