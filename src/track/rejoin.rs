@@ -313,11 +313,10 @@ fn cut_trace(t: Trace, k: usize, after: i64, cut: (i64, &[i64]), step: i64, out:
     out.extend(cur.map(|c| sealed(c, &mut ends)));
 }
 
-/// A finished piece with its storage's spare capacity released: an hour's
-/// hundred thousand pieces each kept a half-empty chunk (the hour of
-/// `--example track_hour` peaked at 489 MB, 381 MB sealed).
-/// `ends` (its first and last samples) become its [`End`]s and are
-/// emptied for the next piece.
+/// A finished piece with its storage's spare capacity released (an hour's
+/// hundred thousand pieces each kept a half-empty chunk: the hour of
+/// `--example track_hour` peaked at 489 MB, 381 MB sealed), and its
+/// [`End`]s fitted from `ends`, which is emptied for the next piece.
 fn sealed(mut p: Piece, ends: &mut EndSamples) -> Piece {
     p.trace.seal();
     p.probes.shrink_to_fit();
@@ -832,14 +831,18 @@ mod tests {
         for &(f, p) in &probes[1..] {
             trace.push(f, p, None);
         }
-        let k = probes.len().min(SEAM_K);
+        let mut ends = EndSamples::default();
+        for &(f, p) in &probes {
+            ends.push(f, p);
+        }
+        let (head, tail) = ends.take();
         Piece {
             trace,
             from,
-            head: End::fit(&probes[..k]),
-            tail: End::fit(&probes[probes.len() - k..]),
             probes,
             movable: true,
+            head,
+            tail,
         }
     }
 
