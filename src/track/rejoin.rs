@@ -119,6 +119,19 @@ const SEAM_ACC: f64 = 2.5;
 /// 9: 258), checked on seeds 110–116, never tuned on: 1 554 → 1 425.
 const SEAM_FIT: f64 = 6.0;
 
+/// A trace is also cut where this many frames apart (one frame missing)
+/// or more ...
+const SPLIT_GAP: i64 = 2;
+/// ... when its path does not carry across it: the straight lines of the
+/// 8 samples on each side miss each other by more than √3 expected misses
+/// ([`miss`]). `all`, wrong samples on seeds 100–102 / 103–109 / 110–116 /
+/// 117–123: 3 / 251 / 361 / 894 without these cuts, 3 / 251 / 352 / 359
+/// with them (`noise_mm` 1.5: 169 / 959 / 2 193 / 893 → 169 / 760 /
+/// 2 182 / 853); cutting at every gap over 0.02 s instead: 52 / 492 /
+/// 300 / 614. A bound of 1 cleared seed 123 but cost seed 109 63 wrong
+/// samples under `noise_mm` 1.5.
+const SPLIT_MISS: f64 = 3.0;
+
 /// A stretch of a trace measured without a gap longer than [`CUT_S`].
 struct Piece {
     trace: Trace,
@@ -251,7 +264,14 @@ pub(crate) fn rejoin(
     let ids: Vec<(usize, Vec<usize>)> = traces.iter().map(|t| (t.id, t.pieces.clone())).collect();
     for (k, t) in traces.into_iter().enumerate() {
         let at = seams.get(&t.id).map_or(&[][..], Vec::as_slice);
-        cut_trace(t, k, window.end, (cut, at), step, &mut pieces);
+        let cuts = Cuts {
+            after: window.end,
+            long: cut,
+            seams: at,
+            step,
+            one_second,
+        };
+        cut_trace(t, k, &cuts, &mut pieces);
     }
     let anchors = anchors(&pieces, window, step, n_tips);
     if anchors.len() < 3 {
@@ -270,24 +290,44 @@ pub(crate) fn rejoin(
     (out, moved, left)
 }
 
-/// Cuts trace `t` (index `k`) at its gaps longer than `cut.0` frames, and
-/// at any gap where a piece the tracker joined on line begins (frames
-/// `cut.1`, sorted), that end after frame `after`, into `out`.
+/// How traces are cut into pieces (`cut_trace`).
+struct Cuts<'a> {
+    /// Frame before which nothing is cut (the still phase's end).
+    after: i64,
+    /// Gaps longer than this (frames) always cut.
+    long: i64,
+    /// Where the tracker joined pieces on line ([`seams_of`]), sorted.
+    seams: &'a [i64],
+    /// Frames between probes.
+    step: i64,
+    /// Frames per second.
+    one_second: i64,
+}
+
+/// Cuts trace `t` (index `k`) into `out`, after frame `cuts.after`: at
+/// its gaps longer than `cuts.long`, at any gap where a piece the tracker
+/// joined on line begins, and at any other gap of [`SPLIT_GAP`] frames or
+/// more across which its path does not carry.
 ///
 /// A join across a short gap is as much a decision of the tracker as one
 /// across a long gap: in a gust a tip hidden for 5 frames as its neighbour
 /// reappeared had that neighbour's marker joined to it (both tips' paths
 /// 60 mm from where their neighbours put them, the join radius at its
 /// largest), 158 samples of another tip (`all`, seed 102) that a cut at
-/// gaps over 0.1 s only left in place. A short piece's mean offset is
-/// unsure, so it stays with the tip the tracker gave it to unless it
-/// clearly fits another (`choose`).
-fn cut_trace(t: Trace, k: usize, after: i64, cut: (i64, &[i64]), step: i64, out: &mut Vec<Piece>) {
-    let (cut, seams) = cut;
-    let mut seams = seams.iter().peekable();
+/// gaps over 0.1 s only left in place. So is a trace going on across a
+/// few frames where two markers passed close: on `all` seed 119 one trace
+/// held 307 samples of tip 61, then, after 11 frames, tip 17's marker,
+/// 11.9 mm away at the change. A short piece's mean offset is unsure, so
+/// it stays with the tip the tracker gave it to unless it clearly fits
+/// another (`choose`).
+fn cut_trace(t: Trace, k: usize, cuts: &Cuts<'_>, out: &mut Vec<Piece>) {
+    let mut seams = cuts.seams.iter().peekable();
     let mut runs = t.sources().iter().peekable();
     let mut source = None;
-    let mut cur: Option<Piece> = None;
+    // The trace's pieces, each with whether it begins after a short gap
+    // only (joined back below when the path carries across).
+    let mut mine: Vec<(Piece, bool)> = Vec::new();
+    let mut cur: Option<(Piece, bool)> = None;
     let mut ends = EndSamples::default();
     let mut last = i64::MIN;
     for (f, p) in t.measurements() {
@@ -299,46 +339,70 @@ fn cut_trace(t: Trace, k: usize, after: i64, cut: (i64, &[i64]), step: i64, out:
             seam = true;
         }
         let gap = f.saturating_sub(last);
-        if (gap > cut || (seam && gap > 1)) && f > after {
-            out.extend(cur.take().map(|c| sealed(c, &mut ends)));
+        let hard = gap > cuts.long || (seam && gap > 1);
+        let short = hard || gap >= SPLIT_GAP;
+        if short && f > cuts.after {
+            mine.extend(cur.take().map(|(c, s)| (sealed(c, &mut ends), s)));
         }
         last = f;
         ends.push(f, p);
         match cur.as_mut() {
-            Some(c) => c.trace.push(f, p, source),
+            Some((c, _)) => c.trace.push(f, p, source),
             None => {
-                cur = Some(Piece {
+                let piece = Piece {
                     trace: Trace::new(t.id, f, p, source),
                     from: k,
                     probes: Vec::new(),
-                    movable: f >= after,
+                    movable: f >= cuts.after,
                     head: End::default(),
                     tail: End::default(),
-                })
+                };
+                cur = Some((piece, !hard && !mine.is_empty()));
             }
         }
-        if f % step == 0 {
-            if let Some(c) = cur.as_mut() {
+        if f % cuts.step == 0 {
+            if let Some((c, _)) = cur.as_mut() {
                 c.probes.push((f, p));
             }
         }
     }
-    out.extend(cur.map(|c| sealed(c, &mut ends)));
+    mine.extend(cur.map(|(c, s)| (sealed(c, &mut ends), s)));
+    let mut joined: Vec<Piece> = Vec::with_capacity(mine.len());
+    for (p, short) in mine {
+        if let Some(before) = joined.last_mut().filter(|_| short) {
+            let (from, to) = (before.trace.last_frame(), p.trace.first_frame());
+            if to > from && miss(&before.tail, &p.head, (from, to), cuts.one_second) <= SPLIT_MISS {
+                before.tail = p.tail;
+                before.probes.extend(p.probes);
+                // Appends whole: it begins after the piece before ends.
+                let overlap = before.trace.append(p.trace);
+                debug_assert!(overlap.is_none());
+                continue;
+            }
+        }
+        joined.push(p);
+    }
+    out.extend(joined.into_iter().map(finished));
+}
+
+/// A piece whose samples are all cut: its [`End`]s fitted from `ends`,
+/// which is emptied for the next piece.
+fn sealed(mut p: Piece, ends: &mut EndSamples) -> Piece {
+    (p.head, p.tail) = ends.take();
+    p
 }
 
 /// A finished piece with its storage's spare capacity released (an hour's
 /// hundred thousand pieces each kept a half-empty chunk: the hour of
-/// `--example track_hour` peaked at 489 MB, 381 MB sealed), and its
-/// [`End`]s fitted from `ends`, which is emptied for the next piece.
+/// `--example track_hour` peaked at 489 MB, 381 MB sealed).
 ///
 /// A piece measured only between two probe frames (under 50 ms) gets one
 /// probe of its own, in the middle of its first samples, where
 /// [`Field::at`] interpolates the neighbours. Without one it could not be
 /// judged at all and stayed where the tracker put it (`all` seed 115: 8
 /// samples of tip 65 kept in tip 67's, 161 mm away).
-fn sealed(mut p: Piece, ends: &mut EndSamples) -> Piece {
+fn finished(mut p: Piece) -> Piece {
     p.trace.seal();
-    (p.head, p.tail) = ends.take();
     if p.probes.is_empty() {
         let f = p.head.frame.round();
         p.probes.push((f as i64, p.head.reach(f)));
@@ -765,21 +829,26 @@ fn seams(pieces: &[Piece], taken: &[(i64, i64, usize)], i: usize, one_second: i6
         .flatten()
     {
         let (from, to) = (pieces[l].trace.last_frame(), pieces[r].trace.first_frame());
-        let gap_s = (to - from) as f64 / sec;
-        if gap_s > SEAM_S {
+        if (to - from) as f64 / sec > SEAM_S {
             continue;
         }
-        let mid = (from + to) as f64 / 2.0;
-        // From the middle of each end's samples to the middle of the gap.
-        let h = gap_s / 2.0 + (SEAM_K / 2) as f64 / sec;
-        let sigma = SPREAD_MIN + 0.5 * SEAM_ACC * h * h;
-        let miss = pieces[l]
-            .tail
-            .reach(mid)
-            .distance_squared(pieces[r].head.reach(mid));
-        total += miss / (sigma * sigma) - SEAM_FIT;
+        total += miss(&pieces[l].tail, &pieces[r].head, (from, to), one_second) - SEAM_FIT;
     }
     total
+}
+
+/// How far the straight lines of a piece's `tail` (last measured at
+/// frame `gap.0`) and the next piece's `head` (first measured at `gap.1`)
+/// miss each other at the gap's middle, in squared expected misses: a tip
+/// bends away from a straight line by half [`SEAM_ACC`] times the time
+/// squared, from the middle of each end's samples to the middle of the
+/// gap.
+fn miss(tail: &End, head: &End, gap: (i64, i64), one_second: i64) -> f64 {
+    let sec = one_second.max(1) as f64;
+    let mid = (gap.0 + gap.1) as f64 / 2.0;
+    let h = (gap.1 - gap.0) as f64 / sec / 2.0 + (SEAM_K / 2) as f64 / sec;
+    let sigma = SPREAD_MIN + 0.5 * SEAM_ACC * h * h;
+    tail.reach(mid).distance_squared(head.reach(mid)) / (sigma * sigma)
 }
 
 /// One trace per anchor (its pieces in time order) and one per group of
@@ -1024,7 +1093,14 @@ mod tests {
         for f in 14..=17 {
             short.push(f, DVec3::new(0.1 + 0.001 * f as f64, 0.0, 0.0), None);
         }
-        cut_trace(short, 2, 0, (24, &[]), 12, &mut pieces);
+        let cuts = Cuts {
+            after: 0,
+            long: 24,
+            seams: &[],
+            step: 12,
+            one_second: 240,
+        };
+        cut_trace(short, 2, &cuts, &mut pieces);
         assert_eq!(pieces[2].probes.len(), 1, "one probe of its own");
         assert_eq!(pieces[2].probes[0].0, 15);
         let anchors = vec![
@@ -1038,6 +1114,42 @@ mod tests {
         let at_b = cost(&pieces, &anchors, &field, 2, 1, 240).unwrap();
         let at_a = cost(&pieces, &anchors, &field, 2, 0, 240).unwrap();
         assert!(at_b < 1.0 && at_a > LOOSE, "B {at_b}, A {at_a}");
+    }
+
+    /// A trace going on across 11 missing frames stays one piece while
+    /// its marker's path carries across, and is cut where the samples
+    /// after the gap are another marker's, 15 mm off the path (`all`
+    /// seed 119: tip 61, then tip 17, in one trace).
+    #[test]
+    fn a_trace_is_cut_where_its_path_does_not_carry_across_a_short_gap() {
+        let cuts = Cuts {
+            after: 0,
+            long: 24,
+            seams: &[],
+            step: 12,
+            one_second: 240,
+        };
+        // Moving 1 mm a frame along x, hidden in frames 20–30.
+        let trace = |jump: f64| {
+            let at = |f: i64| DVec3::new(0.001 * f as f64, 0.0, 0.0);
+            let mut t = Trace::new(3, 1, at(1), None);
+            for f in (2..20).chain(31..60) {
+                let side = if f > 30 { jump } else { 0.0 };
+                t.push(f, at(f) + DVec3::new(0.0, side, 0.0), None);
+            }
+            t
+        };
+        let mut one = Vec::new();
+        cut_trace(trace(0.0), 0, &cuts, &mut one);
+        assert_eq!(one.len(), 1, "its own marker after the gap");
+        assert_eq!(one[0].trace.measured(), 48);
+        let mut two = Vec::new();
+        cut_trace(trace(0.015), 0, &cuts, &mut two);
+        let spans: Vec<(i64, i64)> = two
+            .iter()
+            .map(|p| (p.trace.first_frame(), p.trace.last_frame()))
+            .collect();
+        assert_eq!(spans, [(1, 19), (31, 59)], "another marker after it");
     }
 
     /// In a gust that hides a tip's 8 nearest tips, the next 8 measured
