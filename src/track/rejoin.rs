@@ -15,7 +15,8 @@
 //!
 //! So every trace is cut where it was not measured for more than
 //! [`CUT_S`] after the still phase (the joins the tracker made across a
-//! gap), and each piece is given, longest first, to the tip whose mean
+//! gap), and at shorter gaps where its path does not carry across, and
+//! each piece is given, longest first, to the tip whose mean
 //! offset it matches, among the tips not measured during the piece: the
 //! tip the tracker gave it to when it fits there, else the tip it fits
 //! clearly best, else it stays a piece of its own (judged by the later
@@ -48,10 +49,10 @@ const NEIGHBOURS: usize = 8;
 /// few, or none, stood for the crown's motion, and pieces of the tip's
 /// own marker fitted it badly or could not be judged at all and went to
 /// a tip 137 mm away (`all` seed 117: tip 25's last 325 samples).
-/// `all`, wrong samples on seeds 103–109 / 110–116 / 117–123 with 8, 16
-/// and 24: 151 / 1 157 / 1 252, 251 / 361 / 894, and as 16 (seeds 107,
-/// 109, 112, 117); the farther ones only when the 8 nearest fail:
-/// 158 / 749 / 906.
+/// `all`, wrong samples on seeds 103–109 / 110–116 / 117–123: 151 /
+/// 1 157 / 1 252 with the 8 nearest only, 251 / 361 / 894 with 16;
+/// 24 gave the same as 16 on seeds 107, 109, 112 and 117, and the 16
+/// only when the 8 nearest are too few 158 / 749 / 906.
 const CANDIDATES: usize = 16;
 /// Independent samples per second of a tip's own swing around its mean
 /// offset (its twig modes are 1–3 Hz).
@@ -132,7 +133,7 @@ const SPLIT_GAP: i64 = 2;
 /// samples under `noise_mm` 1.5.
 const SPLIT_MISS: f64 = 3.0;
 
-/// A stretch of a trace measured without a gap longer than [`CUT_S`].
+/// A stretch of a trace between two of its cuts (`cut_trace`).
 struct Piece {
     trace: Trace,
     /// Index of the trace it was cut from.
@@ -340,8 +341,7 @@ fn cut_trace(t: Trace, k: usize, cuts: &Cuts<'_>, out: &mut Vec<Piece>) {
         }
         let gap = f.saturating_sub(last);
         let hard = gap > cuts.long || (seam && gap > 1);
-        let short = hard || gap >= SPLIT_GAP;
-        if short && f > cuts.after {
+        if (hard || gap >= SPLIT_GAP) && f > cuts.after {
             mine.extend(cur.take().map(|(c, s)| (sealed(c, &mut ends), s)));
         }
         last = f;
@@ -368,8 +368,8 @@ fn cut_trace(t: Trace, k: usize, cuts: &Cuts<'_>, out: &mut Vec<Piece>) {
     }
     mine.extend(cur.map(|(c, s)| (sealed(c, &mut ends), s)));
     let mut joined: Vec<Piece> = Vec::with_capacity(mine.len());
-    for (p, short) in mine {
-        if let Some(before) = joined.last_mut().filter(|_| short) {
+    for (p, after_short_gap) in mine {
+        if let Some(before) = joined.last_mut().filter(|_| after_short_gap) {
             let (from, to) = (before.trace.last_frame(), p.trace.first_frame());
             if to > from && miss(&before.tail, &p.head, (from, to), cuts.one_second) <= SPLIT_MISS {
                 before.tail = p.tail;
@@ -385,8 +385,8 @@ fn cut_trace(t: Trace, k: usize, cuts: &Cuts<'_>, out: &mut Vec<Piece>) {
     out.extend(joined.into_iter().map(finished));
 }
 
-/// A piece whose samples are all cut: its [`End`]s fitted from `ends`,
-/// which is emptied for the next piece.
+/// The piece just cut off, with its [`End`]s fitted from `ends`, which is
+/// emptied for the next piece.
 fn sealed(mut p: Piece, ends: &mut EndSamples) -> Piece {
     (p.head, p.tail) = ends.take();
     p
@@ -527,8 +527,8 @@ impl Field {
         let mut at = vec![vec![[f32::NAN; 3]; n]; anchors.len()];
         for p in pieces {
             if let Some(&a) = of_trace.get(&p.from) {
-                // A short piece's own probe (`sealed`) falls between two
-                // slots.
+                // A short piece's own probe (`finished`) falls between
+                // two slots.
                 for &(f, q) in p.probes.iter().filter(|x| x.0 % step == 0) {
                     if let Some(slot) = at[a].get_mut((f / step) as usize) {
                         *slot = q.as_vec3().to_array();
