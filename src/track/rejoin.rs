@@ -957,6 +957,18 @@ mod tests {
         }
     }
 
+    /// Cuts from frame 0 at 240 Hz, probes every 12 frames, gaps over
+    /// 24 frames always cut.
+    fn test_cuts() -> Cuts<'static> {
+        Cuts {
+            after: 0,
+            long: 24,
+            seams: &[],
+            step: 12,
+            one_second: 240,
+        }
+    }
+
     /// A tip held by `piece`, resting at `rest`, with offset 0 and the
     /// least spread.
     fn anchor(piece: usize, rest: DVec3, near: Vec<(usize, f64)>) -> Anchor {
@@ -1093,13 +1105,7 @@ mod tests {
         for f in 14..=17 {
             short.push(f, DVec3::new(0.1 + 0.001 * f as f64, 0.0, 0.0), None);
         }
-        let cuts = Cuts {
-            after: 0,
-            long: 24,
-            seams: &[],
-            step: 12,
-            one_second: 240,
-        };
+        let cuts = test_cuts();
         cut_trace(short, 2, &cuts, &mut pieces);
         assert_eq!(pieces[2].probes.len(), 1, "one probe of its own");
         assert_eq!(pieces[2].probes[0].0, 15);
@@ -1122,13 +1128,7 @@ mod tests {
     /// seed 119: tip 61, then tip 17, in one trace).
     #[test]
     fn a_trace_is_cut_where_its_path_does_not_carry_across_a_short_gap() {
-        let cuts = Cuts {
-            after: 0,
-            long: 24,
-            seams: &[],
-            step: 12,
-            one_second: 240,
-        };
+        let cuts = test_cuts();
         // Moving 1 mm a frame along x, hidden in frames 20–30.
         let trace = |jump: f64| {
             let at = |f: i64| DVec3::new(0.001 * f as f64, 0.0, 0.0);
