@@ -325,9 +325,10 @@ fn cut_trace(t: Trace, k: usize, cuts: &Cuts<'_>, out: &mut Vec<Piece>) {
     let mut seams = cuts.seams.iter().peekable();
     let mut runs = t.sources().iter().peekable();
     let mut source = None;
-    // The trace's pieces, each with whether it begins after a short gap
-    // only (joined back below when the path carries across).
-    let mut mine: Vec<(Piece, bool)> = Vec::new();
+    // The trace's pieces so far, and the one being cut with whether it
+    // begins after a short gap only (joined back when the path carries
+    // across: `keep`).
+    let mut mine: Vec<Piece> = Vec::new();
     let mut cur: Option<(Piece, bool)> = None;
     let mut ends = EndSamples::default();
     let mut last = i64::MIN;
@@ -342,7 +343,9 @@ fn cut_trace(t: Trace, k: usize, cuts: &Cuts<'_>, out: &mut Vec<Piece>) {
         let gap = f.saturating_sub(last);
         let hard = gap > cuts.long || (seam && gap > 1);
         if (hard || gap >= SPLIT_GAP) && f > cuts.after {
-            mine.extend(cur.take().map(|(c, s)| (sealed(c, &mut ends), s)));
+            if let Some((c, after_short_gap)) = cur.take() {
+                keep(&mut mine, sealed(c, &mut ends), after_short_gap, cuts);
+            }
         }
         last = f;
         ends.push(f, p);
@@ -366,23 +369,28 @@ fn cut_trace(t: Trace, k: usize, cuts: &Cuts<'_>, out: &mut Vec<Piece>) {
             }
         }
     }
-    mine.extend(cur.map(|(c, s)| (sealed(c, &mut ends), s)));
-    let mut joined: Vec<Piece> = Vec::with_capacity(mine.len());
-    for (p, after_short_gap) in mine {
-        if let Some(before) = joined.last_mut().filter(|_| after_short_gap) {
-            let (from, to) = (before.trace.last_frame(), p.trace.first_frame());
-            if to > from && miss(&before.tail, &p.head, (from, to), cuts.one_second) <= SPLIT_MISS {
-                before.tail = p.tail;
-                before.probes.extend(p.probes);
-                // Appends whole: it begins after the piece before ends.
-                let overlap = before.trace.append(p.trace);
-                debug_assert!(overlap.is_none());
-                continue;
-            }
-        }
-        joined.push(p);
+    if let Some((c, after_short_gap)) = cur {
+        keep(&mut mine, sealed(c, &mut ends), after_short_gap, cuts);
     }
-    out.extend(joined.into_iter().map(finished));
+    out.extend(mine.into_iter().map(finished));
+}
+
+/// Adds piece `p`, just cut off, to its trace's pieces `mine`: joined
+/// back to the piece before when it begins after a short gap only and the
+/// path carries across the gap ([`SPLIT_MISS`]).
+fn keep(mine: &mut Vec<Piece>, p: Piece, after_short_gap: bool, cuts: &Cuts<'_>) {
+    if let Some(before) = mine.last_mut().filter(|_| after_short_gap) {
+        let gap = (before.trace.last_frame(), p.trace.first_frame());
+        if gap.1 > gap.0 && miss(&before.tail, &p.head, gap, cuts.one_second) <= SPLIT_MISS {
+            before.tail = p.tail;
+            before.probes.extend(p.probes);
+            // Appends whole: it begins after the piece before ends.
+            let overlap = before.trace.append(p.trace);
+            debug_assert!(overlap.is_none());
+            return;
+        }
+    }
+    mine.push(p);
 }
 
 /// The piece just cut off, with its [`End`]s fitted from `ends`, which is
