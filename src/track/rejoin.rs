@@ -1104,9 +1104,10 @@ mod tests {
         assert_eq!(choose(&[(45.9, 23.0, 0)], Some(0), &|_| true), Some(0));
         // Nothing can be judged at all: the tracker's choice stands.
         assert_eq!(choose(&[], Some(0), &|_| true), Some(0));
-        // Seed 103, `noise_mm` 1.5: 112 samples of tip 40 fit the
-        // tracker's tip only near the bound (7.8) and their own exactly:
-        // the tracker's choice no longer stands on a lead of under 9.
+        // Seed 103, `noise_mm` 1.5, the swing's shape unbounded: 112
+        // samples of tip 40 fit the tracker's tip only near the bound
+        // (7.8) and their own exactly: the tracker's choice no longer
+        // stands on a lead of under 9.
         assert_eq!(
             choose(&[(5.0, 7.8, 0), (0.0, 0.0, 1)], Some(0), &|_| true),
             None
@@ -1139,7 +1140,7 @@ mod tests {
         assert!(near < FIT, "along the swing: {near:.1}");
         assert!(far > LOOSE, "up: {far:.1}");
         // 150 mm along the swing is another tip's offset, not a swing of
-        // 20 mm: the shape alone would let it cost 23 there.
+        // 20 mm: the shape unbounded would let it cost 30.4 there.
         let beyond = off_by(&tip, along * 3.75, 1.0);
         assert!(beyond > LOOSE, "150 mm along the swing: {beyond:.1}");
         // One spread in every direction could not tell them apart.
