@@ -131,18 +131,34 @@ const SEAM_ACC: f64 = 2.5;
 /// 9: 258), checked on seeds 110–116, never tuned on: 1 554 → 1 425.
 const SEAM_FIT: f64 = 6.0;
 
-/// A trace is also cut where this many frames apart (one frame missing)
-/// or more ...
+/// A trace is also cut between two samples of consecutive frames whose
+/// step differs from the step before by more than this (m) ...
+///
+/// A tip swinging 150 mm at 3 Hz changes its step by under 1 mm a frame
+/// at 240 Hz, and 1.5 mm of noise by about 3.7 mm (σ √6); the tracker,
+/// taking a neighbour's marker in the next frame with no frame missing,
+/// jumps by the two tips' distance (`all` seed 104: 94 samples of tip 52
+/// in tip 61's trace after a step of 38 mm). A cut whose path carries
+/// across is joined back ([`SPLIT_MISS`]), so noise costs only the
+/// check. `all`, wrong samples on seeds 103–109 / 110–116 / 117–123
+/// (`noise_mm` 1.5): 136 / 146 / 157 (601 / 2 440 / 789) without, 28 /
+/// 83 / 238 (401 / 2 279 / 789) with it, 28 / 83 / 121 (401 / 2 279 /
+/// 789) with a [`SPLIT_MISS`] of 1.5 instead of 3.
+const JUMP: f64 = 0.010;
+/// ... or where this many frames apart (one frame missing) or more ...
 const SPLIT_GAP: i64 = 2;
 /// ... when its path does not carry across it: the straight lines of the
-/// 8 samples on each side miss each other by more than √3 expected misses
-/// ([`miss`]). `all`, wrong samples on seeds 100–102 / 103–109 / 110–116 /
-/// 117–123: 3 / 251 / 361 / 894 without these cuts, 3 / 251 / 352 / 359
-/// with them (`noise_mm` 1.5: 169 / 959 / 2 193 / 893 → 169 / 760 /
-/// 2 182 / 853); cutting at every gap over 0.02 s instead: 52 / 492 /
-/// 300 / 614. A bound of 1 cleared seed 123 but cost seed 109 63 wrong
-/// samples under `noise_mm` 1.5.
-const SPLIT_MISS: f64 = 3.0;
+/// 8 samples on each side miss each other by more than √1.5 expected
+/// misses ([`miss`]). `all`, wrong samples on seeds 100–102 / 103–109 /
+/// 110–116 / 117–123: 3 / 251 / 361 / 894 without these cuts, 3 / 251 /
+/// 352 / 359 with them and a bound of 3 (`noise_mm` 1.5: 169 / 959 /
+/// 2 193 / 893 → 169 / 760 / 2 182 / 853); cutting at every gap over
+/// 0.02 s instead: 52 / 492 / 300 / 614. A bound of 1 cleared seed 123
+/// but cost seed 109 63 wrong samples under `noise_mm` 1.5; with the
+/// swing's shape and [`JUMP`], 1.5 against 3 takes seeds 117–123 from
+/// 238 to 121, changes nothing on 103–109, and on 110–116 only
+/// `noise_mm` 1.5 (2 279 → 2 281).
+const SPLIT_MISS: f64 = 1.5;
 
 /// A stretch of a trace between two of its cuts (`cut_trace`).
 struct Piece {
@@ -320,7 +336,8 @@ struct Cuts<'a> {
 /// Cuts trace `t` (index `k`) into `out`, after frame `cuts.after`: at
 /// its gaps longer than `cuts.long`, at any gap where a piece the tracker
 /// joined on line begins, and at any other gap of [`SPLIT_GAP`] frames or
-/// more across which its path does not carry.
+/// more, or step of more than [`JUMP`] from the one before, across which
+/// its path does not carry.
 ///
 /// A join across a short gap is as much a decision of the tracker as one
 /// across a long gap: in a gust a tip hidden for 5 frames as its neighbour
@@ -344,6 +361,7 @@ fn cut_trace(t: Trace, k: usize, cuts: &Cuts<'_>, out: &mut Vec<Piece>) {
     let mut cur: Option<(Piece, bool)> = None;
     let mut ends = EndSamples::default();
     let mut last = i64::MIN;
+    let (mut before, mut last_step): (DVec3, Option<DVec3>) = (DVec3::ZERO, None);
     for (f, p) in t.measurements() {
         while let Some(r) = runs.next_if(|r| r.frame <= f) {
             source = r.id;
@@ -354,7 +372,12 @@ fn cut_trace(t: Trace, k: usize, cuts: &Cuts<'_>, out: &mut Vec<Piece>) {
         }
         let gap = f.saturating_sub(last);
         let hard = gap > cuts.long || (seam && gap > 1);
-        if (hard || gap >= SPLIT_GAP) && f > cuts.after {
+        // A step from the frame before: a jump where it differs from the
+        // step before it by more than `JUMP`.
+        let step = (gap == 1).then(|| p - before);
+        let jumped = matches!((step, last_step), (Some(s), Some(l)) if (s - l).length() > JUMP);
+        (before, last_step) = (p, step);
+        if (hard || gap >= SPLIT_GAP || jumped) && f > cuts.after {
             if let Some((c, after_short_gap)) = cur.take() {
                 keep(&mut mine, sealed(c, &mut ends), after_short_gap, cuts);
             }
@@ -1270,6 +1293,37 @@ mod tests {
             .map(|p| (p.trace.first_frame(), p.trace.last_frame()))
             .collect();
         assert_eq!(spans, [(1, 19), (31, 59)], "another marker after it");
+    }
+
+    /// A marker swinging 100 mm at 1.5 Hz with 1.5 mm of noise stays one
+    /// piece; the same trace going on with a marker 38 mm away in the
+    /// next frame, no frame missing, is cut there (seed 104).
+    #[test]
+    fn a_trace_is_cut_where_it_jumps_to_another_marker_with_no_frame_missing() {
+        let cuts = test_cuts();
+        let trace = |jump: f64| {
+            let at = |f: i64| {
+                let swing = 0.1 * (std::f64::consts::TAU * 1.5 * f as f64 / 240.0).sin();
+                let noise = 0.0015 * (((f * 7919) % 13) as f64 - 6.0) / 6.0;
+                let side = if f > 60 { jump } else { 0.0 };
+                DVec3::new(swing + noise, side - noise, 0.5 * noise)
+            };
+            let mut t = Trace::new(3, 1, at(1), None);
+            for f in 2..120 {
+                t.push(f, at(f), None);
+            }
+            t
+        };
+        let mut one = Vec::new();
+        cut_trace(trace(0.0), 0, &cuts, &mut one);
+        assert_eq!(one.len(), 1, "its own marker throughout");
+        let mut two = Vec::new();
+        cut_trace(trace(0.038), 0, &cuts, &mut two);
+        let spans: Vec<(i64, i64)> = two
+            .iter()
+            .map(|p| (p.trace.first_frame(), p.trace.last_frame()))
+            .collect();
+        assert_eq!(spans, [(1, 60), (61, 119)], "another marker from frame 61");
     }
 
     /// In a gust that hides a tip's 8 nearest tips, the next 8 measured
