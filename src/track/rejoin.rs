@@ -1068,6 +1068,14 @@ mod tests {
         }
     }
 
+    /// The frames each piece spans, first and last.
+    fn spans(pieces: &[Piece]) -> Vec<(i64, i64)> {
+        pieces
+            .iter()
+            .map(|p| (p.trace.first_frame(), p.trace.last_frame()))
+            .collect()
+    }
+
     /// A tip held by `piece`, resting at `rest`, with offset 0 and the
     /// least spread.
     fn anchor(piece: usize, rest: DVec3, near: Vec<(usize, f64)>) -> Anchor {
@@ -1288,10 +1296,7 @@ mod tests {
         assert_eq!(one[0].trace.measured(), 48);
         let mut two = Vec::new();
         cut_trace(trace(0.015), 0, &cuts, &mut two);
-        let spans: Vec<(i64, i64)> = two
-            .iter()
-            .map(|p| (p.trace.first_frame(), p.trace.last_frame()))
-            .collect();
+        let spans = spans(&two);
         assert_eq!(spans, [(1, 19), (31, 59)], "another marker after it");
     }
 
@@ -1319,10 +1324,7 @@ mod tests {
         assert_eq!(one.len(), 1, "its own marker throughout");
         let mut two = Vec::new();
         cut_trace(trace(0.038), 0, &cuts, &mut two);
-        let spans: Vec<(i64, i64)> = two
-            .iter()
-            .map(|p| (p.trace.first_frame(), p.trace.last_frame()))
-            .collect();
+        let spans = spans(&two);
         assert_eq!(spans, [(1, 60), (61, 119)], "another marker from frame 61");
     }
 
