@@ -27,7 +27,7 @@
 
 use std::collections::HashMap;
 
-use glam::{DMat3, DVec3};
+use glam::DVec3;
 
 use super::rest::{self, RestSource, RestWindow};
 use crate::model::trace::Trace;
@@ -54,16 +54,6 @@ const NEIGHBOURS: usize = 8;
 /// 24 gave the same as 16 on seeds 107, 109, 112 and 117, and the 16
 /// only when the 8 nearest are too few 158 / 749 / 906.
 const CANDIDATES: usize = 16;
-/// How much cheaper a tip's [`swing`] may make a piece offset along it
-/// than one spread in every direction would. Unbounded, a 47-sample
-/// piece whose offset was 250 mm from a tip swinging 24 mm cost 32.5
-/// there (67.8 with one spread), under [`LOOSE`], and went to it (seed
-/// 111, `noise_mm` 1.5: 211 wrong samples where there had been none);
-/// never cheaper (1), seed 109's piece at its own tip stayed at 9.6.
-/// `all`, wrong samples on seeds 103–109 / 110–116 (`noise_mm` 1.5):
-/// unbounded 136 / 178 (594 / 2 608), 1.5 136 / 146 (601 / 2 440),
-/// 1 228 / 144 (757 / 2 297).
-const STRETCH: f64 = 1.5;
 /// Independent samples per second of a tip's own swing around its mean
 /// offset (its twig modes are 1–3 Hz).
 const SWING_HZ: f64 = 2.0;
@@ -140,10 +130,12 @@ const SEAM_FIT: f64 = 6.0;
 /// jumps by the two tips' distance (`all` seed 104: 94 samples of tip 52
 /// in tip 61's trace after a step of 38 mm). A cut whose path carries
 /// across is joined back ([`SPLIT_MISS`]), so noise costs only the
-/// check. `all`, wrong samples on seeds 103–109 / 110–116 / 117–123
-/// (`noise_mm` 1.5): 136 / 146 / 157 (601 / 2 440 / 789) without, 28 /
-/// 83 / 238 (401 / 2 279 / 789) with it, 28 / 83 / 121 (401 / 2 279 /
-/// 789) with a [`SPLIT_MISS`] of 1.5 instead of 3.
+/// check. `all`, wrong samples on seeds 100–102 / 103–109 / 110–116 /
+/// 117–123, and on 124–130, on which nothing here was chosen: 3 / 251 /
+/// 352 / 359 / 1 416 without it (`noise_mm` 1.5: 169 / 760 / 2 182 /
+/// 853 / 1 126), 3 / 143 / 289 / 206 / 1 381 (169 / 560 / 2 146 / 853 /
+/// 1 124) with it, a [`SPLIT_MISS`] of 1.5 and the lead of `choose`
+/// that shrinks as the tracker's tip fits worse.
 const JUMP: f64 = 0.010;
 /// ... or where this many frames apart (one frame missing) or more ...
 const SPLIT_GAP: i64 = 2;
@@ -154,10 +146,10 @@ const SPLIT_GAP: i64 = 2;
 /// 352 / 359 with them and a bound of 3 (`noise_mm` 1.5: 169 / 959 /
 /// 2 193 / 893 → 169 / 760 / 2 182 / 853); cutting at every gap over
 /// 0.02 s instead: 52 / 492 / 300 / 614. A bound of 1 cleared seed 123
-/// but cost seed 109 63 wrong samples under `noise_mm` 1.5; with the
-/// swing's shape and [`JUMP`], 1.5 against 3 takes seeds 117–123 from
-/// 238 to 121, changes nothing on 103–109, and on 110–116 only
-/// `noise_mm` 1.5 (2 279 → 2 281).
+/// but cost seed 109 63 wrong samples under `noise_mm` 1.5. Measured
+/// with a tip's spread shaped like its swing (left out: docs/tracking.md
+/// §4a), 1.5 against 3 took seeds 117–123 from 238 to 121 with [`JUMP`]
+/// and from 157 to 40 without it, and changed nothing on 103–109.
 const SPLIT_MISS: f64 = 1.5;
 
 /// A stretch of a trace between two of its cuts (`cut_trace`).
@@ -216,10 +208,9 @@ struct Anchor {
     /// (anchor, weight) of its [`CANDIDATES`] nearest anchors by rest
     /// position, nearest first.
     near: Vec<(usize, f64)>,
-    /// Median offset over its own wind-phase probes (m).
+    /// Median offset over its own wind-phase probes and its spread (m).
     mean: DVec3,
-    /// How that offset swings around `mean` (m²; [`swing`]).
-    swing: DMat3,
+    spread: f64,
 }
 
 /// Takes longer than this (s) keep the tracker's identities (and
@@ -495,7 +486,7 @@ fn anchors(pieces: &[Piece], window: RestWindow, step: i64, n_tips: usize) -> Ve
                 rest,
                 near: Vec::new(),
                 mean: DVec3::ZERO,
-                swing: DMat3::IDENTITY * (SPREAD_MIN * SPREAD_MIN),
+                spread: SPREAD_MIN,
             })
         })
         .collect();
@@ -537,43 +528,13 @@ fn anchors(pieces: &[Piece], window: RestWindow, step: i64, n_tips: usize) -> Ve
         }
         if offs.len() >= 5 {
             let mean = median3(&offs);
+            let mut dev: Vec<f64> = offs.iter().map(|o| o.distance(mean)).collect();
+            let spread = median(&mut dev) * 1.2;
             out[a].mean = mean;
-            out[a].swing = swing(&offs, mean);
+            out[a].spread = spread.max(SPREAD_MIN);
         }
     }
     out
-}
-
-/// How a tip's offsets `offs` swing around their median `mean` (m²): as
-/// far as their median distance from it says (times 1.2, at least
-/// [`SPREAD_MIN`]), in the directions their covariance says (the offsets
-/// within 3 median distances, scaled to that size).
-///
-/// A twig swings mostly across the wind and along it, little up and down:
-/// on `all` seed 109 the vertical axis held 2–30 % of most tips' swing.
-/// With one spread in every direction, a piece of a neighbour offset
-/// vertically by a few swings was as near as one offset along the swing:
-/// on seed 109 86 samples of tip 18 cost 9.6 at their own tip, just past
-/// [`FIT`], and 19.8 at the tracker's, and stayed there; with the shape
-/// 6.4 and 13.2, and they went to their own. `all`, wrong samples on seeds
-/// 100–102 / 103–109 / 110–116 / 117–123: 3 / 251 / 352 / 359 with one
-/// spread, 3 / 136 / 146 / 157 with the shape ([`STRETCH`] 1.5).
-fn swing(offs: &[DVec3], mean: DVec3) -> DMat3 {
-    let mut dev: Vec<f64> = offs.iter().map(|o| o.distance(mean)).collect();
-    let typical = median(&mut dev);
-    let size = (typical * 1.2).max(SPREAD_MIN);
-    let mut cov = DMat3::ZERO;
-    for d in offs.iter().map(|o| *o - mean) {
-        if d.length() <= 3.0 * typical {
-            cov += DMat3::from_cols(d * d.x, d * d.y, d * d.z);
-        }
-    }
-    let trace = cov.x_axis.x + cov.y_axis.y + cov.z_axis.z;
-    if trace > 0.0 {
-        cov * (3.0 / trace) * (size * size)
-    } else {
-        DMat3::IDENTITY * (size * size)
-    }
 }
 
 /// Where each anchor's trace (as the tracker made it) was at the probes.
@@ -716,7 +677,7 @@ fn assign(pieces: &[Piece], anchors: &[Anchor], step: i64, one_second: i64) -> V
                         pieces[anchors[*a].piece].trace.id,
                         v,
                         m,
-                        spread(&anchors[*a]) * 1000.0
+                        anchors[*a].spread * 1000.0
                     )
                 })
                 .collect();
@@ -782,11 +743,12 @@ fn choose(
         // The lead another tip needs shrinks from CLEAR to nothing as the
         // tracker's tip's mean comes near the bound of a fit, so that the
         // tracker's choice does not win by a margin it only just earned
-        // (seed 103, `noise_mm` 1.5, with the swing's shape unbounded:
-        // 112 samples of tip 40 cost 7.8 at the tracker's tip 68, 0.0 at
-        // their own, and stayed). `all`, `noise_mm` 1.5, wrong samples on
-        // seeds 117–123: 908 with a lead of 9 throughout, 789 with this;
-        // 103–109 the same either way (136, `noise_mm` 1.5 601).
+        // (seed 103, `noise_mm` 1.5, with a spread shaped like the tip's
+        // swing, since left out: 112 samples of tip 40 cost 7.8 at the
+        // tracker's tip 68, 0.0 at their own, and stayed). `all`, wrong
+        // samples on seeds 117–123 and 124–130 (on which nothing here was
+        // chosen): 270 and 1 390 with a lead of 9 throughout, 206 and
+        // 1 381 with this; 103–109 and 110–116 the same either way.
         let lead = CLEAR * (1.0 - mean / FIT);
         if mean <= FIT && best.is_none_or(|(tb, mb, b)| b == w || total <= tb + lead || mean <= mb)
         {
@@ -858,15 +820,8 @@ fn rms_about_mean(v: &[DVec3]) -> f64 {
     (v.iter().map(|x| x.distance_squared(m)).sum::<f64>() / v.len() as f64).sqrt()
 }
 
-/// Root mean square of anchor `a`'s swing per axis (m).
-fn spread(a: &Anchor) -> f64 {
-    ((a.swing.x_axis.x + a.swing.y_axis.y + a.swing.z_axis.z) / 3.0).sqrt()
-}
-
 /// How far piece `i`'s mean offset is from anchor `a`'s, in squared
-/// standard errors (the anchor's [`swing`] over the independent samples
-/// the piece spans, plus [`SPREAD_MIN`] in every direction); `None`
-/// without probes to judge.
+/// standard errors; `None` without probes to judge.
 fn cost(
     pieces: &[Piece],
     anchors: &[Anchor],
@@ -887,19 +842,9 @@ fn cost(
     let mean = offs.iter().copied().sum::<DVec3>() / offs.len() as f64;
     let span_s = (p.trace.len() as f64 / one_second.max(1) as f64).max(0.0);
     let n_eff = (span_s * SWING_HZ).clamp(1.0, offs.len() as f64);
-    Some(off_by(&anchors[a], mean, n_eff))
-}
-
-/// How far a mean offset of `n_eff` independent samples is from anchor
-/// `an`'s, in squared standard errors of its [`swing`], but at least
-/// 1 / [`STRETCH`] of what one spread in every direction gives.
-fn off_by(an: &Anchor, mean: DVec3, n_eff: f64) -> f64 {
-    let floor = SPREAD_MIN * SPREAD_MIN;
-    let d = mean - an.mean;
-    let shaped = an.swing / n_eff + DMat3::IDENTITY * floor;
-    let round = spread(an).powi(2) / n_eff + floor;
-    d.dot(shaped.inverse() * d)
-        .max(d.length_squared() / round / STRETCH)
+    let an = &anchors[a];
+    let var = an.spread * an.spread / n_eff + SPREAD_MIN * SPREAD_MIN;
+    Some(mean.distance_squared(an.mean) / var)
 }
 
 /// How badly piece `i` continues the pieces of a tip next to it in time
@@ -1084,7 +1029,7 @@ mod tests {
             rest,
             near,
             mean: DVec3::ZERO,
-            swing: DMat3::IDENTITY * (SPREAD_MIN * SPREAD_MIN),
+            spread: SPREAD_MIN,
         }
     }
 
@@ -1135,7 +1080,7 @@ mod tests {
         assert_eq!(choose(&[(45.9, 23.0, 0)], Some(0), &|_| true), Some(0));
         // Nothing can be judged at all: the tracker's choice stands.
         assert_eq!(choose(&[], Some(0), &|_| true), Some(0));
-        // Seed 103, `noise_mm` 1.5, the swing's shape unbounded: 112
+        // Seed 103, `noise_mm` 1.5, with a shaped spread: 112
         // samples of tip 40 fit the tracker's tip only near the bound
         // (7.8) and their own exactly: the tracker's choice no longer
         // stands on a lead of under 9.
@@ -1148,37 +1093,6 @@ mod tests {
             choose(&[(5.0, 1.0, 0), (0.0, 0.0, 1)], Some(0), &|_| true),
             Some(0)
         );
-    }
-
-    /// A tip swinging across the wind, 20 mm each way, and hardly up and
-    /// down: a piece 40 mm off its offset up or down is far from it, one
-    /// 40 mm off along the swing near, one 150 mm along it far.
-    #[test]
-    fn a_tip_is_judged_by_the_direction_it_swings_in() {
-        let offs: Vec<DVec3> = (0..40)
-            .map(|k| {
-                let t = k as f64 * 0.05;
-                let across = 0.02 * (std::f64::consts::TAU * 1.3 * t).sin();
-                let up = 0.001 * (std::f64::consts::TAU * 2.9 * t).sin();
-                DVec3::new(across, up, 0.3 * across)
-            })
-            .collect();
-        let mut tip = anchor(0, DVec3::ZERO, Vec::new());
-        tip.swing = swing(&offs, median3(&offs));
-        let along = DVec3::new(1.0, 0.0, 0.3).normalize() * 0.04;
-        let up = DVec3::new(0.0, 0.04, 0.0);
-        let (near, far) = (off_by(&tip, along, 1.0), off_by(&tip, up, 1.0));
-        assert!(near < FIT, "along the swing: {near:.1}");
-        assert!(far > LOOSE, "up: {far:.1}");
-        // 150 mm along the swing is another tip's offset, not a swing of
-        // 20 mm: the shape unbounded would let it cost 30.4 there.
-        let beyond = off_by(&tip, along * 3.75, 1.0);
-        assert!(beyond > LOOSE, "150 mm along the swing: {beyond:.1}");
-        // One spread in every direction could not tell them apart.
-        let mut round = anchor(0, DVec3::ZERO, Vec::new());
-        round.swing = DMat3::IDENTITY * (spread(&tip) * spread(&tip));
-        let (a, b) = (off_by(&round, along, 1.0), off_by(&round, up, 1.0));
-        assert!((a - b).abs() < 0.1 * a, "{a:.1} {b:.1}");
     }
 
     /// A trace the tracker never confirmed (no tip's) goes to the one tip
