@@ -364,7 +364,10 @@ fn cut_trace(t: Trace, k: usize, cuts: &Cuts<'_>, out: &mut Vec<Piece>) {
         let gap = f.saturating_sub(last);
         let hard = gap > cuts.long || (seam && gap > 1);
         // A step from the frame before: a jump where it differs from the
-        // step before it by more than `JUMP`.
+        // step before it by more than `JUMP`. Only a candidate, like a
+        // short gap: `keep` decides with the same test whether the path
+        // carries across (testing every step that way would cut and join
+        // a piece per frame).
         let step = (gap == 1).then(|| p - before);
         let jumped = matches!((step, last_step), (Some(s), Some(l)) if (s - l).length() > JUMP);
         (before, last_step) = (p, step);
@@ -1013,6 +1016,19 @@ mod tests {
         }
     }
 
+    /// The pieces of a trace measured at `frames` where `at` puts it, cut
+    /// with [`test_cuts`].
+    fn cut_at(mut frames: impl Iterator<Item = i64>, at: impl Fn(i64) -> DVec3) -> Vec<Piece> {
+        let first = frames.next().expect("a trace has a first frame");
+        let mut t = Trace::new(3, first, at(first), None);
+        for f in frames {
+            t.push(f, at(f), None);
+        }
+        let mut pieces = Vec::new();
+        cut_trace(t, 0, &test_cuts(), &mut pieces);
+        pieces
+    }
+
     /// The frames each piece spans, first and last.
     fn spans(pieces: &[Piece]) -> Vec<(i64, i64)> {
         pieces
@@ -1193,25 +1209,16 @@ mod tests {
     /// seed 119: tip 61, then tip 17, in one trace).
     #[test]
     fn a_trace_is_cut_where_its_path_does_not_carry_across_a_short_gap() {
-        let cuts = test_cuts();
         // Moving 1 mm a frame along x, hidden in frames 20–30.
-        let trace = |jump: f64| {
-            let at = |f: i64| DVec3::new(0.001 * f as f64, 0.0, 0.0);
-            let mut t = Trace::new(3, 1, at(1), None);
-            for f in (2..20).chain(31..60) {
-                let side = if f > 30 { jump } else { 0.0 };
-                t.push(f, at(f) + DVec3::new(0.0, side, 0.0), None);
-            }
-            t
+        let path = |jump: f64| {
+            move |f: i64| DVec3::new(0.001 * f as f64, if f > 30 { jump } else { 0.0 }, 0.0)
         };
-        let mut one = Vec::new();
-        cut_trace(trace(0.0), 0, &cuts, &mut one);
+        let frames = || (1..20).chain(31..60);
+        let one = cut_at(frames(), path(0.0));
         assert_eq!(one.len(), 1, "its own marker after the gap");
         assert_eq!(one[0].trace.measured(), 48);
-        let mut two = Vec::new();
-        cut_trace(trace(0.015), 0, &cuts, &mut two);
-        let spans = spans(&two);
-        assert_eq!(spans, [(1, 19), (31, 59)], "another marker after it");
+        let two = cut_at(frames(), path(0.015));
+        assert_eq!(spans(&two), [(1, 19), (31, 59)], "another marker after it");
     }
 
     /// A marker swinging 100 mm at 1.5 Hz with 1.5 mm of noise stays one
@@ -1219,27 +1226,22 @@ mod tests {
     /// next frame, no frame missing, is cut there (seed 104).
     #[test]
     fn a_trace_is_cut_where_it_jumps_to_another_marker_with_no_frame_missing() {
-        let cuts = test_cuts();
-        let trace = |jump: f64| {
-            let at = |f: i64| {
+        let path = |jump: f64| {
+            move |f: i64| {
                 let swing = 0.1 * (std::f64::consts::TAU * 1.5 * f as f64 / 240.0).sin();
                 let noise = 0.0015 * (((f * 7919) % 13) as f64 - 6.0) / 6.0;
                 let side = if f > 60 { jump } else { 0.0 };
                 DVec3::new(swing + noise, side - noise, 0.5 * noise)
-            };
-            let mut t = Trace::new(3, 1, at(1), None);
-            for f in 2..120 {
-                t.push(f, at(f), None);
             }
-            t
         };
-        let mut one = Vec::new();
-        cut_trace(trace(0.0), 0, &cuts, &mut one);
+        let one = cut_at(1..120, path(0.0));
         assert_eq!(one.len(), 1, "its own marker throughout");
-        let mut two = Vec::new();
-        cut_trace(trace(0.038), 0, &cuts, &mut two);
-        let spans = spans(&two);
-        assert_eq!(spans, [(1, 60), (61, 119)], "another marker from frame 61");
+        let two = cut_at(1..120, path(0.038));
+        assert_eq!(
+            spans(&two),
+            [(1, 60), (61, 119)],
+            "another marker from frame 61"
+        );
     }
 
     /// In a gust that hides a tip's 8 nearest tips, the next 8 measured
