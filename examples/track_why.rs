@@ -15,7 +15,12 @@
 //! `LOST=tip,from,to` names the tracker's traces holding a true tip's
 //! samples in a frame range; `PAIR=a,b,from,to` follows two true tips
 //! frame by frame; `SUMMARY=1` prints the cleaning's summary;
-//! `REJOIN_DEBUG=1` prints every decision of `src/track/rejoin.rs`.
+//! `REJOIN_DEBUG=1` prints every decision of `src/track/rejoin.rs`, after
+//! each tip's anchor (`anchor a<k> t<trace>`: its mean offset from where
+//! its neighbours say it is, and that offset's spread; a tip alone on its
+//! limb has a wide spread and fits any marker near it); `MAP=1` names the
+//! true tip most of each output tip's samples come from (`map t<trace> =
+//! tip (n samples)`), to read the anchors' trace ids.
 
 use treemocap::sim::{self, stress};
 use treemocap::track::{self, Tracker, TrackingSettings};
@@ -57,6 +62,23 @@ fn main() {
     }
     if let Ok(spec) = std::env::var("PAIR") {
         pair(&spec, &tips, truth);
+    }
+    if std::env::var_os("MAP").is_some() {
+        for tip in &tips.tips {
+            let mut count = std::collections::HashMap::new();
+            for (_, who) in sim::score::owners(&tip.trace, truth) {
+                *count.entry(who).or_insert(0usize) += 1;
+            }
+            let main = count
+                .iter()
+                .max_by_key(|x| (*x.1, x.0.map_or(0, |k| k + 1)));
+            let who = match main {
+                Some((Some(k), n)) => format!("tip {k} ({n} samples)"),
+                Some((None, n)) => format!("ghosts ({n} samples)"),
+                None => "no samples".to_string(),
+            };
+            println!("map t{} = {who}", tip.trace.id);
+        }
     }
     println!(
         "{} tips found, {} placed",

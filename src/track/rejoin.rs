@@ -298,6 +298,16 @@ pub(crate) fn rejoin(
         let (out, left) = rebuild(pieces, &[], &[], (n_traces, n_tips), &ids);
         return (out, 0, left);
     }
+    if std::env::var_os("REJOIN_DEBUG").is_some() {
+        for (a, an) in anchors.iter().enumerate() {
+            eprintln!(
+                "anchor a{a} t{} mean {:.1?} mm spread {:.1} mm",
+                pieces[an.piece].trace.id,
+                (an.mean * 1000.0).to_array(),
+                an.spread * 1000.0
+            );
+        }
+    }
     let owner = assign(&pieces, &anchors, step, one_second);
     let moved = pieces
         .iter()
@@ -715,7 +725,126 @@ fn assign(pieces: &[Piece], anchors: &[Anchor], step: i64, one_second: i64) -> V
             place(i, &mut owner, &mut taken);
         }
     }
+    swaps(
+        pieces, anchors, &field, &order, &mut owner, &mut taken, one_second,
+    );
     owner
+}
+
+/// A move [`swaps`] weighs: its gain, the tip the piece of no tip goes
+/// to, and the tip each piece in its way goes to.
+type Swap = (f64, usize, Vec<(usize, usize)>);
+
+/// Pieces one at a time cannot undo a swap at a tip alone on its limb:
+/// its neighbours say little of where it is, its offset from them spreads
+/// widely, and another tip's marker near it fits it well enough to stay
+/// where the tracker put it; the tip's own marker, back as a new identity,
+/// then finds its tip taken and is left out of every tip (`all`
+/// seed 112, `noise_mm` 1.5: tip 14's offset spreads 41 mm; tip 68's
+/// marker, 68 mm away, cost 3.6 there and 0.1 at tip 68, and stayed; tip
+/// 14's own marker, 0.4 at tip 14, became a 71st tip whose rest position
+/// was 23 mm off).
+///
+/// So each piece no tip took is tried at every tip near it that other
+/// pieces hold in its span: it goes there when it fits that tip's mean
+/// offset, moves like it (a reflection sits still), and every piece in its
+/// way fits another tip free in its own span, and the fits after the move
+/// (with the seams) beat those before by [`CLEAR`], a piece left without a
+/// tip counting [`LOOSE`] (the bound at which one near a single tip is
+/// given to it). The tip with the largest gain wins.
+fn swaps(
+    pieces: &[Piece],
+    anchors: &[Anchor],
+    field: &Field,
+    order: &[usize],
+    owner: &mut [Option<usize>],
+    taken: &mut [Vec<(i64, i64, usize)>],
+    one_second: i64,
+) {
+    let span = |i: usize| (pieces[i].trace.first_frame(), pieces[i].trace.last_frame());
+    let near = |i: usize| {
+        let p = &pieces[i];
+        p.probes.first().map_or(p.trace.last_position(), |x| x.1)
+    };
+    let overlaps = |(s, e): (i64, i64), t: &(i64, i64, usize)| !(t.1 < s || t.0 > e);
+    for &q in order {
+        if owner[q].is_some() {
+            continue;
+        }
+        let sq = span(q);
+        let mut best: Option<Swap> = None;
+        for a in 0..anchors.len() {
+            if anchors[a].rest.distance(near(q)) > REACH {
+                continue;
+            }
+            let blockers: Vec<usize> = taken[a]
+                .iter()
+                .filter(|t| overlaps(sq, t))
+                .map(|t| t.2)
+                .collect();
+            if blockers.is_empty() || blockers.iter().any(|&j| !pieces[j].movable) {
+                continue;
+            }
+            let others: Vec<(i64, i64, usize)> = taken[a]
+                .iter()
+                .copied()
+                .filter(|t| !blockers.contains(&t.2))
+                .collect();
+            let Some(mq) = cost(pieces, anchors, field, q, a, one_second) else {
+                continue;
+            };
+            if mq > FIT || !moves_like(pieces, anchors, field, q, a) {
+                continue;
+            }
+            let mut gain = LOOSE - CLEAR - (mq + seams(pieces, &others, q, one_second));
+            let mut moves = Vec::new();
+            for &j in &blockers {
+                let Some(mj) = cost(pieces, anchors, field, j, a, one_second) else {
+                    gain = f64::NEG_INFINITY;
+                    break;
+                };
+                let here = mj + seams(pieces, &others, j, one_second);
+                let sj = span(j);
+                let there = (0..anchors.len())
+                    .filter(|&b| {
+                        b != a
+                            && anchors[b].rest.distance(near(j)) <= REACH
+                            && !taken[b].iter().any(|t| overlaps(sj, t))
+                    })
+                    .filter_map(|b| {
+                        let mb = cost(pieces, anchors, field, j, b, one_second)?;
+                        (mb <= FIT).then(|| (mb + seams(pieces, &taken[b], j, one_second), b))
+                    })
+                    .min_by(|x, y| x.0.total_cmp(&y.0).then(x.1.cmp(&y.1)));
+                let Some((tb, b)) = there else {
+                    gain = f64::NEG_INFINITY;
+                    break;
+                };
+                gain += here - tb;
+                moves.push((j, b));
+            }
+            if gain >= 0.0 && best.as_ref().is_none_or(|x| gain > x.0) {
+                best = Some((gain, a, moves));
+            }
+        }
+        if let Some((gain, a, moves)) = best {
+            if std::env::var_os("REJOIN_DEBUG").is_some() {
+                eprintln!(
+                    "swap: piece of trace {} {:?} to a{a}, gain {gain:.1}, moving {:?}",
+                    pieces[q].trace.id,
+                    sq,
+                    moves.iter().map(|&(j, b)| (span(j), b)).collect::<Vec<_>>()
+                );
+            }
+            for &(j, b) in &moves {
+                taken[a].retain(|t| t.2 != j);
+                taken[b].push((span(j).0, span(j).1, j));
+                owner[j] = Some(b);
+            }
+            taken[a].push((sq.0, sq.1, q));
+            owner[q] = Some(a);
+        }
+    }
 }
 
 /// The tracker's anchor `was` when its mean offset fits and no other
@@ -1308,5 +1437,79 @@ mod tests {
         // misses the piece before by 24 mm and the piece after by 72 mm.
         let away = seams(&pieces, &around, 4, 240);
         assert!(away > fits + LOOSE, "moving away: {away}");
+    }
+
+    /// A tip alone on its limb keeps another tip's marker that fits it
+    /// loosely, and its own marker, back as a trace of no tip, finds it
+    /// taken (held-out `all` seed 112): the two are put right together.
+    /// Not when the piece of no tip sits still while the tree sways (a
+    /// reflection), nor when the piece in its way has nowhere else to go.
+    #[test]
+    fn a_tip_alone_on_its_limb_gets_its_own_marker_back() {
+        // Every marker sways 30 mm along x at 1 Hz; tip 0 (a wide spread
+        // of 40 mm) at the origin, tip 1 at 45 mm along x, tip 2, the
+        // neighbour both are judged by, 200 mm along y. Still phase to
+        // frame 96; the swap from frame 480 to 720.
+        let sway = |f: i64| {
+            DVec3::new(
+                0.03 * (f as f64 / 240.0 * std::f64::consts::TAU).sin(),
+                0.0,
+                0.0,
+            )
+        };
+        let track = |frames: std::ops::RangeInclusive<i64>, at: DVec3, moves: bool| {
+            frames
+                .step_by(12)
+                .map(|f| (f, at + if moves { sway(f) } else { DVec3::ZERO }))
+                .collect::<Vec<_>>()
+        };
+        let (a, b, n) = (
+            DVec3::ZERO,
+            DVec3::new(0.045, 0.0, 0.0),
+            DVec3::new(0.0, 0.2, 0.0),
+        );
+        let still = |mut p: Piece| {
+            p.movable = false;
+            p
+        };
+        let setup = |reflection: bool, b_busy: bool| {
+            let mut pieces = vec![
+                still(piece(0, track(0..=96, a, true))),
+                still(piece(1, track(0..=96, b, true))),
+                still(piece(2, track(0..=960, n, true))),
+                // Tip 1's marker in tip 0's identity, 45 mm from tip 0,
+                // whose spread is 40 mm: the tracker's choice stands.
+                piece(0, track(480..=720, b, true)),
+                // Tip 0's marker as a trace of no tip (or a reflection
+                // sitting still 10 mm from it).
+                piece(
+                    3,
+                    track(480..=720, a + DVec3::new(0.0, 0.0, 0.01), !reflection),
+                ),
+            ];
+            if b_busy {
+                // Tip 1 holds a piece of its own over the same frames.
+                pieces.push(piece(
+                    1,
+                    track(480..=720, b + DVec3::new(0.0, 0.0, 0.004), true),
+                ));
+            }
+            let mut anchors = vec![
+                anchor(0, a, vec![(2, 1.0)]),
+                anchor(1, b, vec![(2, 1.0)]),
+                anchor(2, n, vec![(0, 1.0)]),
+            ];
+            anchors[0].spread = 0.04;
+            (pieces, anchors)
+        };
+        let (pieces, anchors) = setup(false, false);
+        let owner = assign(&pieces, &anchors, 12, 240);
+        assert_eq!((owner[3], owner[4]), (Some(1), Some(0)), "swapped back");
+        let (pieces, anchors) = setup(true, false);
+        let owner = assign(&pieces, &anchors, 12, 240);
+        assert_eq!((owner[3], owner[4]), (Some(0), None), "a reflection");
+        let (pieces, anchors) = setup(false, true);
+        let owner = assign(&pieces, &anchors, 12, 240);
+        assert_eq!((owner[3], owner[4]), (Some(0), None), "tip 1 is busy");
     }
 }
