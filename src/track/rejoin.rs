@@ -1441,7 +1441,7 @@ mod tests {
 
     /// A tip alone on its limb keeps another tip's marker that fits it
     /// loosely, and its own marker, back as a trace of no tip, finds it
-    /// taken (held-out `all` seed 112): the two are put right together.
+    /// taken (`all` seed 112): the two are put right together.
     /// Not when the piece of no tip sits still while the tree sways (a
     /// reflection), nor when the piece in its way has nowhere else to go.
     #[test]
