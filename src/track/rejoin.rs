@@ -747,11 +747,17 @@ type Swap = (f64, usize, Vec<(usize, usize)>);
 ///
 /// So each piece no tip took is tried at every tip near it that other
 /// pieces hold in its span: it goes there when it fits that tip's mean
-/// offset, moves like it (a reflection sits still), and every piece in its
-/// way fits another tip free in its own span, and the fits after the move
-/// (with the seams) beat those before by [`CLEAR`], a piece left without a
-/// tip counting [`LOOSE`] (the bound at which one near a single tip is
-/// given to it). The tip with the largest gain wins.
+/// offset, moves like it (a reflection sits still), every piece in its way
+/// can go to another tip free in its own span, and the costs after the
+/// move (with the seams) beat those before by [`CLEAR`], a piece left
+/// without a tip counting [`LOOSE`] (the bound at which one near a single
+/// tip is given to it). A piece in the way may go where it costs up to
+/// `LOOSE` with the seams, no more than being left out: its own tip's
+/// offset may have drifted since the 2 s it was learnt on (seed 112: tip
+/// 68's pieces cost 20–60 at tip 68 after frame 4 499; with a bound of
+/// [`FIT`] on the mean there, `all` seeds 103–109 / 124–130 / 138–144 kept
+/// 143 / 566 / 539 wrong samples, with this one 50 / 191 / 183, and no set
+/// got worse). The tip with the largest gain wins.
 fn swaps(
     pieces: &[Piece],
     anchors: &[Anchor],
@@ -813,7 +819,8 @@ fn swaps(
                     })
                     .filter_map(|b| {
                         let mb = cost(pieces, anchors, field, j, b, one_second)?;
-                        (mb <= FIT).then(|| (mb + seams(pieces, &taken[b], j, one_second), b))
+                        let tb = mb + seams(pieces, &taken[b], j, one_second);
+                        (tb <= LOOSE).then_some((tb, b))
                     })
                     .min_by(|x, y| x.0.total_cmp(&y.0).then(x.1.cmp(&y.1)));
                 let Some((tb, b)) = there else {
@@ -1442,7 +1449,8 @@ mod tests {
     /// A tip alone on its limb keeps another tip's marker that fits it
     /// loosely, and its own marker, back as a trace of no tip, finds it
     /// taken (`all` seed 112): the two are put right together.
-    /// Not when the piece of no tip sits still while the tree sways (a
+    /// Also when the piece in the way fits its own tip only loosely; not
+    /// when the piece of no tip sits still while the tree sways (a
     /// reflection), nor when the piece in its way has nowhere else to go.
     #[test]
     fn a_tip_alone_on_its_limb_gets_its_own_marker_back() {
@@ -1472,14 +1480,14 @@ mod tests {
             p.movable = false;
             p
         };
-        let setup = |reflection: bool, b_busy: bool| {
+        let setup = |reflection: bool, b_busy: bool, drift: f64| {
             let mut pieces = vec![
                 still(piece(0, track(0..=96, a, true))),
                 still(piece(1, track(0..=96, b, true))),
                 still(piece(2, track(0..=960, n, true))),
                 // Tip 1's marker in tip 0's identity, 45 mm from tip 0,
                 // whose spread is 40 mm: the tracker's choice stands.
-                piece(0, track(480..=720, b, true)),
+                piece(0, track(480..=720, b + DVec3::new(0.0, 0.0, drift), true)),
                 // Tip 0's marker as a trace of no tip (or a reflection
                 // sitting still 10 mm from it).
                 piece(
@@ -1502,13 +1510,18 @@ mod tests {
             anchors[0].spread = 0.04;
             (pieces, anchors)
         };
-        let (pieces, anchors) = setup(false, false);
+        let (pieces, anchors) = setup(false, false, 0.0);
         let owner = assign(&pieces, &anchors, 12, 240);
         assert_eq!((owner[3], owner[4]), (Some(1), Some(0)), "swapped back");
-        let (pieces, anchors) = setup(true, false);
+        // Tip 1's offset has drifted 27 mm from what it was learnt as (cost
+        // 19 there, above the fit bound 9): still better than left out.
+        let (pieces, anchors) = setup(false, false, 0.027);
+        let owner = assign(&pieces, &anchors, 12, 240);
+        assert_eq!((owner[3], owner[4]), (Some(1), Some(0)), "drifted");
+        let (pieces, anchors) = setup(true, false, 0.0);
         let owner = assign(&pieces, &anchors, 12, 240);
         assert_eq!((owner[3], owner[4]), (Some(0), None), "a reflection");
-        let (pieces, anchors) = setup(false, true);
+        let (pieces, anchors) = setup(false, true, 0.0);
         let owner = assign(&pieces, &anchors, 12, 240);
         assert_eq!((owner[3], owner[4]), (Some(0), None), "tip 1 is busy");
     }
