@@ -65,14 +65,7 @@ fn main() {
     }
     if std::env::var_os("MAP").is_some() {
         for tip in &tips.tips {
-            let mut count = std::collections::HashMap::new();
-            for (_, who) in sim::score::owners(&tip.trace, truth) {
-                *count.entry(who).or_insert(0usize) += 1;
-            }
-            let main = count
-                .iter()
-                .max_by_key(|x| (*x.1, x.0.map_or(0, |k| k + 1)));
-            let who = match main {
+            let who = match sim::score::main_owner(&tip.trace, truth) {
                 Some((Some(k), n)) => format!("tip {k} ({n} samples)"),
                 Some((None, n)) => format!("ghosts ({n} samples)"),
                 None => "no samples".to_string(),
@@ -238,14 +231,7 @@ fn pair(spec: &str, tips: &treemocap::model::tips::Tips, truth: &sim::Truth) {
 fn missing(tips: &treemocap::model::tips::Tips, tracked: &track::Tracked, truth: &sim::Truth) {
     let mut claimed = vec![false; truth.tips.len()];
     for tip in &tips.tips {
-        let mut counts = std::collections::HashMap::new();
-        for (_, who) in sim::score::owners(&tip.trace, truth) {
-            *counts.entry(who).or_insert(0usize) += 1;
-        }
-        if let Some((Some(k), _)) = counts
-            .into_iter()
-            .max_by_key(|(k, n)| (*n, k.map_or(0, |v| v + 1)))
-        {
+        if let Some((Some(k), _)) = sim::score::main_owner(&tip.trace, truth) {
             claimed[k] = true;
         }
     }

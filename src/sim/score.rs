@@ -147,6 +147,27 @@ pub fn owners<'a>(
     })
 }
 
+/// The true tip (`Some`) or ghost (`None`) most of `trace`'s samples came
+/// from, and how many; `None` for a trace with no sample. Public for the
+/// diagnosis example (`track_why`), which names output tips the way the
+/// score matches them.
+pub fn main_owner(trace: &Trace, truth: &Truth) -> Option<(Option<usize>, usize)> {
+    let mut counts: HashMap<Option<usize>, usize> = HashMap::new();
+    for (_, who) in owners(trace, truth) {
+        *counts.entry(who).or_default() += 1;
+    }
+    majority(&counts)
+}
+
+/// The owner with the most samples; on a tie the higher tip, any tip
+/// before the ghosts (so the choice does not depend on the map's order).
+fn majority(counts: &HashMap<Option<usize>, usize>) -> Option<(Option<usize>, usize)> {
+    counts
+        .iter()
+        .max_by_key(|(k, n)| (**n, k.map_or(0, |v| v + 1)))
+        .map(|(&k, &n)| (k, n))
+}
+
 /// Scores `tips` (the marker stage's output on `syn`'s frames).
 pub fn score(tips: &Tips, syn: &Synthetic) -> Score {
     let truth = &syn.truth;
@@ -194,10 +215,7 @@ fn match_tips<'a>(tips: &'a Tips, truth: &Truth, s: &mut Score) -> Vec<Option<&'
             *counts.entry(who).or_default() += 1;
             owner_at.insert(frame, who);
         }
-        let Some((&owner, &n)) = counts
-            .iter()
-            .max_by_key(|(k, n)| (**n, k.map_or(0, |v| v + 1)))
-        else {
+        let Some((owner, n)) = majority(&counts) else {
             continue;
         };
         let total: usize = counts.values().sum();

@@ -166,6 +166,21 @@ struct Piece {
     tail: End,
 }
 
+impl Piece {
+    /// Its first and last frames.
+    fn span(&self) -> (i64, i64) {
+        (self.trace.first_frame(), self.trace.last_frame())
+    }
+
+    /// Where it is judged to be near a tip: its first probe (its last
+    /// position when it has none).
+    fn near(&self) -> DVec3 {
+        self.probes
+            .first()
+            .map_or(self.trace.last_position(), |x| x.1)
+    }
+}
+
 /// A straight line fitted to a few samples at one end of a piece: where
 /// the marker went on either side of a gap (`seams`).
 #[derive(Clone, Copy, Debug, Default)]
@@ -646,15 +661,15 @@ fn assign(pieces: &[Piece], anchors: &[Anchor], step: i64, one_second: i64) -> V
     let anchor_of_trace = |from: usize| anchors.iter().position(|a| pieces[a.piece].from == from);
     for (a, an) in anchors.iter().enumerate() {
         owner[an.piece] = Some(a);
-        let t = &pieces[an.piece].trace;
-        taken[a].push((t.first_frame(), t.last_frame(), an.piece));
+        let (s, e) = pieces[an.piece].span();
+        taken[a].push((s, e, an.piece));
     }
     // Pieces before the still phase ended stay where the tracker put them.
     for (i, p) in pieces.iter().enumerate() {
         if owner[i].is_none() && !p.movable {
             owner[i] = anchor_of_trace(p.from);
             if let Some(a) = owner[i] {
-                taken[a].push((p.trace.first_frame(), p.trace.last_frame(), i));
+                taken[a].push((p.span().0, p.span().1, i));
             }
         }
     }
@@ -664,18 +679,9 @@ fn assign(pieces: &[Piece], anchors: &[Anchor], step: i64, one_second: i64) -> V
     order.sort_by_key(|&i| (std::cmp::Reverse(pieces[i].trace.measured()), i));
     let place = |i: usize, owner: &mut [Option<usize>], taken: &mut [Vec<(i64, i64, usize)>]| {
         let p = &pieces[i];
-        let span = (p.trace.first_frame(), p.trace.last_frame());
-        let free = |a: usize| taken[a].iter().all(|&(s, e, _)| e < span.0 || s > span.1);
-        let near = p.probes.first().map_or(p.trace.last_position(), |x| x.1);
-        let costs: Vec<(f64, f64, usize)> = (0..anchors.len())
-            .filter(|&a| free(a) && anchors[a].rest.distance(near) <= REACH)
-            .filter_map(|a| {
-                let c = cost(pieces, anchors, &field, i, a, one_second)?;
-                let seam = seams(pieces, &taken[a], i, one_second);
-                Some((c + seam, c, a))
-            })
-            .collect();
-        let was = anchor_of_trace(p.from).filter(|&a| free(a));
+        let span = p.span();
+        let costs = candidates(pieces, anchors, &field, taken, i, one_second);
+        let was = anchor_of_trace(p.from).filter(|&a| !taken[a].iter().any(|t| overlaps(span, t)));
         let choice = choose(&costs, was, &|a| moves_like(pieces, anchors, &field, i, a));
         if std::env::var_os("REJOIN_DEBUG").is_some() {
             let mut c = costs.clone();
@@ -731,9 +737,45 @@ fn assign(pieces: &[Piece], anchors: &[Anchor], step: i64, one_second: i64) -> V
     owner
 }
 
-/// A move [`swaps`] weighs: its gain, the tip the piece of no tip goes
-/// to, and the tip each piece in its way goes to.
-type Swap = (f64, usize, Vec<(usize, usize)>);
+/// The tips near piece `i` (its first probe within [`REACH`] of their
+/// rest positions) that no piece holds during it, each as (cost with the
+/// seams to their pieces in `taken`, cost of the mean alone, tip); tips
+/// where it cannot be judged are left out.
+fn candidates(
+    pieces: &[Piece],
+    anchors: &[Anchor],
+    field: &Field,
+    taken: &[Vec<(i64, i64, usize)>],
+    i: usize,
+    one_second: i64,
+) -> Vec<(f64, f64, usize)> {
+    let (span, near) = (pieces[i].span(), pieces[i].near());
+    (0..anchors.len())
+        .filter(|&a| {
+            anchors[a].rest.distance(near) <= REACH && !taken[a].iter().any(|t| overlaps(span, t))
+        })
+        .filter_map(|a| {
+            let c = cost(pieces, anchors, field, i, a, one_second)?;
+            Some((c + seams(pieces, &taken[a], i, one_second), c, a))
+        })
+        .collect()
+}
+
+/// Whether a span taken at a tip (`first, last, piece`) shares a frame
+/// with `span`.
+fn overlaps((s, e): (i64, i64), t: &(i64, i64, usize)) -> bool {
+    t.1 >= s && t.0 <= e
+}
+
+/// A move [`swaps`] weighs.
+struct Swap {
+    /// How much lower the costs are after it (at least 0).
+    gain: f64,
+    /// The tip the piece of no tip goes to.
+    tip: usize,
+    /// Each piece in its way and the tip it goes to.
+    moves: Vec<(usize, usize)>,
+}
 
 /// Pieces one at a time cannot undo a swap at a tip alone on its limb:
 /// its neighbours say little of where it is, its offset from them spreads
@@ -767,20 +809,14 @@ fn swaps(
     taken: &mut [Vec<(i64, i64, usize)>],
     one_second: i64,
 ) {
-    let span = |i: usize| (pieces[i].trace.first_frame(), pieces[i].trace.last_frame());
-    let near = |i: usize| {
-        let p = &pieces[i];
-        p.probes.first().map_or(p.trace.last_position(), |x| x.1)
-    };
-    let overlaps = |(s, e): (i64, i64), t: &(i64, i64, usize)| !(t.1 < s || t.0 > e);
     for &q in order {
         if owner[q].is_some() {
             continue;
         }
-        let sq = span(q);
+        let (sq, near) = (pieces[q].span(), pieces[q].near());
         let mut best: Option<Swap> = None;
         for a in 0..anchors.len() {
-            if anchors[a].rest.distance(near(q)) > REACH {
+            if anchors[a].rest.distance(near) > REACH {
                 continue;
             }
             let blockers: Vec<usize> = taken[a]
@@ -810,42 +846,47 @@ fn swaps(
                     break;
                 };
                 let here = mj + seams(pieces, &others, j, one_second);
-                let sj = span(j);
-                let there = (0..anchors.len())
-                    .filter(|&b| {
-                        b != a
-                            && anchors[b].rest.distance(near(j)) <= REACH
-                            && !taken[b].iter().any(|t| overlaps(sj, t))
-                    })
-                    .filter_map(|b| {
-                        let mb = cost(pieces, anchors, field, j, b, one_second)?;
-                        let tb = mb + seams(pieces, &taken[b], j, one_second);
-                        (tb <= LOOSE).then_some((tb, b))
-                    })
-                    .min_by(|x, y| x.0.total_cmp(&y.0).then(x.1.cmp(&y.1)));
-                let Some((tb, b)) = there else {
+                // Tip `a` holds `j`, so it is not among `j`'s candidates.
+                let there = candidates(pieces, anchors, field, taken, j, one_second)
+                    .into_iter()
+                    .filter(|c| c.0 <= LOOSE)
+                    .min_by(|x, y| x.0.total_cmp(&y.0).then(x.2.cmp(&y.2)));
+                let Some((tb, _, b)) = there else {
                     gain = f64::NEG_INFINITY;
                     break;
                 };
                 gain += here - tb;
                 moves.push((j, b));
             }
-            if gain >= 0.0 && best.as_ref().is_none_or(|x| gain > x.0) {
-                best = Some((gain, a, moves));
+            if gain >= 0.0 && best.as_ref().is_none_or(|x| gain > x.gain) {
+                best = Some(Swap {
+                    gain,
+                    tip: a,
+                    moves,
+                });
             }
         }
-        if let Some((gain, a, moves)) = best {
+        if let Some(Swap {
+            gain,
+            tip: a,
+            moves,
+        }) = best
+        {
             if std::env::var_os("REJOIN_DEBUG").is_some() {
                 eprintln!(
                     "swap: piece of trace {} {:?} to a{a}, gain {gain:.1}, moving {:?}",
                     pieces[q].trace.id,
                     sq,
-                    moves.iter().map(|&(j, b)| (span(j), b)).collect::<Vec<_>>()
+                    moves
+                        .iter()
+                        .map(|&(j, b)| (pieces[j].span(), b))
+                        .collect::<Vec<_>>()
                 );
             }
             for &(j, b) in &moves {
+                let sj = pieces[j].span();
                 taken[a].retain(|t| t.2 != j);
-                taken[b].push((span(j).0, span(j).1, j));
+                taken[b].push((sj.0, sj.1, j));
                 owner[j] = Some(b);
             }
             taken[a].push((sq.0, sq.1, q));
@@ -1001,8 +1042,7 @@ fn cost(
 /// seams +77 on the offsets and its 395 samples cost 115 at their own
 /// tip; on the positions −11 and 27, and the 71st tip it made is gone).
 fn seams(pieces: &[Piece], taken: &[(i64, i64, usize)], i: usize, one_second: i64) -> f64 {
-    let p = &pieces[i];
-    let (s, e) = (p.trace.first_frame(), p.trace.last_frame());
+    let (s, e) = pieces[i].span();
     let before = taken.iter().filter(|t| t.1 < s).max_by_key(|t| t.1);
     let after = taken.iter().filter(|t| t.0 > e).min_by_key(|t| t.0);
     let sec = one_second.max(1) as f64;
@@ -1167,10 +1207,7 @@ mod tests {
 
     /// The frames each piece spans, first and last.
     fn spans(pieces: &[Piece]) -> Vec<(i64, i64)> {
-        pieces
-            .iter()
-            .map(|p| (p.trace.first_frame(), p.trace.last_frame()))
-            .collect()
+        pieces.iter().map(Piece::span).collect()
     }
 
     /// A tip held by `piece`, resting at `rest`, with offset 0 and the
