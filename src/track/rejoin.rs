@@ -682,7 +682,23 @@ fn assign(pieces: &[Piece], anchors: &[Anchor], step: i64, one_second: i64) -> V
         let span = p.span();
         let costs = candidates(pieces, anchors, &field, taken, i, one_second);
         let was = anchor_of_trace(p.from).filter(|&a| !taken[a].iter().any(|t| overlaps(span, t)));
-        let choice = choose(&costs, was, &|a| moves_like(pieces, anchors, &field, i, a));
+        // A tip free during the piece whose neighbours are hidden cannot
+        // be judged; nearer the piece than the one tip that fits, it may
+        // be the piece's own, and that one tip is not alone.
+        let unjudged_nearer = |a: usize| {
+            let d = anchors[a].rest.distance(p.near());
+            (0..anchors.len()).any(|b| {
+                anchors[b].rest.distance(p.near()) < d
+                    && !costs.iter().any(|c| c.2 == b)
+                    && !taken[b].iter().any(|t| overlaps(span, t))
+            })
+        };
+        let choice = choose(
+            &costs,
+            was,
+            &|a| moves_like(pieces, anchors, &field, i, a),
+            &unjudged_nearer,
+        );
         if std::env::var_os("REJOIN_DEBUG").is_some() {
             let mut c = costs.clone();
             c.sort_by(|x, y| x.0.total_cmp(&y.0));
@@ -691,24 +707,38 @@ fn assign(pieces: &[Piece], anchors: &[Anchor], step: i64, one_second: i64) -> V
                 .iter()
                 .map(|(v, m, a)| {
                     format!(
-                        "a{}(t{}) {:.1} ({:.1}) sp {:.1}mm",
+                        "a{}(t{}) {:.1} ({:.1}) sp {:.1}mm d {:.0}",
                         a,
                         pieces[anchors[*a].piece].trace.id,
                         v,
                         m,
-                        anchors[*a].spread * 1000.0
+                        anchors[*a].spread * 1000.0,
+                        anchors[*a].rest.distance(p.near()) * 1000.0
+                    )
+                })
+                .collect();
+            let unjudged: Vec<String> = (0..anchors.len())
+                .filter(|&a| anchors[a].rest.distance(p.near()) <= REACH)
+                .filter(|&a| !costs.iter().any(|c| c.2 == a))
+                .map(|a| {
+                    let busy = taken[a].iter().any(|t| overlaps(span, t));
+                    format!(
+                        "a{a}{}{:.0}",
+                        if busy { "b" } else { "?" },
+                        anchors[a].rest.distance(p.near()) * 1000.0
                     )
                 })
                 .collect();
             eprintln!(
-                "piece of trace {} {}..{} n {} was {:?} -> {:?}: {}",
+                "piece of trace {} {}..{} n {} was {:?} -> {:?}: {} [{}]",
                 p.trace.id,
                 span.0,
                 span.1,
                 p.trace.measured(),
                 was.map(|a| pieces[anchors[a].piece].trace.id),
                 choice.map(|a| pieces[anchors[a].piece].trace.id),
-                show.join(", ")
+                show.join(", "),
+                unjudged.join(" ")
             );
         }
         if let Some(a) = choice {
@@ -810,13 +840,27 @@ fn swaps(
     one_second: i64,
 ) {
     for &q in order {
-        if owner[q].is_some() {
-            continue;
-        }
         let (sq, near) = (pieces[q].span(), pieces[q].near());
+        // A piece a tip holds is weighed out of it: its tip is then free
+        // for the pieces in its way.
+        let held = owner[q];
+        if let Some(c) = held {
+            taken[c].retain(|t| t.2 != q);
+        }
+        let before = match held {
+            None => Some(LOOSE),
+            Some(c) => cost(pieces, anchors, field, q, c, one_second)
+                .map(|m| m + seams(pieces, &taken[c], q, one_second)),
+        };
+        let Some(before) = before else {
+            if let Some(c) = held {
+                taken[c].push((sq.0, sq.1, q));
+            }
+            continue;
+        };
         let mut best: Option<Swap> = None;
         for a in 0..anchors.len() {
-            if anchors[a].rest.distance(near) > REACH {
+            if anchors[a].rest.distance(near) > REACH || held == Some(a) {
                 continue;
             }
             let blockers: Vec<usize> = taken[a]
@@ -838,7 +882,7 @@ fn swaps(
             if mq > FIT || !moves_like(pieces, anchors, field, q, a) {
                 continue;
             }
-            let mut gain = LOOSE - CLEAR - (mq + seams(pieces, &others, q, one_second));
+            let mut gain = before - CLEAR - (mq + seams(pieces, &others, q, one_second));
             let mut moves = Vec::new();
             for &j in &blockers {
                 let Some(mj) = cost(pieces, anchors, field, j, a, one_second) else {
@@ -874,7 +918,7 @@ fn swaps(
         {
             if std::env::var_os("REJOIN_DEBUG").is_some() {
                 eprintln!(
-                    "swap: piece of trace {} {:?} to a{a}, gain {gain:.1}, moving {:?}",
+                    "swap: piece of trace {} {:?} from {held:?} to a{a}, gain {gain:.1}, moving {:?}",
                     pieces[q].trace.id,
                     sq,
                     moves
@@ -891,6 +935,8 @@ fn swaps(
             }
             taken[a].push((sq.0, sq.1, q));
             owner[q] = Some(a);
+        } else if let Some(c) = held {
+            taken[c].push((sq.0, sq.1, q));
         }
     }
 }
@@ -901,11 +947,15 @@ fn swaps(
 /// that does, when its mean fits; else `was` while nothing speaks against
 /// it (below); a piece the tracker gave to no tip goes to the one tip it
 /// is near when every other is far and it moves as that tip's neighbours
-/// say the tip moved (`moves(a)`); else none: a piece of its own.
+/// say the tip moved (`moves(a)`); else none: a piece of its own. Where it
+/// fits a tip only loosely (mean over [`FIT`]), a tip nearer it that
+/// cannot be judged (`hidden_nearer(a)`) may be its own: it stays with
+/// neither.
 fn choose(
     costs: &[(f64, f64, usize)],
     was: Option<usize>,
     moves: &dyn Fn(usize) -> bool,
+    hidden_nearer: &dyn Fn(usize) -> bool,
 ) -> Option<usize> {
     let of = |a: usize| costs.iter().find(|c| c.2 == a).copied();
     let mut sorted = costs.to_vec();
@@ -960,7 +1010,8 @@ fn choose(
             let mut others = costs.iter().filter(|c| c.2 != w).peekable();
             let alone = others.peek().is_none();
             let near = total <= LOOSE || (alone && mean <= LOOSE);
-            (near && !others.any(|c| c.1 <= FIT && c.1 < mean)).then_some(w)
+            let unseen = mean > FIT && hidden_nearer(w);
+            (near && !unseen && !others.any(|c| c.1 <= FIT && c.1 < mean)).then_some(w)
         }
         // A trace never confirmed has no tracker's choice to keep: it was
         // seen between two gaps for less than `confirm_s`, or it is a
@@ -971,7 +1022,9 @@ fn choose(
         // 63 in its hole of 132 frames, cost 27 there and 1 110 at the
         // next.
         (None, _) => best
-            .filter(|&(tb, _, b)| tb <= LOOSE && second >= ALONE * LOOSE && moves(b))
+            .filter(|&(tb, _, b)| {
+                tb <= LOOSE && second >= ALONE * LOOSE && moves(b) && !hidden_nearer(b)
+            })
             .map(|b| b.2),
         _ => None,
     }
@@ -1229,19 +1282,34 @@ mod tests {
     fn the_tracker_keeps_a_piece_only_while_nothing_speaks_against_it() {
         // Fits its own tip, far from any other: stays.
         assert_eq!(
-            choose(&[(1.6, 1.6, 0), (177.6, 177.6, 1)], Some(0), &|_| true),
+            choose(
+                &[(1.6, 1.6, 0), (177.6, 177.6, 1)],
+                Some(0),
+                &|_| true,
+                &|_| false
+            ),
             Some(0)
         );
         // Fits its own tip's mean a little better than another's, but
         // continues the other's pieces (seed 102, 101 samples of tip 69):
         // stays, the seams alone take nothing.
         assert_eq!(
-            choose(&[(15.8, 4.4, 0), (5.5, 5.5, 1)], Some(0), &|_| true),
+            choose(
+                &[(15.8, 4.4, 0), (5.5, 5.5, 1)],
+                Some(0),
+                &|_| true,
+                &|_| false
+            ),
             Some(0)
         );
         // Fits another tip's mean clearly: moves there.
         assert_eq!(
-            choose(&[(30.0, 20.0, 0), (2.0, 2.0, 1)], Some(0), &|_| true),
+            choose(
+                &[(30.0, 20.0, 0), (2.0, 2.0, 1)],
+                Some(0),
+                &|_| true,
+                &|_| false
+            ),
             Some(1)
         );
         // Seed 108: 50 samples of tip 31 in tip 50's: the tracker's tip
@@ -1249,37 +1317,70 @@ mod tests {
         // it no clear winner. Before, the piece stayed; now it is a piece
         // of its own.
         assert_eq!(
-            choose(&[(12.9, 12.9, 0), (16.0, 4.2, 1)], Some(0), &|_| true),
+            choose(
+                &[(12.9, 12.9, 0), (16.0, 4.2, 1)],
+                Some(0),
+                &|_| true,
+                &|_| false
+            ),
             None
         );
         // Seed 100: 9 samples of a neighbour fitting neither tip, whose
         // ends miss the tracker's tip's pieces (73.1 with the seams).
         assert_eq!(
-            choose(&[(39.8, 35.0, 1), (73.1, 27.2, 0)], Some(0), &|_| true),
+            choose(
+                &[(39.8, 35.0, 1), (73.1, 27.2, 0)],
+                Some(0),
+                &|_| true,
+                &|_| false
+            ),
             None
         );
         // Seed 105: 32 samples out of reach of the tracker's tip, fitting
         // no other.
         assert_eq!(
-            choose(&[(118.5, 118.5, 1), (528.9, 159.3, 2)], Some(0), &|_| true),
+            choose(
+                &[(118.5, 118.5, 1), (528.9, 159.3, 2)],
+                Some(0),
+                &|_| true,
+                &|_| false
+            ),
             None
         );
         // Held-out `sway` seed 108: 74 samples of the tip's own marker far
         // off its usual offset, no other tip free: stays.
-        assert_eq!(choose(&[(45.9, 23.0, 0)], Some(0), &|_| true), Some(0));
+        assert_eq!(
+            choose(&[(45.9, 23.0, 0)], Some(0), &|_| true, &|_| false),
+            Some(0)
+        );
         // Nothing can be judged at all: the tracker's choice stands.
-        assert_eq!(choose(&[], Some(0), &|_| true), Some(0));
+        assert_eq!(choose(&[], Some(0), &|_| true, &|_| false), Some(0));
         // Seed 103, `noise_mm` 1.5, with a shaped spread: 112
         // samples of tip 40 fit the tracker's tip only near the bound
         // (7.8) and their own exactly: the tracker's choice no longer
         // stands on a lead of under 9.
         assert_eq!(
-            choose(&[(5.0, 7.8, 0), (0.0, 0.0, 1)], Some(0), &|_| true),
+            choose(&[(5.0, 7.8, 0), (0.0, 0.0, 1)], Some(0), &|_| true, &|_| {
+                false
+            }),
             None
         );
         // The same lead against a tracker's tip that fits well: stays.
         assert_eq!(
-            choose(&[(5.0, 1.0, 0), (0.0, 0.0, 1)], Some(0), &|_| true),
+            choose(&[(5.0, 1.0, 0), (0.0, 0.0, 1)], Some(0), &|_| true, &|_| {
+                false
+            }),
+            Some(0)
+        );
+        // Held-out `all` seed 152: 163 samples of tip 15 in tip 66's
+        // identity, cost 34.6 there, 161 mm from its rest position; tip
+        // 15, 85 mm away, could not be judged (its neighbours hidden).
+        let tip_15 = [(34.6, 34.6, 0), (88.5, 88.5, 1)];
+        assert_eq!(choose(&tip_15, Some(0), &|_| true, &|_| true), None);
+        assert_eq!(choose(&tip_15, Some(0), &|_| true, &|_| false), Some(0));
+        // A tracker's tip that fits well stays whatever is nearer.
+        assert_eq!(
+            choose(&[(6.0, 6.0, 0)], Some(0), &|_| true, &|_| true),
             Some(0)
         );
     }
@@ -1292,21 +1393,23 @@ mod tests {
         let still = |_: usize| false;
         // Seed 100: 72 samples of tip 63 in its 132-frame hole.
         let tip_63 = [(27.1, 19.2, 0), (1110.1, 1110.1, 1), (3542.1, 1608.5, 2)];
-        assert_eq!(choose(&tip_63, None, &moving), Some(0));
-        assert_eq!(choose(&tip_63, None, &still), None);
+        assert_eq!(choose(&tip_63, None, &moving, &|_| false), Some(0));
+        assert_eq!(choose(&tip_63, None, &still, &|_| false), None);
         // Held-out seed 109: a reflection of 45 samples, near tip 61 only.
         let reflection = [(21.7, 21.7, 0), (302.8, 106.3, 1)];
-        assert_eq!(choose(&reflection, None, &still), None);
+        assert_eq!(choose(&reflection, None, &still, &|_| false), None);
         // Two tips near it (the second under 4 × 36): neither.
         assert_eq!(
-            choose(&[(20.0, 20.0, 0), (100.0, 60.0, 1)], None, &moving),
+            choose(&[(20.0, 20.0, 0), (100.0, 60.0, 1)], None, &moving, &|_| {
+                false
+            }),
             None
         );
         // Near no tip: none.
-        assert_eq!(choose(&[(40.0, 30.0, 0)], None, &moving), None);
+        assert_eq!(choose(&[(40.0, 30.0, 0)], None, &moving, &|_| false), None);
         // Fitting one tip clearly needs no motion test.
         assert_eq!(
-            choose(&[(3.0, 3.0, 0), (50.0, 50.0, 1)], None, &still),
+            choose(&[(3.0, 3.0, 0), (50.0, 50.0, 1)], None, &still, &|_| false),
             Some(0)
         );
     }
@@ -1561,5 +1664,133 @@ mod tests {
         let (pieces, anchors) = setup(false, true, 0.0);
         let owner = assign(&pieces, &anchors, 12, 240);
         assert_eq!((owner[3], owner[4]), (Some(0), None), "tip 1 is busy");
+    }
+
+    /// Not when nothing but the loose fit of two wide tips speaks for
+    /// trading.
+    #[test]
+    fn two_tips_that_took_each_others_marker_trade_them_back() {
+        // As above: tips 0 and 1, 45 mm apart along x, both alone on their
+        // limbs (wide spreads), judged by tip 2; everything sways 30 mm at
+        // 1 Hz. From frame 480 the tracker has tip 1's marker in tip 0's
+        // identity and, inside that, tip 0's marker in tip 1's.
+        let sway = |f: i64| {
+            DVec3::new(
+                0.03 * (f as f64 / 240.0 * std::f64::consts::TAU).sin(),
+                0.0,
+                0.0,
+            )
+        };
+        let track = |frames: std::ops::RangeInclusive<i64>, at: DVec3| {
+            frames
+                .step_by(12)
+                .map(|f| (f, at + sway(f)))
+                .collect::<Vec<_>>()
+        };
+        let (a, b, n) = (
+            DVec3::ZERO,
+            DVec3::new(0.045, 0.0, 0.0),
+            DVec3::new(0.0, 0.2, 0.0),
+        );
+        let still = |mut p: Piece| {
+            p.movable = false;
+            p
+        };
+        let setup = |own_pieces_beside: bool| {
+            let mut pieces = vec![
+                still(piece(0, track(0..=96, a))),
+                still(piece(1, track(0..=96, b))),
+                still(piece(2, track(0..=1200, n))),
+                piece(0, track(480..=720, b)),
+                piece(1, track(504..=696, a)),
+            ];
+            if own_pieces_beside {
+                // Each tip's own marker up to 0.1 s before and from 0.1 s
+                // after the swapped pieces: their seams miss by 45 mm.
+                pieces.extend([
+                    piece(0, track(108..=456, a)),
+                    piece(0, track(744..=1200, a)),
+                    piece(1, track(108..=468, b)),
+                    piece(1, track(732..=1200, b)),
+                ]);
+            }
+            let mut anchors = vec![
+                anchor(0, a, vec![(2, 1.0)]),
+                anchor(1, b, vec![(2, 1.0)]),
+                anchor(2, n, vec![(0, 1.0)]),
+            ];
+            // Tip 0's offset spreads 80 mm, tip 1's 30 mm, and tip 1's
+            // marker sits 20 mm from the offset learnt for it: its piece
+            // in tip 0 fits there (cost 0.75) as well as at its own tip
+            // (0.84), and tip 0's marker fits tip 1 (5.1).
+            anchors[0].spread = 0.08;
+            anchors[1].spread = 0.03;
+            anchors[1].mean = DVec3::new(0.0, 0.0, 0.02);
+            (pieces, anchors)
+        };
+        let (pieces, anchors) = setup(true);
+        let owner = assign(&pieces, &anchors, 12, 240);
+        assert_eq!((owner[3], owner[4]), (Some(1), Some(0)), "traded back");
+        assert_eq!(&owner[5..], &[Some(0), Some(0), Some(1), Some(1)]);
+        // Without the seams nothing but the loose fits speaks for trading
+        // (costs 0.75 + 5.1 against 0.84 + 0): no clear gain.
+        let (pieces, anchors) = setup(false);
+        let owner = assign(&pieces, &anchors, 12, 240);
+        assert_eq!((owner[3], owner[4]), (Some(0), Some(1)), "kept");
+    }
+
+    /// Not when a tip free during it that cannot be judged (its neighbours
+    /// hidden) is nearer it than the one tip it fits loosely: that tip
+    /// may be its own.
+    #[test]
+    fn a_trace_of_no_tip_waits_for_a_nearer_tip_that_cannot_be_judged() {
+        // Everything sways 30 mm along x at 1 Hz. Tip 1 (offset spread
+        // 15 mm) at 60 mm along x is judged by tip 2, 200 mm along y; tip
+        // 0 by tip 3, 200 mm along -y, hidden after the still phase or
+        // not. A trace of no tip from frame 480 to 720.
+        let sway = |f: i64| {
+            DVec3::new(
+                0.03 * (f as f64 / 240.0 * std::f64::consts::TAU).sin(),
+                0.0,
+                0.0,
+            )
+        };
+        let track = |frames: std::ops::RangeInclusive<i64>, at: DVec3| {
+            frames
+                .step_by(12)
+                .map(|f| (f, at + sway(f)))
+                .collect::<Vec<_>>()
+        };
+        let still = |mut p: Piece| {
+            p.movable = false;
+            p
+        };
+        let owner_of = |tip_0: DVec3, at: DVec3, hidden: bool| {
+            let b = DVec3::new(0.06, 0.0, 0.0);
+            let (n, m) = (DVec3::new(0.0, 0.2, 0.0), DVec3::new(0.0, -0.2, 0.0));
+            let pieces = vec![
+                still(piece(0, track(0..=96, tip_0))),
+                still(piece(1, track(0..=96, b))),
+                still(piece(2, track(0..=960, n))),
+                still(piece(3, track(0..=if hidden { 96 } else { 960 }, m))),
+                piece(4, track(480..=720, at)),
+            ];
+            let mut anchors = vec![
+                anchor(0, tip_0, vec![(3, 1.0)]),
+                anchor(1, b, vec![(2, 1.0)]),
+                anchor(2, n, vec![(1, 1.0)]),
+                anchor(3, m, vec![(0, 1.0)]),
+            ];
+            anchors[1].spread = 0.015;
+            assign(&pieces, &anchors, 12, 240)[4]
+        };
+        // At tip 0, which cannot be judged: not to tip 1, 60 mm away
+        // (cost 26, under 36, and every other tip far).
+        assert_eq!(owner_of(DVec3::ZERO, DVec3::ZERO, true), None);
+        // Tip 0 judged: its own.
+        assert_eq!(owner_of(DVec3::ZERO, DVec3::ZERO, false), Some(0));
+        // Tip 0 unjudged but 120 mm away, tip 1 40 mm (cost 12): tip 1.
+        let left = DVec3::new(-0.1, 0.0, 0.0);
+        assert_eq!(owner_of(left, DVec3::new(0.02, 0.0, 0.0), true), Some(1));
     }
 }
