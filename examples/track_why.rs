@@ -18,7 +18,9 @@
 //! `REJOIN_DEBUG=1` prints every decision of `src/track/rejoin.rs`, after
 //! each tip's anchor (`anchor a<k> t<trace>`: its mean offset from where
 //! its neighbours say it is, and that offset's spread; a tip alone on its
-//! limb has a wide spread and fits any marker near it); `MAP=1` names the
+//! limb has a wide spread and fits any marker near it; each piece's line
+//! ends with the tips near it it was not judged at, `b` busy or `?`
+//! unjudged (neighbours hidden), and their distance in mm); `MAP=1` names the
 //! true tip most of each output tip's samples come from (`map t<trace> =
 //! tip (n samples)`), to read the anchors' trace ids.
 
