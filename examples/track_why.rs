@@ -19,7 +19,9 @@
 //! each tip's anchor (`anchor a<k> t<trace>`: its mean offset from where
 //! its neighbours say it is, and that offset's spread; a tip alone on its
 //! limb has a wide spread and fits any marker near it; each piece's line
-//! ends with the tips near it it was not judged at, `b` busy or `?`
+//! says how much it moves for each unit the neighbours of the tip the
+//! tracker gave it to say that tip moved (`moves`), and ends with the
+//! tips near it it was not judged at, `b` busy or `?`
 //! unjudged (neighbours hidden), and their distance in mm); `MAP=1` names the
 //! true tip most of each output tip's samples come from (`map t<trace> =
 //! tip (n samples)`), to read the anchors' trace ids.

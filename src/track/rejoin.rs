@@ -696,7 +696,7 @@ fn assign(pieces: &[Piece], anchors: &[Anchor], step: i64, one_second: i64) -> V
         let choice = choose(
             &costs,
             was,
-            &|a| moves_like(pieces, anchors, &field, i, a),
+            &|a| motion_ratio(pieces, anchors, &field, i, a),
             &unjudged_nearer,
         );
         if std::env::var_os("REJOIN_DEBUG").is_some() {
@@ -729,13 +729,15 @@ fn assign(pieces: &[Piece], anchors: &[Anchor], step: i64, one_second: i64) -> V
                     )
                 })
                 .collect();
+            let ratio = was.and_then(|a| motion_ratio(pieces, anchors, &field, i, a));
             eprintln!(
-                "piece of trace {} {}..{} n {} was {:?} -> {:?}: {} [{}]",
+                "piece of trace {} {}..{} n {} was {:?} (moves {:.2}) -> {:?}: {} [{}]",
                 p.trace.id,
                 span.0,
                 span.1,
                 p.trace.measured(),
                 was.map(|a| pieces[anchors[a].piece].trace.id),
+                ratio.unwrap_or(f64::NAN),
                 choice.map(|a| pieces[anchors[a].piece].trace.id),
                 show.join(", "),
                 unjudged.join(" ")
@@ -879,7 +881,8 @@ fn swaps(
             let Some(mq) = cost(pieces, anchors, field, q, a, one_second) else {
                 continue;
             };
-            if mq > FIT || moves_like(pieces, anchors, field, q, a) != Some(true) {
+            let moves = motion_ratio(pieces, anchors, field, q, a);
+            if mq > FIT || moves.is_none_or(|r| r < STILL_RATIO) {
                 continue;
             }
             let mut gain = before - CLEAR - (mq + seams(pieces, &others, q, one_second));
@@ -947,17 +950,15 @@ fn swaps(
 /// that does, when its mean fits; else `was` while nothing speaks against
 /// it (below); a piece the tracker gave to no tip goes to the one tip it
 /// is near when every other is far and it moves as that tip's neighbours
-/// say the tip moved (`moves(a)`: `None` when too short to show it);
-/// else none: a piece of its own. Where it fits a tip only loosely (mean
-/// over [`FIT`]), a tip nearer it that cannot be judged
-/// (`hidden_nearer(a)`) may be its own, and a piece that sits still is a
-/// reflection: it stays with neither (held-out `all` seed 159: a
-/// reflection of 36 samples in tip 19's gap, in its identity, mean cost
-/// 29.7, no other tip free).
+/// say the tip moved (`moves(a)`, how much it moves for each unit they
+/// say: `None` when too short to show it); else none: a piece of its
+/// own. Where it fits a tip only loosely (mean over [`FIT`]), a tip nearer
+/// it that cannot be judged (`hidden_nearer(a)`) may be its own: it stays
+/// with neither.
 fn choose(
     costs: &[(f64, f64, usize)],
     was: Option<usize>,
-    moves: &dyn Fn(usize) -> Option<bool>,
+    moves: &dyn Fn(usize) -> Option<f64>,
     hidden_nearer: &dyn Fn(usize) -> bool,
 ) -> Option<usize> {
     let of = |a: usize| costs.iter().find(|c| c.2 == a).copied();
@@ -1013,7 +1014,7 @@ fn choose(
             let mut others = costs.iter().filter(|c| c.2 != w).peekable();
             let alone = others.peek().is_none();
             let near = total <= LOOSE || (alone && mean <= LOOSE);
-            let unseen = mean > FIT && (hidden_nearer(w) || moves(w) == Some(false));
+            let unseen = mean > FIT && hidden_nearer(w);
             (near && !unseen && !others.any(|c| c.1 <= FIT && c.1 < mean)).then_some(w)
         }
         // A trace never confirmed has no tracker's choice to keep: it was
@@ -1028,7 +1029,7 @@ fn choose(
             .filter(|&(tb, _, b)| {
                 tb <= LOOSE
                     && second >= ALONE * LOOSE
-                    && moves(b) == Some(true)
+                    && moves(b).is_some_and(|r| r >= STILL_RATIO)
                     && !hidden_nearer(b)
             })
             .map(|b| b.2),
@@ -1036,25 +1037,32 @@ fn choose(
     }
 }
 
-/// Whether piece `i` moves at least [`STILL_RATIO`] times as much (RMS
-/// about its mean, over its probes) as anchor `a`'s neighbours say the tip
-/// moved over its span: a reflection sits still while the tree sways.
-/// `None` for a piece with fewer than two probes (under 0.1 s): it cannot
-/// show it.
-fn moves_like(
+/// How much piece `i` moves (RMS about its mean, over its probes) for
+/// each unit anchor `a`'s neighbours say the tip moved over its span: a
+/// reflection sits still while the tree sways. `None` for a piece with
+/// fewer than two probes (under 0.1 s): it cannot show it.
+fn motion_ratio(
     pieces: &[Piece],
     anchors: &[Anchor],
     field: &Field,
     i: usize,
     a: usize,
-) -> Option<bool> {
+) -> Option<f64> {
     let p = &pieces[i];
     let (own, expected): (Vec<DVec3>, Vec<DVec3>) = p
         .probes
         .iter()
         .filter_map(|&(f, q)| Some((q, q - field.offset(pieces, anchors, a, p.from, f, q)?)))
         .unzip();
-    (own.len() >= 2).then(|| rms_about_mean(&own) >= STILL_RATIO * rms_about_mean(&expected))
+    if own.len() < 2 {
+        return None;
+    }
+    let (mine, theirs) = (rms_about_mean(&own), rms_about_mean(&expected));
+    Some(if theirs > 0.0 {
+        mine / theirs
+    } else {
+        f64::INFINITY
+    })
 }
 
 /// Root mean square distance of `v` from its mean.
@@ -1223,8 +1231,8 @@ mod tests {
     use super::*;
 
     /// For `choose`: the piece moves like every tip.
-    fn moves(_: usize) -> Option<bool> {
-        Some(true)
+    fn moves(_: usize) -> Option<f64> {
+        Some(1.0)
     }
 
     /// For `choose`: no tip that cannot be judged is nearer the piece.
@@ -1373,22 +1381,14 @@ mod tests {
         assert_eq!(choose(&tip_15, Some(0), &moves, &seen), Some(0));
         // A tracker's tip that fits well stays whatever is nearer.
         assert_eq!(choose(&[(6.0, 6.0, 0)], Some(0), &moves, &hidden), Some(0));
-        // Held-out `all` seed 159: a reflection of 36 samples, sitting still
-        // in tip 19's gap, in tip 19's identity (mean cost 29.7, 229 with
-        // the seams; no other tip free). Too short to show how it moves:
-        // it would stay.
-        let ghost = [(228.8, 29.7, 0)];
-        assert_eq!(choose(&ghost, Some(0), &|_| Some(false), &seen), None);
-        assert_eq!(choose(&ghost, Some(0), &moves, &seen), Some(0));
-        assert_eq!(choose(&ghost, Some(0), &|_| None, &seen), Some(0));
     }
 
     /// A trace the tracker never confirmed (no tip's) goes to the one tip
     /// near it, while it moves like that tip; costs as measured.
     #[test]
     fn a_trace_of_no_tip_goes_to_the_one_tip_near_it_while_it_moves() {
-        let moving = |_: usize| Some(true);
-        let still = |_: usize| Some(false);
+        let moving = |_: usize| Some(1.0);
+        let still = |_: usize| Some(0.0);
         // Seed 100: 72 samples of tip 63 in its 132-frame hole.
         let tip_63 = [(27.1, 19.2, 0), (1110.1, 1110.1, 1), (3542.1, 1608.5, 2)];
         assert_eq!(choose(&tip_63, None, &moving, &seen), Some(0));
@@ -1436,9 +1436,10 @@ mod tests {
             anchor(1, DVec3::new(0.1, 0.0, 0.0), vec![(0, 1.0)]),
         ];
         let field = Field::new(&pieces, &anchors, 12);
-        assert_eq!(moves_like(&pieces, &anchors, &field, 2, 0), Some(false));
-        assert_eq!(moves_like(&pieces, &anchors, &field, 3, 0), Some(true));
-        assert_eq!(moves_like(&pieces, &anchors, &field, 4, 0), None);
+        let ratio = |i: usize| motion_ratio(&pieces, &anchors, &field, i, 0);
+        assert!(ratio(2).is_some_and(|r| r < STILL_RATIO), "{:?}", ratio(2));
+        assert!(ratio(3).is_some_and(|r| r >= STILL_RATIO), "{:?}", ratio(3));
+        assert_eq!(ratio(4), None);
     }
 
     /// A piece measured only between two probe frames is still judged:
