@@ -1296,6 +1296,31 @@ mod tests {
         pieces.iter().map(Piece::span).collect()
     }
 
+    /// Every marker's sway in the tests of whole takes: 30 mm along x at
+    /// 1 Hz.
+    fn sway(f: i64) -> DVec3 {
+        DVec3::new(
+            0.03 * (f as f64 / 240.0 * std::f64::consts::TAU).sin(),
+            0.0,
+            0.0,
+        )
+    }
+
+    /// Probes every 12 frames over `frames` of a marker resting at `at`,
+    /// swaying with [`sway`] (`moves`) or sitting still.
+    fn swaying(frames: std::ops::RangeInclusive<i64>, at: DVec3, moves: bool) -> Vec<(i64, DVec3)> {
+        frames
+            .step_by(12)
+            .map(|f| (f, at + if moves { sway(f) } else { DVec3::ZERO }))
+            .collect()
+    }
+
+    /// `p` as a piece of the still phase: where the tracker put it.
+    fn settled(mut p: Piece) -> Piece {
+        p.movable = false;
+        p
+    }
+
     /// A tip held by `piece`, resting at `rest`, with offset 0 and the
     /// least spread.
     fn anchor(piece: usize, rest: DVec3, near: Vec<(usize, f64)>) -> Anchor {
@@ -1595,48 +1620,31 @@ mod tests {
         // of 40 mm) at the origin, tip 1 at 45 mm along x, tip 2, the
         // neighbour both are judged by, 200 mm along y. Still phase to
         // frame 96; the swap from frame 480 to 720.
-        let sway = |f: i64| {
-            DVec3::new(
-                0.03 * (f as f64 / 240.0 * std::f64::consts::TAU).sin(),
-                0.0,
-                0.0,
-            )
-        };
-        let track = |frames: std::ops::RangeInclusive<i64>, at: DVec3, moves: bool| {
-            frames
-                .step_by(12)
-                .map(|f| (f, at + if moves { sway(f) } else { DVec3::ZERO }))
-                .collect::<Vec<_>>()
-        };
         let (a, b, n) = (
             DVec3::ZERO,
             DVec3::new(0.045, 0.0, 0.0),
             DVec3::new(0.0, 0.2, 0.0),
         );
-        let still = |mut p: Piece| {
-            p.movable = false;
-            p
-        };
         let setup = |reflection: bool, b_busy: bool, drift: f64| {
             let mut pieces = vec![
-                still(piece(0, track(0..=96, a, true))),
-                still(piece(1, track(0..=96, b, true))),
-                still(piece(2, track(0..=960, n, true))),
+                settled(piece(0, swaying(0..=96, a, true))),
+                settled(piece(1, swaying(0..=96, b, true))),
+                settled(piece(2, swaying(0..=960, n, true))),
                 // Tip 1's marker in tip 0's identity, 45 mm from tip 0,
                 // whose spread is 40 mm: the tracker's choice stands.
-                piece(0, track(480..=720, b + DVec3::new(0.0, 0.0, drift), true)),
+                piece(0, swaying(480..=720, b + DVec3::new(0.0, 0.0, drift), true)),
                 // Tip 0's marker as a trace of no tip (or a reflection
                 // sitting still 10 mm from it).
                 piece(
                     3,
-                    track(480..=720, a + DVec3::new(0.0, 0.0, 0.01), !reflection),
+                    swaying(480..=720, a + DVec3::new(0.0, 0.0, 0.01), !reflection),
                 ),
             ];
             if b_busy {
                 // Tip 1 holds a piece of its own over the same frames.
                 pieces.push(piece(
                     1,
-                    track(480..=720, b + DVec3::new(0.0, 0.0, 0.004), true),
+                    swaying(480..=720, b + DVec3::new(0.0, 0.0, 0.004), true),
                 ));
             }
             let mut anchors = vec![
@@ -1671,44 +1679,27 @@ mod tests {
         // limbs (wide spreads), judged by tip 2; everything sways 30 mm at
         // 1 Hz. From frame 480 the tracker has tip 1's marker in tip 0's
         // identity and, inside that, tip 0's marker in tip 1's.
-        let sway = |f: i64| {
-            DVec3::new(
-                0.03 * (f as f64 / 240.0 * std::f64::consts::TAU).sin(),
-                0.0,
-                0.0,
-            )
-        };
-        let track = |frames: std::ops::RangeInclusive<i64>, at: DVec3| {
-            frames
-                .step_by(12)
-                .map(|f| (f, at + sway(f)))
-                .collect::<Vec<_>>()
-        };
         let (a, b, n) = (
             DVec3::ZERO,
             DVec3::new(0.045, 0.0, 0.0),
             DVec3::new(0.0, 0.2, 0.0),
         );
-        let still = |mut p: Piece| {
-            p.movable = false;
-            p
-        };
         let setup = |own_pieces_beside: bool| {
             let mut pieces = vec![
-                still(piece(0, track(0..=96, a))),
-                still(piece(1, track(0..=96, b))),
-                still(piece(2, track(0..=1200, n))),
-                piece(0, track(480..=720, b)),
-                piece(1, track(504..=696, a)),
+                settled(piece(0, swaying(0..=96, a, true))),
+                settled(piece(1, swaying(0..=96, b, true))),
+                settled(piece(2, swaying(0..=1200, n, true))),
+                piece(0, swaying(480..=720, b, true)),
+                piece(1, swaying(504..=696, a, true)),
             ];
             if own_pieces_beside {
                 // Each tip's own marker up to 0.1 s before and from 0.1 s
                 // after the swapped pieces: their seams miss by 45 mm.
                 pieces.extend([
-                    piece(0, track(108..=456, a)),
-                    piece(0, track(744..=1200, a)),
-                    piece(1, track(108..=468, b)),
-                    piece(1, track(732..=1200, b)),
+                    piece(0, swaying(108..=456, a, true)),
+                    piece(0, swaying(744..=1200, a, true)),
+                    piece(1, swaying(108..=468, b, true)),
+                    piece(1, swaying(732..=1200, b, true)),
                 ]);
             }
             let mut anchors = vec![
@@ -1745,32 +1736,18 @@ mod tests {
         // 15 mm) at 60 mm along x is judged by tip 2, 200 mm along y; tip
         // 0 by tip 3, 200 mm along -y, hidden after the still phase or
         // not. A trace of no tip from frame 480 to 720.
-        let sway = |f: i64| {
-            DVec3::new(
-                0.03 * (f as f64 / 240.0 * std::f64::consts::TAU).sin(),
-                0.0,
-                0.0,
-            )
-        };
-        let track = |frames: std::ops::RangeInclusive<i64>, at: DVec3| {
-            frames
-                .step_by(12)
-                .map(|f| (f, at + sway(f)))
-                .collect::<Vec<_>>()
-        };
-        let still = |mut p: Piece| {
-            p.movable = false;
-            p
-        };
         let owner_of = |tip_0: DVec3, at: DVec3, hidden: bool| {
             let b = DVec3::new(0.06, 0.0, 0.0);
             let (n, m) = (DVec3::new(0.0, 0.2, 0.0), DVec3::new(0.0, -0.2, 0.0));
             let pieces = vec![
-                still(piece(0, track(0..=96, tip_0))),
-                still(piece(1, track(0..=96, b))),
-                still(piece(2, track(0..=960, n))),
-                still(piece(3, track(0..=if hidden { 96 } else { 960 }, m))),
-                piece(4, track(480..=720, at)),
+                settled(piece(0, swaying(0..=96, tip_0, true))),
+                settled(piece(1, swaying(0..=96, b, true))),
+                settled(piece(2, swaying(0..=960, n, true))),
+                settled(piece(
+                    3,
+                    swaying(0..=if hidden { 96 } else { 960 }, m, true),
+                )),
+                piece(4, swaying(480..=720, at, true)),
             ];
             let mut anchors = vec![
                 anchor(0, tip_0, vec![(3, 1.0)]),
