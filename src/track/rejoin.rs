@@ -683,9 +683,9 @@ fn assign(pieces: &[Piece], anchors: &[Anchor], step: i64, one_second: i64) -> V
         let costs = candidates(pieces, anchors, &field, taken, i, one_second);
         let was = anchor_of_trace(p.from).filter(|&a| !taken[a].iter().any(|t| overlaps(span, t)));
         // A tip free during the piece whose neighbours are hidden cannot
-        // be judged; nearer the piece than the one tip that fits, it may
-        // be the piece's own, and that one tip is not alone.
-        let unjudged_nearer = |a: usize| {
+        // be judged; nearer the piece than a tip it fits only loosely, it
+        // may be the piece's own.
+        let hidden_nearer = |a: usize| {
             let d = anchors[a].rest.distance(p.near());
             (0..anchors.len()).any(|b| {
                 anchors[b].rest.distance(p.near()) < d
@@ -697,7 +697,7 @@ fn assign(pieces: &[Piece], anchors: &[Anchor], step: i64, one_second: i64) -> V
             &costs,
             was,
             &|a| motion_ratio(pieces, anchors, &field, i, a),
-            &unjudged_nearer,
+            &hidden_nearer,
         );
         if std::env::var_os("REJOIN_DEBUG").is_some() {
             let mut c = costs.clone();
