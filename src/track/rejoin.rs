@@ -677,6 +677,7 @@ fn assign(pieces: &[Piece], anchors: &[Anchor], step: i64, one_second: i64) -> V
         .filter(|&i| pieces[i].movable && owner[i].is_none())
         .collect();
     order.sort_by_key(|&i| (std::cmp::Reverse(pieces[i].trace.measured()), i));
+    let debug = std::env::var_os("REJOIN_DEBUG").is_some();
     let place = |i: usize, owner: &mut [Option<usize>], taken: &mut [Vec<(i64, i64, usize)>]| {
         let p = &pieces[i];
         let span = p.span();
@@ -685,13 +686,14 @@ fn assign(pieces: &[Piece], anchors: &[Anchor], step: i64, one_second: i64) -> V
         // A tip free during the piece whose neighbours are hidden cannot
         // be judged; nearer the piece than a tip it fits only loosely, it
         // may be the piece's own.
+        let hidden: Vec<usize> = unjudged(anchors, &costs, p.near())
+            .filter(|&b| !taken[b].iter().any(|t| overlaps(span, t)))
+            .collect();
         let hidden_nearer = |a: usize| {
             let d = anchors[a].rest.distance(p.near());
-            (0..anchors.len()).any(|b| {
-                anchors[b].rest.distance(p.near()) < d
-                    && !costs.iter().any(|c| c.2 == b)
-                    && !taken[b].iter().any(|t| overlaps(span, t))
-            })
+            hidden
+                .iter()
+                .any(|&b| anchors[b].rest.distance(p.near()) < d)
         };
         let choice = choose(
             &costs,
@@ -699,49 +701,8 @@ fn assign(pieces: &[Piece], anchors: &[Anchor], step: i64, one_second: i64) -> V
             &|a| motion_ratio(pieces, anchors, &field, i, a),
             &hidden_nearer,
         );
-        if std::env::var_os("REJOIN_DEBUG").is_some() {
-            let mut c = costs.clone();
-            c.sort_by(|x, y| x.0.total_cmp(&y.0));
-            c.truncate(3);
-            let show: Vec<String> = c
-                .iter()
-                .map(|(v, m, a)| {
-                    format!(
-                        "a{}(t{}) {:.1} ({:.1}) sp {:.1}mm d {:.0}",
-                        a,
-                        pieces[anchors[*a].piece].trace.id,
-                        v,
-                        m,
-                        anchors[*a].spread * 1000.0,
-                        anchors[*a].rest.distance(p.near()) * 1000.0
-                    )
-                })
-                .collect();
-            let unjudged: Vec<String> = (0..anchors.len())
-                .filter(|&a| anchors[a].rest.distance(p.near()) <= REACH)
-                .filter(|&a| !costs.iter().any(|c| c.2 == a))
-                .map(|a| {
-                    let busy = taken[a].iter().any(|t| overlaps(span, t));
-                    format!(
-                        "a{a}{}{:.0}",
-                        if busy { "b" } else { "?" },
-                        anchors[a].rest.distance(p.near()) * 1000.0
-                    )
-                })
-                .collect();
-            let ratio = was.and_then(|a| motion_ratio(pieces, anchors, &field, i, a));
-            eprintln!(
-                "piece of trace {} {}..{} n {} was {:?} (moves {:.2}) -> {:?}: {} [{}]",
-                p.trace.id,
-                span.0,
-                span.1,
-                p.trace.measured(),
-                was.map(|a| pieces[anchors[a].piece].trace.id),
-                ratio.unwrap_or(f64::NAN),
-                choice.map(|a| pieces[anchors[a].piece].trace.id),
-                show.join(", "),
-                unjudged.join(" ")
-            );
+        if debug {
+            debug_place(pieces, anchors, &field, taken, i, &costs, was, choice);
         }
         if let Some(a) = choice {
             owner[i] = Some(a);
@@ -799,6 +760,73 @@ fn overlaps((s, e): (i64, i64), t: &(i64, i64, usize)) -> bool {
     t.1 >= s && t.0 <= e
 }
 
+/// The tips within [`REACH`] of a piece near `near` that `costs` (its
+/// [`candidates`]) leave out: busy during it, or unjudged (their
+/// neighbours hidden).
+fn unjudged<'a>(
+    anchors: &'a [Anchor],
+    costs: &'a [(f64, f64, usize)],
+    near: DVec3,
+) -> impl Iterator<Item = usize> + 'a {
+    (0..anchors.len()).filter(move |&a| {
+        anchors[a].rest.distance(near) <= REACH && !costs.iter().any(|c| c.2 == a)
+    })
+}
+
+/// `REJOIN_DEBUG`: how piece `i` was placed. The three cheapest tips (cost
+/// with seams, of the mean alone, spread, distance), how much it moves
+/// for each unit the tracker's tip's neighbours say, and the tips near it
+/// left out (`b` busy, `?` unjudged, distance in mm).
+#[allow(clippy::too_many_arguments)]
+fn debug_place(
+    pieces: &[Piece],
+    anchors: &[Anchor],
+    field: &Field,
+    taken: &[Vec<(i64, i64, usize)>],
+    i: usize,
+    costs: &[(f64, f64, usize)],
+    was: Option<usize>,
+    choice: Option<usize>,
+) {
+    let p = &pieces[i];
+    let (span, near) = (p.span(), p.near());
+    let mm = |a: usize| anchors[a].rest.distance(near) * 1000.0;
+    let trace = |a: usize| pieces[anchors[a].piece].trace.id;
+    let mut c = costs.to_vec();
+    c.sort_by(|x, y| x.0.total_cmp(&y.0));
+    c.truncate(3);
+    let show: Vec<String> = c
+        .iter()
+        .map(|&(v, m, a)| {
+            format!(
+                "a{a}(t{}) {v:.1} ({m:.1}) sp {:.1}mm d {:.0}",
+                trace(a),
+                anchors[a].spread * 1000.0,
+                mm(a)
+            )
+        })
+        .collect();
+    let left: Vec<String> = unjudged(anchors, costs, near)
+        .map(|a| {
+            let busy = taken[a].iter().any(|t| overlaps(span, t));
+            format!("a{a}{}{:.0}", if busy { "b" } else { "?" }, mm(a))
+        })
+        .collect();
+    let ratio = was.and_then(|a| motion_ratio(pieces, anchors, field, i, a));
+    eprintln!(
+        "piece of trace {} {}..{} n {} was {:?} (moves {:.2}) -> {:?}: {} [{}]",
+        p.trace.id,
+        span.0,
+        span.1,
+        p.trace.measured(),
+        was.map(trace),
+        ratio.unwrap_or(f64::NAN),
+        choice.map(trace),
+        show.join(", "),
+        left.join(" ")
+    );
+}
+
 /// A move [`swaps`] weighs.
 struct Swap {
     /// How much lower the costs are after it (at least 0).
@@ -841,25 +869,24 @@ fn swaps(
     taken: &mut [Vec<(i64, i64, usize)>],
     one_second: i64,
 ) {
+    let debug = std::env::var_os("REJOIN_DEBUG").is_some();
     for &q in order {
         let (sq, near) = (pieces[q].span(), pieces[q].near());
-        // A piece a tip holds is weighed out of it: its tip is then free
+        // A piece a tip holds is weighed out of it: its cost there (its
+        // own span is never its neighbour in `seams`), and its tip free
         // for the pieces in its way.
         let held = owner[q];
-        if let Some(c) = held {
-            taken[c].retain(|t| t.2 != q);
-        }
         let before = match held {
             None => Some(LOOSE),
             Some(c) => cost(pieces, anchors, field, q, c, one_second)
                 .map(|m| m + seams(pieces, &taken[c], q, one_second)),
         };
         let Some(before) = before else {
-            if let Some(c) = held {
-                taken[c].push((sq.0, sq.1, q));
-            }
             continue;
         };
+        if let Some(c) = held {
+            taken[c].retain(|t| t.2 != q);
+        }
         let mut best: Option<Swap> = None;
         for a in 0..anchors.len() {
             if anchors[a].rest.distance(near) > REACH || held == Some(a) {
@@ -881,8 +908,8 @@ fn swaps(
             let Some(mq) = cost(pieces, anchors, field, q, a, one_second) else {
                 continue;
             };
-            let moves = motion_ratio(pieces, anchors, field, q, a);
-            if mq > FIT || moves.is_none_or(|r| r < STILL_RATIO) {
+            let ratio = motion_ratio(pieces, anchors, field, q, a);
+            if mq > FIT || ratio.is_none_or(|r| r < STILL_RATIO) {
                 continue;
             }
             let mut gain = before - CLEAR - (mq + seams(pieces, &others, q, one_second));
@@ -919,7 +946,7 @@ fn swaps(
             moves,
         }) = best
         {
-            if std::env::var_os("REJOIN_DEBUG").is_some() {
+            if debug {
                 eprintln!(
                     "swap: piece of trace {} {:?} from {held:?} to a{a}, gain {gain:.1}, moving {:?}",
                     pieces[q].trace.id,
