@@ -24,7 +24,9 @@
 //! tips near it it was not judged at, `b` busy or `?`
 //! unjudged (neighbours hidden), and their distance in mm); `MAP=1` names the
 //! true tip most of each output tip's samples come from (`map t<trace> =
-//! tip (n samples)`), to read the anchors' trace ids.
+//! tip (n samples)`), to read the anchors' trace ids; `COLUMNS=1` the true
+//! tip behind each source column (`col c tip k`), to read the source ids
+//! `UNTANGLE_DEBUG=1` prints.
 
 use treemocap::sim::{self, stress};
 use treemocap::track::{self, Tracker, TrackingSettings};
@@ -66,6 +68,14 @@ fn main() {
     }
     if let Ok(spec) = std::env::var("PAIR") {
         pair(&spec, &tips, truth);
+    }
+    if std::env::var_os("COLUMNS").is_some() {
+        for (c, col) in truth.columns.iter().enumerate() {
+            match col.tip {
+                Some(k) => println!("col {c} tip {k}"),
+                None => println!("col {c} ghost"),
+            }
+        }
     }
     if std::env::var_os("MAP").is_some() {
         for tip in &tips.tips {

@@ -6,7 +6,9 @@
 //!    per trace, gates from its uncertainty, kd-tree candidates, global
 //!    assignment), and [`identity`] joins the pieces of each marker on line
 //!    from its neighbours' motion; traces never confirmed are ghosts;
-//! 2. [`rest`]: the still phase is found (or taken from the config);
+//! 2. `untangle`: where two markers passed close, the traces the tracker
+//!    swapped are swapped back (the vector between them turns round);
+//!    [`rest`]: the still phase is found (or taken from the config);
 //! 3. [`adopt`]: ghosts that are pieces of a marker (a marker seen as two
 //!    blobs, a trace broken before it was confirmed) join it; `rejoin`:
 //!    the joins across gaps are decided again with the whole take in view
@@ -39,6 +41,7 @@ mod rejoin;
 pub mod rest;
 pub mod settings;
 pub mod tracker;
+mod untangle;
 mod warm;
 
 use crate::model::trace::{Timeline, Trace};
@@ -83,6 +86,9 @@ pub struct Summary {
     /// or two (a marker seen as two blobs, a trace broken before it was
     /// confirmed); not counted in `ghosts`.
     pub adopted: usize,
+    /// Places where the tracker had swapped two markers passing close and
+    /// their traces were swapped back afterwards (`untangle`).
+    pub untangled: usize,
     /// Pieces joined afterwards by rest position.
     pub joined_by_rest: usize,
     /// Long fragments without a rest position put into a gap of the marker
@@ -123,8 +129,8 @@ impl fmt::Display for Summary {
         )?;
         writeln!(
             f,
-            "markers found: {} tips, from {} traces ({} ghosts never confirmed; pieces joined: {} from the neighbours' motion, {} handing over to their marker, {} by rest position, {} into a gap of their neighbourhood; {} given to another tip after the session)",
-            self.tips, self.traces, self.ghosts, self.joined_on_line, self.adopted, self.joined_by_rest, self.joined_into_gaps, self.rejoined
+            "markers found: {} tips, from {} traces ({} ghosts never confirmed; pieces joined: {} from the neighbours' motion, {} handing over to their marker, {} by rest position, {} into a gap of their neighbourhood; {} given to another tip after the session; {} swaps undone where two markers passed close)",
+            self.tips, self.traces, self.ghosts, self.joined_on_line, self.adopted, self.joined_by_rest, self.joined_into_gaps, self.rejoined, self.untangled
         )?;
         let longest = self.dropped.first().map_or(String::new(), |d| {
             format!(
@@ -232,13 +238,16 @@ pub fn clean(
     frame_rate: f64,
 ) -> (Tips, Summary) {
     let Tracked {
-        traces,
+        mut traces,
         identities,
         timeline,
         stats,
     } = tracked;
     let n_traces = traces.len();
     let joined_on_line = stats.joined as usize;
+    // Where two markers passed close the tracker may have swapped them;
+    // every later step builds on which marker each trace holds.
+    let untangled = untangle::untangle(&mut traces, one_second(&timeline));
     let seams = rejoin::seams_of(&traces, &identities);
     let (mut traces, ghosts, mut loose) = assemble(traces, &identities);
     let frames = stats.frames;
@@ -292,6 +301,7 @@ pub fn clean(
         ghosts: n_ghosts,
         joined_on_line,
         adopted,
+        untangled,
         joined_by_rest,
         joined_into_gaps,
         rejoined,

@@ -1,0 +1,625 @@
+//! Two markers that passed close: where the tracker swapped them, their
+//! traces are swapped back (after the session; ours).
+//!
+//! On line the tracker gives each marker to the trace whose prediction it
+//! fits. Two tips passing within a few millimetres of each other in a gust
+//! fit both predictions, and the tracker can swap them: each trace goes on
+//! with the other tip's marker, and every later join follows the wrong
+//! marker (`all` seed 200 under `noise_mm` 1.5: two tips 6.1 mm apart, 227
+//! samples in the wrong tip). Neither trace jumps, so nothing later sees
+//! the swap: a piece's seams and its offset from its neighbours fit both
+//! tips within their noise.
+//!
+//! What does tell is the vector from one marker to the other. Two tips
+//! that pass close are near each other on the tree and share most of their
+//! sway, which cancels in the difference; what is left changes slowly. A
+//! swap flips it: the vector `a − b` becomes `b − a`, a jump of twice the
+//! distance between the markers, while the noise on it is that of two
+//! markers. So for every pair of traces measured closer than [`CLOSE`],
+//! at each frame they were close the vector is fitted by a parabola over
+//! [`WINDOW_S`] before and after it, and the two are compared where they
+//! meet: where the one after, turned round, fits the one before far
+//! better than as it is ([`SURE`]), the traces' tails are swapped there.
+//!
+//! Calibrated on the `all` stress, seeds 100–150 and 195–208, both
+//! `noise_mm` settings: 978 such places with both sides measured, 14
+//! where the source's columns show a swap. Straight lines over 12 frames found 5 of them and, at the
+//! bound that found them, swapped 3 crossings the tracker had followed
+//! right (two tips crossing at 2.5 mm a frame while the vector between
+//! them turned); parabolas over 30 frames find 7 and swap none (the
+//! largest score of a right crossing 2.6, the smallest of a swap 6.2). The
+//! rest are swaps back and forth within a few frames, or swaps while one
+//! marker was hidden, which this does not see.
+
+use std::collections::{BTreeMap, HashMap, VecDeque};
+
+use glam::DVec3;
+
+use crate::model::trace::Trace;
+
+/// Two markers measured closer than this (m) may have been swapped. The
+/// tracker's gate around a swaying tip's prediction is a few millimetres
+/// to a centimetre; the swaps seen were 2.7–12 mm apart.
+const CLOSE: f64 = 0.015;
+/// The vector between the markers is fitted over this long (s) on each
+/// side of a possible swap (30 frames at 240 Hz).
+const WINDOW_S: f64 = 0.125;
+/// An encounter is over once the pair was not close for this long (s)
+/// and the window after it is full; a pair close for longer than
+/// [`LONGEST_S`] is left as it is (two markers side by side on one twig,
+/// where every frame would be a candidate).
+const APART_S: f64 = 0.02;
+const LONGEST_S: f64 = 0.25;
+/// Fewer samples on either side than this and the pair is left alone.
+const MIN_SAMPLES: usize = 4;
+/// How much better the vector turned round must fit, in variances of
+/// the two parabolas where they meet (per axis); it must also miss by
+/// less than half as much.
+const SURE: f64 = 4.0;
+/// Samples on each side of a swap left out of the lines.
+const GUARD: usize = 2;
+
+/// A pair of traces close in some frames, with the vector between them.
+#[derive(Debug)]
+struct Encounter {
+    a: usize,
+    b: usize,
+    /// First and last frame the markers were closer than [`CLOSE`].
+    from: i64,
+    to: i64,
+    /// `a − b` in the frames both were measured: before `from` (up to a
+    /// window), then from `from` on.
+    before: Vec<(i64, DVec3)>,
+    after: Vec<(i64, DVec3)>,
+    /// The source ids of `a` and `b` when the encounter began and ended
+    /// (for UNTANGLE_DEBUG: a swap the source saw the right way round).
+    sources: [Option<i64>; 4],
+    /// Frames where either source id changed, with both (UNTANGLE_DEBUG).
+    changes: Vec<(i64, Option<i64>, Option<i64>)>,
+}
+
+/// Where a trace's tail goes to another trace: from frame `at` on, trace
+/// `a`'s samples continue the marker of trace `b` and the reverse.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Swap {
+    a: usize,
+    b: usize,
+    at: i64,
+}
+
+/// Swaps back the tails of traces the tracker swapped where two markers
+/// passed close; returns how many places. `one_second`: frames per second.
+pub(crate) fn untangle(traces: &mut [Trace], one_second: i64) -> usize {
+    let sec = one_second.max(1) as f64;
+    let window = ((WINDOW_S * sec).round() as usize).max(MIN_SAMPLES);
+    let apart = ((APART_S * sec).round() as i64).max(1);
+    let longest = (LONGEST_S * sec).round() as i64;
+    let debug = std::env::var_os("UNTANGLE_DEBUG").is_some();
+    let mut swaps: Vec<Swap> = Vec::new();
+    let mut places = 0;
+    for e in encounters(traces, window, apart) {
+        if e.to - e.from > longest {
+            if debug {
+                eprintln!("untangle t{} t{} {}..{} too long", e.a, e.b, e.from, e.to);
+            }
+            continue;
+        }
+        let found = decide(&e, window, debug);
+        places += usize::from(!found.is_empty());
+        swaps.extend(found);
+    }
+    apply(traces, &mut swaps);
+    places
+}
+
+/// The swaps encounter `e` calls for, if any: where the vector's line
+/// after, turned round, fits its line before far better than as it is,
+/// at the frame it fits best. The few samples about that frame are left
+/// out of the lines (the tracker can swap two markers back and forth for
+/// a frame or two before the swap holds) and each is turned round or not
+/// by which way it fits the lines.
+fn decide(e: &Encounter, window: usize, debug: bool) -> Vec<Swap> {
+    let end = e.after.iter().filter(|x| x.0 <= e.to).count() + window;
+    let r: Vec<(i64, DVec3)> = e
+        .before
+        .iter()
+        .chain(e.after.iter().take(end))
+        .copied()
+        .collect();
+    let (k, g) = (window, GUARD);
+    let mut best: Option<(f64, usize, f64, f64, f64)> = None;
+    for i in MIN_SAMPLES + g..=r.len().saturating_sub(MIN_SAMPLES + g) {
+        if r[i].0 < e.from || r[i - 1].0 > e.to {
+            continue;
+        }
+        let lb = Line::fit(&r[(i - g).saturating_sub(k)..i - g]);
+        let la = Line::fit(&r[i + g..(i + g + k).min(r.len())]);
+        let mid = (r[i - 1].0 + r[i].0) as f64 / 2.0;
+        let (pb, pa) = (lb.at(mid), la.at(mid));
+        let straight = pb.distance_squared(pa);
+        let turned = pb.distance_squared(-pa);
+        let var = lb.var_at(mid) + la.var_at(mid);
+        let z = (straight - turned) / (3.0 * var).max(1e-12);
+        if best.is_none_or(|b| z > b.0) {
+            best = Some((z, i, straight, turned, var));
+        }
+    }
+    let Some((z, i, straight, turned, var)) = best else {
+        return Vec::new();
+    };
+    if debug {
+        eprintln!(
+            "untangle t{} t{} {}..{} at {} straight {:.1} turned {:.1} sd {:.2} (mm) z {:.1} src {:?}",
+            e.a,
+            e.b,
+            e.from,
+            e.to,
+            r[i].0,
+            straight.sqrt() * 1000.0,
+            turned.sqrt() * 1000.0,
+            var.sqrt() * 1000.0,
+            z,
+            e.sources
+        );
+        if std::env::var("UNTANGLE_DEBUG").is_ok_and(|v| v == "2") {
+            eprintln!("  source changes {:?}", e.changes);
+            for (f, v) in &r {
+                let v = *v * 1000.0;
+                eprintln!("  {f} {:.1} {:.1} {:.1} |{:.1}|", v.x, v.y, v.z, v.length());
+            }
+        }
+    }
+    if !(turned * 4.0 < straight && z > SURE) {
+        return Vec::new();
+    }
+    // Each sample about the swap, turned round or not; every sample after
+    // them is.
+    let lb = Line::fit(&r[(i - g).saturating_sub(k)..i - g]);
+    let la = Line::fit(&r[i + g..(i + g + k).min(r.len())]);
+    let mut swaps = Vec::new();
+    let mut turned_now = false;
+    for &(f, v) in &r[i - g..i + g] {
+        let w = (f - r[i - g].0) as f64 / (r[i + g].0 - r[i - g].0).max(1) as f64;
+        let reference = lb.at(f as f64) * (1.0 - w) - la.at(f as f64) * w;
+        let turn = (-v).distance_squared(reference) < v.distance_squared(reference);
+        if turn != turned_now {
+            swaps.push(Swap {
+                a: e.a,
+                b: e.b,
+                at: f,
+            });
+            turned_now = turn;
+        }
+    }
+    if !turned_now {
+        swaps.push(Swap {
+            a: e.a,
+            b: e.b,
+            at: r[i + g].0,
+        });
+    }
+    swaps
+}
+
+/// A curve (polynomial in time of degree [`DEGREE`]) fitted by least
+/// squares to the vector between two markers.
+struct Line {
+    /// Frame the time is counted from (the samples' mean) and the scale.
+    frame: f64,
+    /// Coefficients per power of `(f − frame) / scale`.
+    c: [DVec3; 3],
+    /// Inverse of the normal matrix, for the variance of the curve.
+    inv: [[f64; 3]; 3],
+    /// Scatter about the curve per axis (m²).
+    s2: f64,
+    /// Powers used (2: a line, 3: a parabola).
+    m: usize,
+}
+
+/// Powers of time in the curve: 3 fits the turn of a tip's swing that a
+/// straight line misses (two tips crossing at 2.5 mm a frame while the
+/// vector between them turned looked swapped to a line).
+const DEGREE: usize = 3;
+
+impl Line {
+    fn fit(x: &[(i64, DVec3)]) -> Line {
+        let n = x.len();
+        let m = if n > DEGREE + 1 { DEGREE } else { 2.min(n) };
+        let frame = x.iter().map(|s| s.0 as f64).sum::<f64>() / n.max(1) as f64;
+        let basis = |f: f64| {
+            let t = f - frame;
+            [1.0, t, t * t]
+        };
+        let mut ata = [[0.0; 3]; 3];
+        let mut atb = [DVec3::ZERO; 3];
+        for &(f, v) in x {
+            let q = basis(f as f64);
+            for i in 0..m {
+                for j in 0..m {
+                    ata[i][j] += q[i] * q[j];
+                }
+                atb[i] += v * q[i];
+            }
+        }
+        for (i, row) in ata.iter_mut().enumerate().skip(m) {
+            row[i] = 1.0;
+        }
+        let inv = invert3(&ata);
+        let mut c = [DVec3::ZERO; 3];
+        for (i, ci) in c.iter_mut().enumerate().take(m) {
+            *ci = (0..m).map(|j| atb[j] * inv[i][j]).sum();
+        }
+        let mut line = Line {
+            frame,
+            c,
+            inv,
+            s2: 0.0,
+            m,
+        };
+        let res: f64 = x
+            .iter()
+            .map(|s| (s.1 - line.at(s.0 as f64)).length_squared())
+            .sum();
+        line.s2 = res / (3.0 * (n as f64 - m as f64).max(1.0));
+        line
+    }
+
+    fn at(&self, f: f64) -> DVec3 {
+        let t = f - self.frame;
+        self.c[0] + self.c[1] * t + self.c[2] * t * t
+    }
+
+    /// Variance per axis of the curve at frame `f`.
+    fn var_at(&self, f: f64) -> f64 {
+        let t = f - self.frame;
+        let q = [1.0, t, t * t];
+        let mut v = 0.0;
+        for i in 0..self.m {
+            for j in 0..self.m {
+                v += q[i] * self.inv[i][j] * q[j];
+            }
+        }
+        self.s2 * v
+    }
+}
+
+/// Inverse of a symmetric 3 × 3 matrix (identity where it is singular).
+fn invert3(a: &[[f64; 3]; 3]) -> [[f64; 3]; 3] {
+    let c = |i: usize, j: usize| {
+        let (i1, i2) = ((i + 1) % 3, (i + 2) % 3);
+        let (j1, j2) = ((j + 1) % 3, (j + 2) % 3);
+        a[i1][j1] * a[i2][j2] - a[i1][j2] * a[i2][j1]
+    };
+    let det = a[0][0] * c(0, 0) + a[0][1] * c(0, 1) + a[0][2] * c(0, 2);
+    if det.abs() < 1e-300 {
+        return [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
+    }
+    let mut out = [[0.0; 3]; 3];
+    for (i, row) in out.iter_mut().enumerate() {
+        for (j, x) in row.iter_mut().enumerate() {
+            *x = c(j, i) / det;
+        }
+    }
+    out
+}
+
+/// Every pair of traces measured closer than [`CLOSE`] in some frame, with
+/// the vector between them over a window on each side, in the order their
+/// encounters end.
+fn encounters(traces: &[Trace], window: usize, apart: i64) -> Vec<Encounter> {
+    let mut order: Vec<usize> = (0..traces.len()).collect();
+    order.sort_by_key(|&k| (traces[k].first_frame(), k));
+    let (Some(&first), Some(last)) = (order.first(), traces.iter().map(|t| t.last_frame()).max())
+    else {
+        return Vec::new();
+    };
+    let history = 3 * window;
+    let mut next = 0;
+    let mut active = Vec::new();
+    // The latest sample of each trace and its recent ones (for the window
+    // before an encounter).
+    let mut latest: Vec<(i64, DVec3)> = vec![(i64::MIN, DVec3::ZERO); traces.len()];
+    let mut recent: Vec<VecDeque<(i64, DVec3)>> = vec![Default::default(); traces.len()];
+    let mut source: Vec<Option<i64>> = vec![None; traces.len()];
+    let mut now: Vec<(usize, DVec3)> = Vec::new();
+    let mut open: Vec<Encounter> = Vec::new();
+    let mut done: Vec<Encounter> = Vec::new();
+    for f in traces[first].first_frame()..=last {
+        while next < order.len() && traces[order[next]].first_frame() == f {
+            let k = order[next];
+            active.push((k, traces[k].measurements_with_source().peekable()));
+            next += 1;
+        }
+        now.clear();
+        active.retain_mut(|(k, it)| match it.peek() {
+            Some(&(g, p, src)) if g == f => {
+                it.next();
+                now.push((*k, p));
+                source[*k] = src;
+                latest[*k] = (f, p);
+                let r = &mut recent[*k];
+                if r.len() == history {
+                    r.pop_front();
+                }
+                r.push_back((f, p));
+                true
+            }
+            Some(_) => true,
+            None => {
+                // An hour's hundred thousand ended traces would each keep
+                // their window.
+                recent[*k] = VecDeque::new();
+                false
+            }
+        });
+        now.sort_unstable_by(|x, y| x.1.x.total_cmp(&y.1.x).then(x.0.cmp(&y.0)));
+        for i in 0..now.len() {
+            for j in i + 1..now.len() {
+                if now[j].1.x - now[i].1.x >= CLOSE {
+                    break;
+                }
+                if now[i].1.distance_squared(now[j].1) >= CLOSE * CLOSE {
+                    continue;
+                }
+                let (a, b) = (now[i].0.min(now[j].0), now[i].0.max(now[j].0));
+                if let Some(e) = open.iter_mut().find(|e| e.a == a && e.b == b) {
+                    e.to = f;
+                } else {
+                    open.push(Encounter {
+                        a,
+                        b,
+                        from: f,
+                        to: f,
+                        before: common(&recent[a], &recent[b], f, window),
+                        after: Vec::new(),
+                        sources: [source[a], source[b], source[a], source[b]],
+                        changes: Vec::new(),
+                    });
+                }
+            }
+        }
+        // Both measured: the vector goes on; an encounter ends a window
+        // after the markers were last close, or when either trace ends.
+        open.retain_mut(|e| {
+            let (pa, pb) = (latest[e.a], latest[e.b]);
+            if pa.0 == f && pb.0 == f {
+                e.after.push((f, pa.1 - pb.1));
+                if e.sources[2..] != [source[e.a], source[e.b]] {
+                    e.changes.push((f, source[e.a], source[e.b]));
+                }
+                e.sources[2..].copy_from_slice(&[source[e.a], source[e.b]]);
+            }
+            let measured_after = e.after.iter().filter(|x| x.0 > e.to).count();
+            let over = measured_after >= window
+                || f - e.to > 3 * window as i64
+                || traces[e.a].last_frame() <= f
+                || traces[e.b].last_frame() <= f;
+            if over && f - e.to > apart {
+                done.push(std::mem::replace(
+                    e,
+                    Encounter {
+                        a: 0,
+                        b: 0,
+                        from: 0,
+                        to: 0,
+                        before: Vec::new(),
+                        after: Vec::new(),
+                        sources: [None; 4],
+                        changes: Vec::new(),
+                    },
+                ));
+                false
+            } else {
+                true
+            }
+        });
+    }
+    done.append(&mut open);
+    done
+}
+
+/// The vectors `a − b` in the last `window` frames before `f` both were
+/// measured in.
+fn common(
+    a: &VecDeque<(i64, DVec3)>,
+    b: &VecDeque<(i64, DVec3)>,
+    f: i64,
+    window: usize,
+) -> Vec<(i64, DVec3)> {
+    let mut out: Vec<(i64, DVec3)> = Vec::new();
+    let (mut i, mut j) = (a.len(), b.len());
+    while i > 0 && j > 0 && out.len() < window {
+        let (x, y) = (a[i - 1], b[j - 1]);
+        if x.0 >= f {
+            i -= 1;
+        } else if y.0 >= f {
+            j -= 1;
+        } else if x.0 == y.0 {
+            out.push((x.0, x.1 - y.1));
+            i -= 1;
+            j -= 1;
+        } else if x.0 > y.0 {
+            i -= 1;
+        } else {
+            j -= 1;
+        }
+    }
+    out.reverse();
+    out
+}
+
+/// A measured sample with its source id.
+type Measured = (i64, DVec3, Option<i64>);
+
+/// Rebuilds the traces the swaps touch: each is cut at its swaps into
+/// pieces, and each piece goes on with the next piece of the same trace,
+/// or of the other trace where a swap says so.
+fn apply(traces: &mut [Trace], swaps: &mut Vec<Swap>) {
+    // One swap per trace and frame (two at once would need an order).
+    swaps.sort_by_key(|s| (s.at, s.a, s.b));
+    let mut cuts: BTreeMap<usize, Vec<i64>> = BTreeMap::new();
+    swaps.retain(|s| {
+        let clash = [s.a, s.b]
+            .iter()
+            .any(|k| cuts.get(k).is_some_and(|c| c.contains(&s.at)));
+        if !clash {
+            cuts.entry(s.a).or_default().push(s.at);
+            cuts.entry(s.b).or_default().push(s.at);
+        }
+        !clash
+    });
+    for c in cuts.values_mut() {
+        c.sort_unstable();
+    }
+    // Piece `i` of trace `k` holds its samples from its (i−1)-th cut to
+    // before its i-th.
+    let piece = |k: usize, f: i64| cuts[&k].partition_point(|&c| c <= f);
+    let mut next: HashMap<(usize, usize), (usize, usize)> = HashMap::new();
+    for s in swaps.iter() {
+        let (pa, pb) = (piece(s.a, s.at), piece(s.b, s.at));
+        next.insert((s.a, pa - 1), (s.b, pb));
+        next.insert((s.b, pb - 1), (s.a, pa));
+    }
+    let mut pieces: HashMap<(usize, usize), Vec<Measured>> = HashMap::new();
+    for &k in cuts.keys() {
+        for (f, p, src) in traces[k].measurements_with_source() {
+            pieces
+                .entry((k, piece(k, f)))
+                .or_default()
+                .push((f, p, src));
+        }
+    }
+    for &k in cuts.keys() {
+        let id = traces[k].id;
+        let mut out: Option<Trace> = None;
+        let mut at = Some((k, 0));
+        while let Some(key) = at {
+            for &(f, p, src) in pieces.get(&key).map_or(&[][..], Vec::as_slice) {
+                match out.as_mut() {
+                    Some(t) => t.push(f, p, src),
+                    None => out = Some(Trace::new(id, f, p, src)),
+                }
+            }
+            at = next
+                .get(&key)
+                .copied()
+                .or_else(|| (key.1 < cuts[&key.0].len()).then_some((key.0, key.1 + 1)));
+        }
+        // Every piece keeps samples: a swap needs both traces measured on
+        // each side of it.
+        if let Some(mut t) = out {
+            t.seal();
+            traces[k] = t;
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::rng::Rng;
+
+    /// Two tips swaying together in a gust, 0.5 s at 240 Hz: `a` passes
+    /// `b` with the vector between them going from (−30, `miss`, 0) mm to
+    /// (+30, `miss`, 0) mm, both under 1 mm of noise. The tracker's traces
+    /// swap the markers from frame `swap` on (none: they follow them).
+    fn passing(miss: f64, swap: Option<i64>, seed: u64) -> (Vec<Trace>, Vec<[DVec3; 2]>) {
+        let mut rng = Rng::new(seed);
+        let mut noise = || DVec3::new(rng.normal(), rng.normal(), rng.normal()) * 0.001;
+        let mut truth = Vec::new();
+        let mut traces: Vec<Trace> = Vec::new();
+        for f in 0..120i64 {
+            let t = f as f64 / 240.0;
+            let sway = DVec3::new(
+                0.08 * (std::f64::consts::TAU * 1.5 * t).sin(),
+                0.0,
+                0.02 * t,
+            );
+            let rel = DVec3::new(-0.03 + 0.06 * f as f64 / 119.0, miss, 0.0);
+            let pa = DVec3::new(1.0, 0.5, 2.0) + sway + rel / 2.0 + noise();
+            let pb = DVec3::new(1.0, 0.5, 2.0) + sway - rel / 2.0 + noise();
+            truth.push([pa, pb]);
+            let (x, y) = if swap.is_some_and(|s| f >= s) {
+                (pb, pa)
+            } else {
+                (pa, pb)
+            };
+            if traces.is_empty() {
+                traces.push(Trace::new(0, f, x, Some(0)));
+                traces.push(Trace::new(1, f, y, Some(1)));
+            } else {
+                traces[0].push(f, x, Some(0));
+                traces[1].push(f, y, Some(1));
+            }
+        }
+        (traces, truth)
+    }
+
+    /// How many samples of each trace are the other tip's (the traces
+    /// store positions to a fraction of a micrometre).
+    fn wrong(traces: &[Trace], truth: &[[DVec3; 2]]) -> usize {
+        traces
+            .iter()
+            .enumerate()
+            .map(|(k, t)| {
+                t.measurements()
+                    .filter(|&(f, p)| {
+                        let own = truth[f as usize][k];
+                        let other = truth[f as usize][1 - k];
+                        p.distance(other) < p.distance(own)
+                    })
+                    .count()
+            })
+            .sum()
+    }
+
+    #[test]
+    fn two_markers_the_tracker_swapped_where_they_passed_are_swapped_back() {
+        for (seed, miss) in [(1, 0.008), (2, 0.006), (3, 0.012)] {
+            let (mut traces, truth) = passing(miss, Some(60), seed);
+            assert_eq!(wrong(&traces, &truth), 120);
+            assert_eq!(untangle(&mut traces, 240), 1, "seed {seed}");
+            assert!(
+                wrong(&traces, &truth) <= 4,
+                "seed {seed}: {}",
+                wrong(&traces, &truth)
+            );
+            // Each trace keeps its id and holds every sample once.
+            assert_eq!((traces[0].id, traces[1].id), (0, 1));
+            assert_eq!(traces[0].measured() + traces[1].measured(), 240);
+        }
+    }
+
+    #[test]
+    fn two_markers_that_passed_each_other_stay_as_they_were() {
+        for (seed, miss) in [(4, 0.008), (5, 0.003), (6, 0.0)] {
+            let (mut traces, truth) = passing(miss, None, seed);
+            assert_eq!(untangle(&mut traces, 240), 0, "seed {seed}");
+            assert_eq!(wrong(&traces, &truth), 0);
+        }
+    }
+
+    #[test]
+    fn a_swap_for_one_frame_before_the_swap_holds_is_undone_too() {
+        // The tracker swaps at 60, back at 61, and for good at 62.
+        let (mut traces, truth) = passing(0.008, Some(62), 7);
+        let (a, b) = (traces[0].clone(), traces[1].clone());
+        let mut x = Trace::new(0, 0, truth[0][0], Some(0));
+        let mut y = Trace::new(1, 0, truth[0][1], Some(1));
+        for ((f, p), (_, q)) in a.measurements().zip(b.measurements()).skip(1) {
+            let (p, q) = if f == 60 { (q, p) } else { (p, q) };
+            x.push(f, p, Some(0));
+            y.push(f, q, Some(1));
+        }
+        traces = vec![x, y];
+        assert_eq!(wrong(&traces, &truth), 2 * 58 + 2);
+        assert_eq!(untangle(&mut traces, 240), 1);
+        assert!(wrong(&traces, &truth) <= 4, "{}", wrong(&traces, &truth));
+    }
+
+    #[test]
+    fn markers_apart_are_never_compared() {
+        let (mut traces, _) = passing(0.03, Some(60), 8);
+        assert_eq!(untangle(&mut traces, 240), 0);
+    }
+}
