@@ -36,7 +36,7 @@
 
 use std::collections::{BTreeMap, HashMap, VecDeque};
 
-use glam::DVec3;
+use glam::{DMat3, DVec3};
 
 use crate::model::trace::Trace;
 
@@ -82,9 +82,22 @@ struct Encounter {
     changes: Vec<(i64, Option<i64>, Option<i64>)>,
 }
 
+impl Encounter {
+    /// Samples of the vector from `from` to `to` (they come first in
+    /// `after`, which is in frame order).
+    fn core(&self) -> usize {
+        self.after.partition_point(|x| x.0 <= self.to)
+    }
+
+    /// Samples of the vector after the markers were last close.
+    fn measured_after(&self) -> usize {
+        self.after.len() - self.core()
+    }
+}
+
 /// Where a trace's tail goes to another trace: from frame `at` on, trace
 /// `a`'s samples continue the marker of trace `b` and the reverse.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy)]
 struct Swap {
     a: usize,
     b: usize,
@@ -98,12 +111,17 @@ pub(crate) fn untangle(traces: &mut [Trace], one_second: i64) -> usize {
     let window = ((WINDOW_S * sec).round() as usize).max(MIN_SAMPLES);
     let apart = ((APART_S * sec).round() as i64).max(1);
     let longest = (LONGEST_S * sec).round() as i64;
-    let debug = std::env::var_os("UNTANGLE_DEBUG").is_some();
+    // UNTANGLE_DEBUG=1 prints each place judged; 2 adds the vector.
+    let debug: u8 = match std::env::var("UNTANGLE_DEBUG").as_deref() {
+        Err(_) => 0,
+        Ok("2") => 2,
+        Ok(_) => 1,
+    };
     let mut swaps: Vec<Swap> = Vec::new();
     let mut places = 0;
     for e in encounters(traces, window, apart) {
         if e.to - e.from > longest {
-            if debug {
+            if debug > 0 {
                 eprintln!("untangle t{} t{} {}..{} too long", e.a, e.b, e.from, e.to);
             }
             continue;
@@ -160,8 +178,8 @@ impl Split {
 /// out of the curves (the tracker can swap two markers back and forth for
 /// a frame or two before the swap holds) and each is turned round or not
 /// by which way it fits them.
-fn decide(e: &Encounter, window: usize, debug: bool) -> Vec<Swap> {
-    let end = e.after.iter().filter(|x| x.0 <= e.to).count() + window;
+fn decide(e: &Encounter, window: usize, debug: u8) -> Vec<Swap> {
+    let end = e.core() + window;
     let r: Vec<(i64, DVec3)> = e
         .before
         .iter()
@@ -177,27 +195,8 @@ fn decide(e: &Encounter, window: usize, debug: bool) -> Vec<Swap> {
         return Vec::new();
     };
     let i = best.i;
-    if debug {
-        eprintln!(
-            "untangle t{} t{} {}..{} at {} straight {:.1} turned {:.1} sd {:.2} (mm) z {:.1} src {:?}",
-            e.a,
-            e.b,
-            e.from,
-            e.to,
-            r[i].0,
-            best.straight.sqrt() * 1000.0,
-            best.turned.sqrt() * 1000.0,
-            best.var.sqrt() * 1000.0,
-            best.score(),
-            e.sources
-        );
-        if std::env::var("UNTANGLE_DEBUG").is_ok_and(|v| v == "2") {
-            eprintln!("  source changes {:?}", e.changes);
-            for (f, v) in &r {
-                let v = *v * 1000.0;
-                eprintln!("  {f} {:.1} {:.1} {:.1} |{:.1}|", v.x, v.y, v.z, v.length());
-            }
-        }
+    if debug > 0 {
+        debug_decide(e, &r, &best, debug);
     }
     if !(best.turned * 4.0 < best.straight && best.score() > SURE) {
         return Vec::new();
@@ -230,6 +229,31 @@ fn decide(e: &Encounter, window: usize, debug: bool) -> Vec<Swap> {
     swaps
 }
 
+/// Prints how encounter `e` was judged at its best split (`r`: the
+/// vector between the markers), and at `level` 2 the vector itself.
+fn debug_decide(e: &Encounter, r: &[(i64, DVec3)], best: &Split, level: u8) {
+    eprintln!(
+        "untangle t{} t{} {}..{} at {} straight {:.1} turned {:.1} sd {:.2} (mm) z {:.1} src {:?}",
+        e.a,
+        e.b,
+        e.from,
+        e.to,
+        r[best.i].0,
+        best.straight.sqrt() * 1000.0,
+        best.turned.sqrt() * 1000.0,
+        best.var.sqrt() * 1000.0,
+        best.score(),
+        e.sources
+    );
+    if level >= 2 {
+        eprintln!("  source changes {:?}", e.changes);
+        for (f, v) in r {
+            let v = *v * 1000.0;
+            eprintln!("  {f} {:.1} {:.1} {:.1} |{:.1}|", v.x, v.y, v.z, v.length());
+        }
+    }
+}
+
 /// A curve (polynomial in time of degree [`DEGREE`]) fitted by least
 /// squares to the vector between two markers.
 struct Curve {
@@ -238,7 +262,7 @@ struct Curve {
     /// Coefficients per power of `(f − frame) / scale`.
     c: [DVec3; 3],
     /// Inverse of the normal matrix, for the variance of the curve.
-    inv: [[f64; 3]; 3],
+    inv: DMat3,
     /// Scatter about the curve per axis (m²).
     s2: f64,
     /// Powers used (2: a line, 3: a parabola).
@@ -259,24 +283,29 @@ impl Curve {
             let t = f - frame;
             [1.0, t, t * t]
         };
-        let mut ata = [[0.0; 3]; 3];
+        let mut ata = DMat3::ZERO;
         let mut atb = [DVec3::ZERO; 3];
         for &(f, v) in x {
             let q = basis(f as f64);
             for i in 0..m {
                 for j in 0..m {
-                    ata[i][j] += q[i] * q[j];
+                    ata.col_mut(j)[i] += q[i] * q[j];
                 }
                 atb[i] += v * q[i];
             }
         }
-        for (i, row) in ata.iter_mut().enumerate().skip(m) {
-            row[i] = 1.0;
+        for i in m..3 {
+            ata.col_mut(i)[i] = 1.0;
         }
-        let inv = invert3(&ata);
+        let det = ata.determinant();
+        let inv = if det.abs() < 1e-300 {
+            DMat3::IDENTITY
+        } else {
+            ata.inverse()
+        };
         let mut c = [DVec3::ZERO; 3];
         for (i, ci) in c.iter_mut().enumerate().take(m) {
-            *ci = (0..m).map(|j| atb[j] * inv[i][j]).sum();
+            *ci = (0..m).map(|j| atb[j] * inv.col(j)[i]).sum();
         }
         let mut curve = Curve {
             frame,
@@ -305,31 +334,11 @@ impl Curve {
         let mut v = 0.0;
         for i in 0..self.m {
             for j in 0..self.m {
-                v += q[i] * self.inv[i][j] * q[j];
+                v += q[i] * self.inv.col(j)[i] * q[j];
             }
         }
         self.s2 * v
     }
-}
-
-/// Inverse of a symmetric 3 × 3 matrix (identity where it is singular).
-fn invert3(a: &[[f64; 3]; 3]) -> [[f64; 3]; 3] {
-    let c = |i: usize, j: usize| {
-        let (i1, i2) = ((i + 1) % 3, (i + 2) % 3);
-        let (j1, j2) = ((j + 1) % 3, (j + 2) % 3);
-        a[i1][j1] * a[i2][j2] - a[i1][j2] * a[i2][j1]
-    };
-    let det = a[0][0] * c(0, 0) + a[0][1] * c(0, 1) + a[0][2] * c(0, 2);
-    if det.abs() < 1e-300 {
-        return [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
-    }
-    let mut out = [[0.0; 3]; 3];
-    for (i, row) in out.iter_mut().enumerate() {
-        for (j, x) in row.iter_mut().enumerate() {
-            *x = c(j, i) / det;
-        }
-    }
-    out
 }
 
 /// Every pair of traces measured closer than [`CLOSE`] in some frame, with
@@ -409,7 +418,7 @@ fn encounters(traces: &[Trace], window: usize, apart: i64) -> Vec<Encounter> {
         }
         // Both measured: the vector goes on; an encounter ends a window
         // after the markers were last close, or when either trace ends.
-        open.retain_mut(|e| {
+        for e in open.iter_mut() {
             let (pa, pb) = (latest[e.a], latest[e.b]);
             if pa.0 == f && pb.0 == f {
                 e.after.push((f, pa.1 - pb.1));
@@ -418,30 +427,14 @@ fn encounters(traces: &[Trace], window: usize, apart: i64) -> Vec<Encounter> {
                 }
                 e.sources[2..].copy_from_slice(&[source[e.a], source[e.b]]);
             }
-            let measured_after = e.after.iter().filter(|x| x.0 > e.to).count();
-            let over = measured_after >= window
+        }
+        done.extend(open.extract_if(.., |e| {
+            let over = e.measured_after() >= window
                 || f - e.to > 3 * window as i64
                 || traces[e.a].last_frame() <= f
                 || traces[e.b].last_frame() <= f;
-            if over && f - e.to > apart {
-                done.push(std::mem::replace(
-                    e,
-                    Encounter {
-                        a: 0,
-                        b: 0,
-                        from: 0,
-                        to: 0,
-                        before: Vec::new(),
-                        after: Vec::new(),
-                        sources: [None; 4],
-                        changes: Vec::new(),
-                    },
-                ));
-                false
-            } else {
-                true
-            }
-        });
+            over && f - e.to > apart
+        }));
     }
     done.append(&mut open);
     done
