@@ -121,8 +121,9 @@ const DIRECT_SCAN_MAX: usize = 4096;
 /// Live, the spacing warning is looked for in one frame of this many.
 const SPACING_EVERY_LIVE: i64 = 16;
 
-/// Added to the miss cost of a trace so that the log-variance term only
-/// breaks ties between traces and never refuses a marker inside the gate.
+/// Added to the miss cost of a trace, and the most the terms of a contested
+/// marker add to an edge ([`DIMENSIONS`], [`COAST_COST`]): they decide
+/// between traces and never refuse a marker inside the gate.
 const LOG_VARIANCE_ALLOWANCE: f64 = 12.0;
 
 /// Dimensions of a measurement: the log of an isotropic covariance's
@@ -133,17 +134,18 @@ const LOG_VARIANCE_ALLOWANCE: f64 = 12.0;
 /// neighbour's marker from the trace measuring it in every frame (`all`
 /// seed 220: tip 21's marker, 8 mm from its hidden neighbour tip 69,
 /// went to tip 69's trace after 8 frames of coasting, 12.5 against 13.2:
-/// 116 wrong samples). Measured on the sweep: docs/tracking.md §1.
+/// 116 wrong samples). Measured on the sweep: docs/tracking.md §4a.
 const DIMENSIONS: f64 = 3.0;
 
 /// Cost (squared normalised distance) of a marker coming back to a trace
-/// that missed it in the frame before, against one measured again: the
-/// odds of a marker reappearing in a given frame of its gap are far lower
-/// than those of a marker seen in the frame before being seen again
-/// (gaps last 10–50 frames; a measured marker is missed again in a few
-/// frames of a hundred), `−2 ln` of about 1/7. It counts only where a
-/// marker is contested: in a component where every trace takes a marker
-/// it adds the same to every choice.
+/// that missed it in the frame before, against one measured again: a
+/// marker hidden for 10–50 frames comes back in a given frame of its gap
+/// with odds of a few in a hundred, where a marker seen in the frame
+/// before is seen again in nearly every frame. 4 is `−2 ln` of odds of
+/// about 1/7, the side of that ratio the sweep chose: 8 (1/55) lost more
+/// than it won (docs/tracking.md §4a). It counts only where a marker is
+/// contested: in a component where every trace takes a marker it adds
+/// the same to every choice.
 const COAST_COST: f64 = 4.0;
 
 /// The online tracker; feed it frames in order with [`Tracker::push`].
@@ -525,7 +527,7 @@ impl Tracker {
                 }
             }
         }
-        self.add_log_variance(r, t);
+        self.add_contest_terms(r, t);
     }
 
     /// Adds each trace's log covariance ([`DIMENSIONS`]) and, when it
@@ -538,7 +540,7 @@ impl Tracker {
     /// or without. The log was taken for every trace, 1 000 a frame at
     /// 1 000 markers (a twentieth of the frame), where a few are needed.
     /// Edges come grouped by row.
-    fn add_log_variance(&mut self, r: f64, t: i64) {
+    fn add_contest_terms(&mut self, r: f64, t: i64) {
         let edges = &mut self.edges;
         self.col_edges.clear();
         self.col_edges.resize(self.points.len(), 0);
