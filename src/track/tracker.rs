@@ -143,7 +143,8 @@ const DIMENSIONS: f64 = 3.0;
 /// with odds of a few in a hundred, where a marker seen in the frame
 /// before is seen again in nearly every frame. 4 is `−2 ln` of odds of
 /// about 1/7, the side of that ratio the sweep chose: 8 (1/55) lost more
-/// than it won (docs/tracking.md §4a). It counts only where a marker is
+/// than it won, 2 gave the same but for single seeds flipping either way
+/// (docs/tracking.md §4a). It counts only where a marker is
 /// contested: in a component where every trace takes a marker it adds
 /// the same to every choice.
 const COAST_COST: f64 = 4.0;
