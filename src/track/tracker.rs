@@ -112,6 +112,14 @@ struct Live {
     run: u8,
 }
 
+impl Live {
+    /// Whether it missed its marker in the frame before `t`: coasting
+    /// through a gap, so taking a marker in `t` is a join across it.
+    fn coasting(&self, t: i64) -> bool {
+        self.motion.t() < t - 1
+    }
+}
+
 /// Up to this many trace × marker pairs per frame, candidates are found by
 /// comparing every pair; beyond, from a grid of the frame's markers
 /// (src/track/grid.rs). Building the grid costs more than the whole scan for a
@@ -468,14 +476,13 @@ impl Tracker {
     /// identity's neighbours put elsewhere (`Identities::reacquire_agrees`).
     fn check_reacquired(&mut self, t: i64) {
         let live = &self.live;
-        if !live.iter().any(|l| l.motion.t() < t - 1) {
+        if !live.iter().any(|l| l.coasting(t)) {
             return;
         }
         let (points, identities) = (&self.points, &self.identities);
         self.edges.retain(|e| {
             let l = &live[e.row];
-            l.motion.t() >= t - 1
-                || identities.reacquire_agrees(l.trace, DVec3::from_array(points[e.col]))
+            !l.coasting(t) || identities.reacquire_agrees(l.trace, DVec3::from_array(points[e.col]))
         });
     }
 
@@ -560,11 +567,7 @@ impl Tracker {
                     .any(|e| self.col_edges.get(e.col).is_some_and(|&n| n > 1));
             if let (true, Some(l)) = (shared, self.live.get(row)) {
                 let s = l.variance.max(r);
-                let coasting = if l.motion.t() < t - 1 {
-                    COAST_COST
-                } else {
-                    0.0
-                };
+                let coasting = if l.coasting(t) { COAST_COST } else { 0.0 };
                 let added = (DIMENSIONS * (s / r).ln() + coasting).min(LOG_VARIANCE_ALLOWANCE);
                 for e in &mut edges[start..end] {
                     e.cost += added;

@@ -48,10 +48,10 @@ const CLOSE: f64 = 0.015;
 /// side of a possible swap (30 frames at 240 Hz).
 const WINDOW_S: f64 = 0.125;
 /// An encounter is over once the pair was not close for this long (s)
-/// and the window after it is full; a pair close for longer than
-/// [`LONGEST_S`] is left as it is (two markers side by side on one twig,
-/// where every frame would be a candidate).
+/// and the window after it is full.
 const APART_S: f64 = 0.02;
+/// A pair close for longer than this (s) is left as it is: two markers
+/// side by side on one twig, where every frame would be a candidate.
 const LONGEST_S: f64 = 0.25;
 /// Fewer samples on either side than this and the pair is left alone.
 const MIN_SAMPLES: usize = 4;
