@@ -144,6 +144,7 @@ fn report_and_check(name: &str, all: &[(String, Score)]) {
     let r_max = rest.iter().cloned().fold(0.0, f64::max);
     let short = pooled(&fills, 1, 10);
     let long = pooled(&fills, 11, 50);
+    let longer = pooled(&fills, 51, i64::MAX);
     println!(
         "{name}: rest error mean {:.4} mm max {:.4} mm over {} tips",
         r_mean * 1000.0,
@@ -152,13 +153,17 @@ fn report_and_check(name: &str, all: &[(String, Score)]) {
     );
     println!(
         "{name}: fill error, gaps 1-10 frames: {} gaps, mean {:.3} mm, max {:.3} mm; \
-         11-50 frames: {} gaps, mean {:.3} mm, max {:.3} mm; filled {} of {} wind gaps",
+         11-50 frames: {} gaps, mean {:.3} mm, max {:.3} mm; \
+         longer: {} gaps, mean {:.3} mm, max {:.3} mm; filled {} of {} wind gaps",
         short.0,
         short.1 * 1000.0,
         short.2 * 1000.0,
         long.0,
         long.1 * 1000.0,
         long.2 * 1000.0,
+        longer.0,
+        longer.1 * 1000.0,
+        longer.2 * 1000.0,
         fills.len(),
         wind_gaps
     );

@@ -95,18 +95,26 @@ pub(super) fn across(
         }
         ar::fit(&lined, order)
     })?;
-    let mut filled = ar::interpolate(&centred, &coefficients)?;
+    let (mut start, mut filled) = ar::interpolate(&centred, &coefficients)?;
     // Fitted again with the holes beside the gap interpolated, the gap
     // itself still missing: more of the measured swing in the fit
     // (long-gap sweep, 25 % occlusion, 51 f–2 s: 7.06 → 4.17 mm).
     let again: Vec<Option<DVec3>> = (0..centred.len())
-        .map(|i| (i >= first && i <= last && !gap_at(i)).then(|| filled[i - first]))
+        .map(|i| {
+            let k = i.checked_sub(start).filter(|&k| k < filled.len());
+            k.filter(|_| !gap_at(i)).map(|k| filled[k])
+        })
         .collect();
     if let Some(f) = ar::fit(&again, order).and_then(|c| ar::interpolate(&centred, &c)) {
-        filled = f;
+        (start, filled) = f;
+    }
+    // The spline needs the blocks from one before the gap to two after.
+    let (g0, g1) = ((-1 - j_lo) as usize, (h / d + 2 - j_lo) as usize);
+    if g0 < start || g1 >= start + filled.len() {
+        return None;
     }
     let value =
-        |i: i64| filled[(i - first as i64).clamp(0, filled.len() as i64 - 1) as usize] + mean;
+        |i: i64| filled[(i - start as i64).clamp(0, filled.len() as i64 - 1) as usize] + mean;
     Some(
         (0..=h)
             .map(|f| {
