@@ -251,7 +251,7 @@ mod tests {
         assert!(worst < 0.0002, "worst {worst}");
         // Without two runs of p known samples there is nothing to solve.
         let short: Vec<Option<DVec3>> = (0..30)
-            .map(|t| (t < 8 || t > 25).then(|| twig(t)))
+            .map(|t| (!(8..=25).contains(&t)).then(|| twig(t)))
             .collect();
         assert!(interpolate(&short, &a).is_none());
     }
