@@ -135,7 +135,8 @@ const LONG_WINDOW_S: f64 = 2.0;
 /// it far off.
 const SLOPE_FADE_S: f64 = 1.0;
 /// Samples a second of the grid the residual's autoregression runs on
-/// (long-gap sweep, 51 f–2 s, order 8, `base` / `gusts` / `noise` /
+/// (long-gap sweep, 51 f–2 s, order 8, forward prediction errors only and
+/// one fit, as first built; `base` / `gusts` / `noise` /
 /// `occlusion` in mm: 20 Hz 3.99 / 8.00 / 3.49 / 7.03, 30 Hz 3.62 /
 /// 7.16 / 4.72 / 5.20, 60 Hz 5.56 / 10.87 / 5.20 / 5.57; PCHIP 12.67 /
 /// 27.05 / 13.19 / 12.65, the Hermite of the residual 8.22 / 15.20 /
