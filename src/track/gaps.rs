@@ -142,8 +142,9 @@ const SLOPE_FADE_S: f64 = 1.0;
 /// 27.05 / 13.19 / 12.65, the Hermite of the residual 8.22 / 15.20 /
 /// 7.91 / 8.12).
 const AR_RATE_HZ: f64 = 30.0;
-/// Order of that autoregression (same sweep, fitted again with the holes
-/// beside the gap interpolated: order 8 `noise` / `occlusion` 4.64 /
+/// Order of that autoregression (same sweep, forward errors only, fitted
+/// again with the holes beside the gap interpolated: order 8 `noise` /
+/// `occlusion` 4.64 /
 /// 4.31, 12 3.06 / 4.17, 16 2.48 / 3.80; but on a twig swinging as a
 /// noise-driven damped oscillator, the test
 /// `a_twig_swinging_on_its_own_is_carried_across_a_long_gap`, 8 and 12
