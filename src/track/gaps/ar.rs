@@ -29,18 +29,23 @@ pub(super) fn fit(series: &[Option<DVec3>], p: usize) -> Option<Vec<f64>> {
     let mut ata = vec![0.0; p * p];
     let mut atb = vec![0.0; p];
     let mut runs = 0;
-    for t in p..series.len() {
-        let Some(window) = (t - p..=t).map(|i| series[i]).collect::<Option<Vec<_>>>() else {
+    // The series without holes (missing samples as zeros) and, for each
+    // sample, how many known samples run up to it: a window is whole when
+    // its last sample ends a run of p + 1.
+    let x: Vec<DVec3> = series.iter().map(|s| s.unwrap_or(DVec3::ZERO)).collect();
+    let mut run = 0;
+    for t in 0..series.len() {
+        run = if series[t].is_some() { run + 1 } else { 0 };
+        if run <= p {
             continue;
-        };
+        }
         runs += 1;
-        let x = window[p];
-        // Lag k is `window[p − k]`.
+        // Lag k + 1 is `x[t − 1 − k]`.
         for i in 0..p {
-            let xi = window[p - 1 - i];
-            atb[i] += xi.dot(x);
+            let xi = x[t - 1 - i];
+            atb[i] += xi.dot(x[t]);
             for j in i..p {
-                ata[i * p + j] += xi.dot(window[p - 1 - j]);
+                ata[i * p + j] += xi.dot(x[t - 1 - j]);
             }
         }
     }
