@@ -22,8 +22,9 @@ use super::ar;
 /// modelled (too few samples, a singular system). No bound on the swing
 /// it gives: falling back to a cubic where it swung over 2 or 4 times
 /// the widest measured block made the fills worse (long-gap sweep, 51 f–2
-/// s, `all`: 7.36 mm unbounded, 7.83 at 4 ×, 8.80 at 2 ×; seeds 251–253
-/// 9.44, 9.70, 10.61): a gust grows the swing while the tip is hidden.
+/// s, `all`, forward errors only: 7.36 mm unbounded, 7.83 at 4 ×, 8.80 at
+/// 2 ×; seeds 251–253 9.44, 9.70, 10.61): a gust grows the swing while
+/// the tip is hidden.
 pub(super) fn across(
     before: &[Option<DVec3>],
     after: &[Option<DVec3>],
@@ -98,7 +99,8 @@ pub(super) fn across(
     let (mut start, mut filled) = ar::interpolate(&centred, &coefficients)?;
     // Fitted again with the holes beside the gap interpolated, the gap
     // itself still missing: more of the measured swing in the fit
-    // (long-gap sweep, 25 % occlusion, 51 f–2 s: 7.06 → 4.17 mm).
+    // (long-gap sweep, 25 % occlusion, 51 f–2 s, forward errors only:
+    // 7.06 → 4.17 mm).
     let again: Vec<Option<DVec3>> = (0..centred.len())
         .map(|i| {
             let k = i.checked_sub(start).filter(|&k| k < filled.len());
@@ -109,8 +111,8 @@ pub(super) fn across(
         (start, filled) = f;
     }
     // The spline needs the blocks from one before the gap to two after.
-    let (g0, g1) = ((-1 - j_lo) as usize, (h / d + 2 - j_lo) as usize);
-    if g0 < start || g1 >= start + filled.len() {
+    let (g0, g1) = (-1 - j_lo, h / d + 2 - j_lo);
+    if g0 < start as i64 || g1 >= (start + filled.len()) as i64 {
         return None;
     }
     let value =
