@@ -515,32 +515,37 @@ fn neighbour_fill(ctx: &Context<'_, '_>, m: &Model, span: i64, duration: f64) ->
     let t = duration / SLOPE_FADE_S;
     let keep = 1.0 / (1.0 + t * t * t * t);
     let secant = (p1 - p0) / h;
-    let residual = Fill {
-        from: a,
-        to: b,
-        curve: Curve::Hermite {
-            p0,
-            m0: secant + (s0 - secant) * keep,
-            p1,
-            m1: secant + (s1 - secant) * keep,
-        },
-    };
     // Frames per block of the residual's autoregression.
     let step = (((h - 1.0) / duration) / AR_RATE_HZ).round().max(1.0) as usize;
-    let swing = swing::across(&m.before, &m.after, (b - a) as usize, step, AR_ORDER);
+    // The residual on frames a ..= b: its swing tilted to meet the fitted
+    // ends, or the Hermite between them where it cannot be modelled.
+    let residual: Vec<DVec3> =
+        match swing::across(&m.before, &m.after, (b - a) as usize, step, AR_ORDER) {
+            Some(s) => {
+                let (sa, sb) = (s[0], s[s.len() - 1]);
+                (s.iter().enumerate())
+                    .map(|(k, r)| {
+                        let x = k as f64 / h;
+                        *r + (p0 - sa) * (1.0 - x) + (p1 - sb) * x
+                    })
+                    .collect()
+            }
+            None => {
+                let hermite = Fill {
+                    from: a,
+                    to: b,
+                    curve: Curve::Hermite {
+                        p0,
+                        m0: secant + (s0 - secant) * keep,
+                        p1,
+                        m1: secant + (s1 - secant) * keep,
+                    },
+                };
+                (a..=b).map(|f| hermite.at(f)).collect()
+            }
+        };
     let points = (a + 1..b)
-        .map(|f| {
-            let r = match &swing {
-                // Tilted to meet the residual's fitted ends.
-                Some(s) => {
-                    let x = (f - a) as f64 / h;
-                    let (sa, sb) = (s[0], s[s.len() - 1]);
-                    s[(f - a) as usize] + (p0 - sa) * (1.0 - x) + (p1 - sb) * x
-                }
-                None => residual.at(f),
-            };
-            Some(m.at(f)? + r)
-        })
+        .map(|f| Some(m.at(f)? + residual[(f - a) as usize]))
         .collect::<Option<Vec<_>>>()?;
     Some(Fill {
         from: a,
