@@ -26,7 +26,8 @@
 //! true tip most of each output tip's samples come from (`map t<trace> =
 //! tip (n samples)`), to read the anchors' trace ids; `COLUMNS=1` the true
 //! tip behind each source column (`col c tip k`), to read the source ids
-//! `UNTANGLE_DEBUG=1` prints.
+//! `UNTANGLE_DEBUG=1` prints; `LONG=1` adds the long occlusions of
+//! `track_stress … long`.
 
 use treemocap::sim::{self, stress};
 use treemocap::track::{self, Tracker, TrackingSettings};
@@ -47,7 +48,12 @@ fn main() {
         eprintln!("no stress named {name}");
         return;
     };
-    let syn = sim::generate(&st.options).expect("stress options are valid");
+    let opts = if std::env::var_os("LONG").is_some() {
+        stress::long_gaps(st.options)
+    } else {
+        st.options
+    };
+    let syn = sim::generate(&opts).expect("stress options are valid");
     let mut tracker = Tracker::new(&cfg, Some(240.0));
     for f in &syn.frames {
         tracker.push(f);
