@@ -176,6 +176,18 @@ struct Piece {
     /// Its path at its first and last [`SEAM_K`] samples, for the seams.
     head: End,
     tail: End,
+    /// Set when it is movable and spreads no more than its noise allows
+    /// ([`STILL_NOISE`]): it may be a reflection, judged at each tip by
+    /// [`sits_still`]. Measured once, when the piece is finished.
+    quiet: Option<Quiet>,
+}
+
+/// What [`sits_still`] needs of a quiet piece.
+struct Quiet {
+    /// Its noise's mean squared distance from the true point (3σ², m²).
+    noise2: f64,
+    /// Up to [`MOTION_POINTS`] of its samples, evenly spread.
+    samples: Vec<(i64, DVec3)>,
 }
 
 impl Piece {
@@ -425,6 +437,7 @@ fn cut_trace(t: Trace, k: usize, cuts: &Cuts<'_>, out: &mut Vec<Piece>) {
                     movable: f >= cuts.after,
                     head: End::default(),
                     tail: End::default(),
+                    quiet: None,
                 };
                 cur = Some((piece, !hard && !mine.is_empty()));
             }
@@ -482,7 +495,43 @@ fn finished(mut p: Piece) -> Piece {
         p.probes.push((f as i64, p.head.reach(f)));
     }
     p.probes.shrink_to_fit();
+    if p.movable {
+        p.quiet = quiet(&p.trace);
+    }
     p
+}
+
+/// `trace`'s [`Quiet`] when its positions spread about their mean by no
+/// more than [`STILL_NOISE`] times what its own noise gives, measured from
+/// its second differences (a marker's motion adds nothing there at
+/// 240 Hz); `None` for a piece that moves, or too short to tell.
+fn quiet(trace: &Trace) -> Option<Quiet> {
+    // Noise per axis from the second differences of consecutive samples
+    // (each has variance 6σ² per axis).
+    let (mut d2, mut nd) = (0.0, 0usize);
+    let mut last: [Option<(i64, DVec3)>; 2] = [None, None];
+    for (f, q) in trace.measurements() {
+        if let [Some((f0, q0)), Some((f1, q1))] = last {
+            if f - f0 == 2 && f - f1 == 1 {
+                d2 += (q - 2.0 * q1 + q0).length_squared();
+                nd += 1;
+            }
+        }
+        last = [last[1], Some((f, q))];
+    }
+    if nd < 3 {
+        return None;
+    }
+    let noise2 = 3.0 * d2 / nd as f64 / 18.0;
+    let every = trace.measured().div_ceil(MOTION_POINTS).max(1);
+    let samples: Vec<(i64, DVec3)> = trace.measurements().step_by(every).collect();
+    let centre = samples.iter().map(|x| x.1).sum::<DVec3>() / samples.len() as f64;
+    let spread = samples
+        .iter()
+        .map(|x| x.1.distance_squared(centre))
+        .sum::<f64>()
+        / samples.len() as f64;
+    (spread <= STILL_NOISE * noise2).then_some(Quiet { noise2, samples })
 }
 
 /// The first and last [`SEAM_K`] samples of the piece being cut.
@@ -1015,13 +1064,8 @@ fn choose(
     // of 27–50 samples).
     // Nor does it go to another tip it sits still at.
     let was = was.filter(|&w| !still(w));
-    let moving: Vec<(f64, f64, usize)>;
-    let costs = if costs.iter().any(|c| still(c.2)) {
-        moving = costs.iter().copied().filter(|c| !still(c.2)).collect();
-        &moving[..]
-    } else {
-        costs
-    };
+    let moving: Vec<(f64, f64, usize)> = costs.iter().copied().filter(|c| !still(c.2)).collect();
+    let costs = &moving[..];
     let mut sorted = costs.to_vec();
     sorted.sort_by(|x, y| x.0.total_cmp(&y.0).then(x.2.cmp(&y.2)));
     let best = sorted.first().copied();
@@ -1133,12 +1177,10 @@ fn motion_ratio(
 }
 
 /// Whether piece `i` sits still where anchor `a`'s neighbours say the
-/// tip moved: its positions (up to [`MOTION_POINTS`] of its samples)
-/// spread about their mean by no more than [`STILL_NOISE`] times what its
-/// own noise gives, measured from its second differences (a marker's
-/// motion adds nothing there at 240 Hz), while the positions the
-/// neighbours give it spread [`STILL_MOTION`] times that noise or more,
-/// and it does not follow them (slope on them under [`STILL_RATIO`]).
+/// tip moved: it is [`Quiet`] (its positions spread within its noise),
+/// the positions the neighbours give it at its quiet samples spread
+/// [`STILL_MOTION`] times that noise or more, and it does not follow them
+/// (slope on them under [`STILL_RATIO`]).
 ///
 /// [`motion_ratio`] compares only the sizes of the two motions, over the
 /// probes: a reflection's noise looked like half a tip's motion of a few
@@ -1149,41 +1191,13 @@ fn motion_ratio(
 /// more than its noise is not still whatever its neighbours say.
 fn sits_still(pieces: &[Piece], anchors: &[Anchor], field: &Field, i: usize, a: usize) -> bool {
     let p = &pieces[i];
-    // Noise per axis from the second differences of consecutive samples
-    // (each has variance 6σ² per axis).
-    let (mut d2, mut nd) = (0.0, 0usize);
-    let mut last: [Option<(i64, DVec3)>; 2] = [None, None];
-    for (f, q) in p.trace.measurements() {
-        if let [Some((f0, q0)), Some((f1, q1))] = last {
-            if f - f0 == 2 && f - f1 == 1 {
-                d2 += (q - 2.0 * q1 + q0).length_squared();
-                nd += 1;
-            }
-        }
-        last = [last[1], Some((f, q))];
-    }
-    if nd < 3 {
+    let Some(quiet) = &p.quiet else {
         return false;
-    }
-    let sigma2 = d2 / nd as f64 / 18.0;
-    // Mean squared distances from the mean, against the noise's (3σ²).
-    // The piece's own spread first: it does not depend on the tip, and
-    // most pieces move.
-    let noise2 = 3.0 * sigma2;
-    let every = p.trace.measured().div_ceil(MOTION_POINTS).max(1);
-    let all: Vec<(i64, DVec3)> = p.trace.measurements().step_by(every).collect();
-    let centre = all.iter().map(|x| x.1).sum::<DVec3>() / all.len() as f64;
-    let spread = all
+    };
+    let (own, expected): (Vec<DVec3>, Vec<DVec3>) = quiet
+        .samples
         .iter()
-        .map(|x| x.1.distance_squared(centre))
-        .sum::<f64>()
-        / all.len() as f64;
-    if spread > STILL_NOISE * noise2 {
-        return false;
-    }
-    let (own, expected): (Vec<DVec3>, Vec<DVec3>) = all
-        .into_iter()
-        .filter_map(|(f, q)| Some((q, q - field.offset(pieces, anchors, a, p.from, f, q)?)))
+        .filter_map(|&(f, q)| Some((q, q - field.offset(pieces, anchors, a, p.from, f, q)?)))
         .unzip();
     if own.len() < 3 {
         return false;
@@ -1196,7 +1210,8 @@ fn sits_still(pieces: &[Piece], anchors: &[Anchor], field: &Field, i: usize, a: 
         sxy += (*o - mo).dot(*e - me);
         sxx += (*e - me).length_squared();
     }
-    sxx / n >= STILL_MOTION * STILL_MOTION * noise2 && sxy < STILL_RATIO * sxx
+    // Mean squared distances from the mean, against the noise's.
+    sxx / n >= STILL_MOTION * STILL_MOTION * quiet.noise2 && sxy < STILL_RATIO * sxx
 }
 
 /// Root mean square distance of `v` from its mean.
@@ -1395,14 +1410,15 @@ mod tests {
             ends.push(f, p);
         }
         let (head, tail) = ends.take();
-        Piece {
+        finished(Piece {
             trace,
             from,
             probes,
             movable: true,
             head,
             tail,
-        }
+            quiet: None,
+        })
     }
 
     /// Cuts from frame 0 at 240 Hz, probes every 12 frames, gaps over
