@@ -1160,11 +1160,7 @@ fn motion_ratio(
     a: usize,
 ) -> Option<f64> {
     let p = &pieces[i];
-    let (own, expected): (Vec<DVec3>, Vec<DVec3>) = p
-        .probes
-        .iter()
-        .filter_map(|&(f, q)| Some((q, q - field.offset(pieces, anchors, a, p.from, f, q)?)))
-        .unzip();
+    let (own, expected) = told(pieces, anchors, field, i, a, &p.probes);
     if own.len() < 2 {
         return None;
     }
@@ -1174,6 +1170,23 @@ fn motion_ratio(
     } else {
         f64::INFINITY
     })
+}
+
+/// Piece `i`'s positions `at` and where anchor `a`'s neighbours put the
+/// tip at those frames (its mean offset left out), for the frames where
+/// they can say.
+fn told(
+    pieces: &[Piece],
+    anchors: &[Anchor],
+    field: &Field,
+    i: usize,
+    a: usize,
+    at: &[(i64, DVec3)],
+) -> (Vec<DVec3>, Vec<DVec3>) {
+    let from = pieces[i].from;
+    at.iter()
+        .filter_map(|&(f, q)| Some((q, q - field.offset(pieces, anchors, a, from, f, q)?)))
+        .unzip()
 }
 
 /// Whether piece `i` sits still where anchor `a`'s neighbours say the
@@ -1194,11 +1207,7 @@ fn sits_still(pieces: &[Piece], anchors: &[Anchor], field: &Field, i: usize, a: 
     let Some(quiet) = &p.quiet else {
         return false;
     };
-    let (own, expected): (Vec<DVec3>, Vec<DVec3>) = quiet
-        .samples
-        .iter()
-        .filter_map(|&(f, q)| Some((q, q - field.offset(pieces, anchors, a, p.from, f, q)?)))
-        .unzip();
+    let (own, expected) = told(pieces, anchors, field, i, a, &quiet.samples);
     if own.len() < 3 {
         return false;
     }
