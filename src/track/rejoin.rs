@@ -525,13 +525,8 @@ fn quiet(trace: &Trace) -> Option<Quiet> {
     let noise2 = 3.0 * d2 / nd as f64 / 18.0;
     let every = trace.measured().div_ceil(MOTION_POINTS).max(1);
     let samples: Vec<(i64, DVec3)> = trace.measurements().step_by(every).collect();
-    let centre = samples.iter().map(|x| x.1).sum::<DVec3>() / samples.len() as f64;
-    let spread = samples
-        .iter()
-        .map(|x| x.1.distance_squared(centre))
-        .sum::<f64>()
-        / samples.len() as f64;
-    (spread <= STILL_NOISE * noise2).then_some(Quiet { noise2, samples })
+    let at: Vec<DVec3> = samples.iter().map(|x| x.1).collect();
+    (mean_square_about_mean(&at) <= STILL_NOISE * noise2).then_some(Quiet { noise2, samples })
 }
 
 /// The first and last [`SEAM_K`] samples of the piece being cut.
@@ -1225,8 +1220,13 @@ fn sits_still(pieces: &[Piece], anchors: &[Anchor], field: &Field, i: usize, a: 
 
 /// Root mean square distance of `v` from its mean.
 fn rms_about_mean(v: &[DVec3]) -> f64 {
+    mean_square_about_mean(v).sqrt()
+}
+
+/// Mean squared distance of `v` from its mean.
+fn mean_square_about_mean(v: &[DVec3]) -> f64 {
     let m = v.iter().copied().sum::<DVec3>() / v.len() as f64;
-    (v.iter().map(|x| x.distance_squared(m)).sum::<f64>() / v.len() as f64).sqrt()
+    v.iter().map(|x| x.distance_squared(m)).sum::<f64>() / v.len() as f64
 }
 
 /// How far piece `i`'s mean offset is from anchor `a`'s, in squared
