@@ -809,8 +809,8 @@ fn candidates(
             anchors[a].rest.distance(near) <= REACH && !taken[a].iter().any(|t| overlaps(span, t))
         })
         .filter_map(|a| {
-            let c = cost(pieces, anchors, field, i, a, one_second)?;
-            Some((c + seams(pieces, &taken[a], i, one_second), c, a))
+            let (c, total) = cost_at(pieces, anchors, field, i, a, &taken[a], one_second)?;
+            Some((total, c, a))
         })
         .collect()
 }
@@ -939,8 +939,7 @@ fn swaps(
         let held = owner[q];
         let before = match held {
             None => Some(LOOSE),
-            Some(c) => cost(pieces, anchors, field, q, c, one_second)
-                .map(|m| m + seams(pieces, &taken[c], q, one_second)),
+            Some(c) => cost_at(pieces, anchors, field, q, c, &taken[c], one_second).map(|m| m.1),
         };
         let Some(before) = before else {
             continue;
@@ -1070,8 +1069,7 @@ fn trades(
 ) {
     let debug = std::env::var_os("REJOIN_DEBUG").is_some();
     let total = |i: usize, a: usize, held: &[(i64, i64, usize)]| {
-        cost(pieces, anchors, field, i, a, one_second)
-            .map(|m| (m, m + seams(pieces, held, i, one_second)))
+        cost_at(pieces, anchors, field, i, a, held, one_second)
     };
     for &q in order {
         let Some(x) = owner[q] else {
@@ -1123,10 +1121,10 @@ fn trades(
                     .copied()
                     .filter(|t| !out.contains(&t.2))
                     .collect();
-                held.extend(
-                    into.iter()
-                        .map(|&i| (pieces[i].span().0, pieces[i].span().1, i)),
-                );
+                held.extend(into.iter().map(|&i| {
+                    let (s, e) = pieces[i].span();
+                    (s, e, i)
+                }));
                 held
             };
             let (hx, hy) = (after(x, &sa, &sb), after(y, &sb, &sa));
@@ -1416,6 +1414,21 @@ fn cost(
     let an = &anchors[a];
     let var = an.spread * an.spread / n_eff + SPREAD_MIN * SPREAD_MIN;
     Some(mean.distance_squared(an.mean) / var)
+}
+
+/// Piece `i`'s [`cost`] at anchor `a`, alone and with its [`seams`] to
+/// the pieces `held` there.
+fn cost_at(
+    pieces: &[Piece],
+    anchors: &[Anchor],
+    field: &Field,
+    i: usize,
+    a: usize,
+    held: &[(i64, i64, usize)],
+    one_second: i64,
+) -> Option<(f64, f64)> {
+    let c = cost(pieces, anchors, field, i, a, one_second)?;
+    Some((c, c + seams(pieces, held, i, one_second)))
 }
 
 /// How badly piece `i` continues the pieces of a tip next to it in time
@@ -2243,6 +2256,32 @@ mod tests {
         assert_eq!((owner[3], owner[4]), (Some(0), None), "tip 1 is busy");
     }
 
+    /// Tips 0 and 1, 45 mm apart along x, both alone on their limbs (tip
+    /// 0's offset spreads 80 mm, tip 1's `spread_1`, and tip 1's is learnt
+    /// 20 mm from its marker), judged by tip 2, 200 mm along y: where the
+    /// three rest, their pieces of the still phase and their anchors.
+    fn wide_pair(spread_1: f64) -> ([DVec3; 3], Vec<Piece>, Vec<Anchor>) {
+        let (a, b, n) = (
+            DVec3::ZERO,
+            DVec3::new(0.045, 0.0, 0.0),
+            DVec3::new(0.0, 0.2, 0.0),
+        );
+        let pieces = vec![
+            settled(piece(0, swaying(0..=96, a, true))),
+            settled(piece(1, swaying(0..=96, b, true))),
+            settled(piece(2, swaying(0..=1200, n, true))),
+        ];
+        let mut anchors = vec![
+            anchor(0, a, vec![(2, 1.0)]),
+            anchor(1, b, vec![(2, 1.0)]),
+            anchor(2, n, vec![(0, 1.0)]),
+        ];
+        anchors[0].spread = 0.08;
+        anchors[1].spread = spread_1;
+        anchors[1].mean = DVec3::new(0.0, 0.0, 0.02);
+        ([a, b, n], pieces, anchors)
+    }
+
     /// Not when nothing but the loose fit of two wide tips speaks for
     /// trading.
     #[test]
@@ -2251,19 +2290,16 @@ mod tests {
         // limbs (wide spreads), judged by tip 2; everything sways 30 mm at
         // 1 Hz. From frame 480 the tracker has tip 1's marker in tip 0's
         // identity and, inside that, tip 0's marker in tip 1's.
-        let (a, b, n) = (
-            DVec3::ZERO,
-            DVec3::new(0.045, 0.0, 0.0),
-            DVec3::new(0.0, 0.2, 0.0),
-        );
         let setup = |own_pieces_beside: bool| {
-            let mut pieces = vec![
-                settled(piece(0, swaying(0..=96, a, true))),
-                settled(piece(1, swaying(0..=96, b, true))),
-                settled(piece(2, swaying(0..=1200, n, true))),
+            // Tip 0's offset spreads 80 mm, tip 1's 30 mm, and tip 1's
+            // marker sits 20 mm from the offset learnt for it: its piece
+            // in tip 0 fits there (cost 0.75) as well as at its own tip
+            // (0.84), and tip 0's marker fits tip 1 (5.1).
+            let ([a, b, _], mut pieces, anchors) = wide_pair(0.03);
+            pieces.extend([
                 piece(0, swaying(480..=720, b, true)),
                 piece(1, swaying(504..=696, a, true)),
-            ];
+            ]);
             if own_pieces_beside {
                 // Each tip's own marker up to 0.1 s before and from 0.1 s
                 // after the swapped pieces: their seams miss by 45 mm.
@@ -2274,18 +2310,6 @@ mod tests {
                     piece(1, swaying(732..=1200, b, true)),
                 ]);
             }
-            let mut anchors = vec![
-                anchor(0, a, vec![(2, 1.0)]),
-                anchor(1, b, vec![(2, 1.0)]),
-                anchor(2, n, vec![(0, 1.0)]),
-            ];
-            // Tip 0's offset spreads 80 mm, tip 1's 30 mm, and tip 1's
-            // marker sits 20 mm from the offset learnt for it: its piece
-            // in tip 0 fits there (cost 0.75) as well as at its own tip
-            // (0.84), and tip 0's marker fits tip 1 (5.1).
-            anchors[0].spread = 0.08;
-            anchors[1].spread = 0.03;
-            anchors[1].mean = DVec3::new(0.0, 0.0, 0.02);
             (pieces, anchors)
         };
         let (pieces, anchors) = setup(true);
@@ -2310,21 +2334,14 @@ mod tests {
         // Tip 0's identity holds tip 1's marker in two pieces, tip 1's
         // identity tip 0's marker in two, each overlapping both of the
         // other's; the tips' own markers before and after, or not.
-        let (a, b, n) = (
-            DVec3::ZERO,
-            DVec3::new(0.045, 0.0, 0.0),
-            DVec3::new(0.0, 0.2, 0.0),
-        );
         let traded = |own_pieces_beside: bool| {
-            let mut pieces = vec![
-                settled(piece(0, swaying(0..=96, a, true))),
-                settled(piece(1, swaying(0..=96, b, true))),
-                settled(piece(2, swaying(0..=1200, n, true))),
+            let ([a, b, _], mut pieces, anchors) = wide_pair(0.05);
+            pieces.extend([
                 piece(0, swaying(480..=696, b, true)),
                 piece(0, swaying(720..=996, b, true)),
                 piece(1, swaying(504..=792, a, true)),
                 piece(1, swaying(816..=1008, a, true)),
-            ];
+            ]);
             let mut tips = vec![0, 1, 2, 0, 0, 1, 1];
             if own_pieces_beside {
                 pieces.extend([
@@ -2335,14 +2352,6 @@ mod tests {
                 ]);
                 tips.extend([0, 0, 1, 1]);
             }
-            let mut anchors = vec![
-                anchor(0, a, vec![(2, 1.0)]),
-                anchor(1, b, vec![(2, 1.0)]),
-                anchor(2, n, vec![(0, 1.0)]),
-            ];
-            anchors[0].spread = 0.08;
-            anchors[1].spread = 0.05;
-            anchors[1].mean = DVec3::new(0.0, 0.0, 0.02);
             // Where the tracker and the steps before left them.
             let mut owner: Vec<Option<usize>> = tips.iter().map(|&t| Some(t)).collect();
             let mut taken = vec![Vec::new(); anchors.len()];
