@@ -1200,9 +1200,10 @@ fn trades(
 /// say: `None` when too short to show it); else none: a piece of its
 /// own. Where it fits a tip only loosely (mean over [`FIT`]), or the
 /// tracker's tip cannot be judged either, a tip nearer it that cannot be
-/// judged (`hidden_nearer(a)`) may be its own: it stays with neither; nor does a `quiet` piece (its positions spread within its
-/// noise, [`quiet`]) keep or take a tip by nearness alone, nor a piece
-/// another tip continues clearly better by its seams and its mean.
+/// judged (`hidden_nearer(a)`) may be its own: it stays with neither;
+/// nor does a `quiet` piece (its positions spread within its noise,
+/// [`quiet`]) keep or take a tip by nearness alone, nor a piece another
+/// tip continues clearly better by its seams and its mean.
 fn choose(
     costs: &[(f64, f64, usize)],
     was: Option<usize>,
@@ -2390,6 +2391,22 @@ mod tests {
         assert_eq!((owner[3], owner[4]), (Some(0), Some(1)), "kept");
     }
 
+    /// The tips `trades` leaves the pieces at (after the still phase,
+    /// from piece 3 on) when the tracker and the steps before left piece
+    /// `i` at tip `tips[i]`.
+    fn traded(pieces: &[Piece], anchors: &[Anchor], tips: &[usize]) -> Vec<Option<usize>> {
+        let mut owner: Vec<Option<usize>> = tips.iter().map(|&t| Some(t)).collect();
+        let mut taken = vec![Vec::new(); anchors.len()];
+        for (i, &t) in tips.iter().enumerate() {
+            let (s, e) = pieces[i].span();
+            taken[t].push((s, e, i));
+        }
+        let order: Vec<usize> = (3..pieces.len()).collect();
+        let field = Field::new(pieces, anchors, 12);
+        trades(pieces, anchors, &field, &order, &mut owner, &mut taken, 240);
+        owner
+    }
+
     /// Where the tracker swapped two tips' markers over a stretch of
     /// pieces that overlap each other across the two tips, no piece can
     /// move alone (a piece of its own tip's stretch is in the way at the
@@ -2401,7 +2418,7 @@ mod tests {
         // Tip 0's identity holds tip 1's marker in two pieces, tip 1's
         // identity tip 0's marker in two, each overlapping both of the
         // other's; the tips' own markers before and after, or not.
-        let traded = |own_pieces_beside: bool| {
+        let trade = |own_pieces_beside: bool| {
             let ([a, b, _], mut pieces, anchors) = wide_pair(0.05);
             pieces.extend([
                 piece(0, swaying(480..=696, b, true)),
@@ -2419,21 +2436,9 @@ mod tests {
                 ]);
                 tips.extend([0, 0, 1, 1]);
             }
-            // Where the tracker and the steps before left them.
-            let mut owner: Vec<Option<usize>> = tips.iter().map(|&t| Some(t)).collect();
-            let mut taken = vec![Vec::new(); anchors.len()];
-            for (i, &t) in tips.iter().enumerate() {
-                let (s, e) = pieces[i].span();
-                taken[t].push((s, e, i));
-            }
-            let order: Vec<usize> = (3..pieces.len()).collect();
-            let field = Field::new(&pieces, &anchors, 12);
-            trades(
-                &pieces, &anchors, &field, &order, &mut owner, &mut taken, 240,
-            );
-            owner
+            traded(&pieces, &anchors, &tips)
         };
-        let owner = traded(true);
+        let owner = trade(true);
         assert_eq!(
             &owner[3..7],
             &[Some(1), Some(1), Some(0), Some(0)],
@@ -2441,7 +2446,7 @@ mod tests {
         );
         assert_eq!(&owner[7..], &[Some(0), Some(0), Some(1), Some(1)]);
         // Without the seams the loose fits alone speak: kept.
-        let owner = traded(false);
+        let owner = trade(false);
         assert_eq!(&owner[3..7], &[Some(0), Some(0), Some(1), Some(1)], "kept");
     }
 
@@ -2478,16 +2483,7 @@ mod tests {
                 "piece {i}: {mine:.1} at its own tip, {there:.1} where it is"
             );
         }
-        let mut owner: Vec<Option<usize>> = tips.iter().map(|&t| Some(t)).collect();
-        let mut taken = vec![Vec::new(); anchors.len()];
-        for (i, &t) in tips.iter().enumerate() {
-            let (s, e) = pieces[i].span();
-            taken[t].push((s, e, i));
-        }
-        let order: Vec<usize> = (3..pieces.len()).collect();
-        trades(
-            &pieces, &anchors, &field, &order, &mut owner, &mut taken, 240,
-        );
+        let owner = traded(&pieces, &anchors, &tips);
         assert_eq!(
             &owner[3..7],
             &[Some(1), Some(1), Some(0), Some(0)],
