@@ -146,8 +146,9 @@ pub(crate) fn start_osc_control(
     rt: &tokio::runtime::Handle,
     addr: std::net::SocketAddr,
 ) -> Result<()> {
+    // Inside the runtime: tokio registers the socket with its reactor.
     let socket = rt
-        .block_on(tokio::net::UdpSocket::bind(addr))
+        .block_on(async { crate::source::osc::bind_buffered(addr) })
         .map_err(|source| Error::Bind {
             what: "OSC control",
             addr,
