@@ -1036,6 +1036,9 @@ fn swaps(
 
 /// Most pieces [`trades`] moves at once (both tips together).
 const TRADE_MAX: usize = 8;
+/// How many more pieces [`trades`] may add to a stretch on each side,
+/// one at a time (the nearest in time of either tip).
+const EXTEND: usize = 3;
 
 /// [`swaps`] moves one piece and what stands in its way, which must find
 /// a tip free during its own span: where the tracker swapped two tips'
@@ -1070,6 +1073,21 @@ const TRADE_MAX: usize = 8;
 /// means 8.1 and 5.4 where they were and 30.2 and 22.1 across, the
 /// first's seams missing by 62 where it was; trading them cost 291 wrong
 /// samples).
+///
+/// A swap need not begin and end with the stretch that overlaps across
+/// the two tips: a piece of one identity just before or after it, which
+/// overlaps nothing of the other's, may hold the other tip's marker too,
+/// and left behind it makes the traded stretch's seams miss (held-out
+/// `all` seed 331: 113 samples of one tip's marker held by another cost
+/// 209 with their seams where they were and 302 at their own tip, where
+/// 2 samples of the other marker sat just before them; traded with those
+/// 2 samples, −10). So the stretch is also weighed grown piece by piece
+/// in time, at either end and at both ([`stretches`]). Wrong samples,
+/// `all` / `noise_mm` 1.5, one seed per run: seeds 100–249 1 467 / 5 607
+/// → 1 467 / 3 722 (seed 151 under `noise_mm` 1.5: 1 943 → 1 285 grown
+/// at one end only, 58 at both); held out, 300–359 1 320 / 3 360 → 1 185
+/// / 3 354 (331: 577 / 62 → 442 / 56), 264–299 555 / 3 154 → 555 / 2 297
+/// (274: 1 579 → 722), 360–419 unchanged; no other seed changed.
 fn trades(
     pieces: &[Piece],
     anchors: &[Anchor],
@@ -1096,74 +1114,50 @@ fn trades(
             if y == x || anchors[y].rest.distance(near) > REACH {
                 continue;
             }
-            // The stretch: `sa` at tip x, `sb` at tip y, closed under
-            // overlap across the two tips.
-            let (mut sa, mut sb) = (vec![q], Vec::<usize>::new());
-            let mut too_many = false;
-            loop {
-                let mut grew = false;
-                for t in &taken[y] {
-                    if !sb.contains(&t.2) && sa.iter().any(|&i| overlaps(pieces[i].span(), t)) {
-                        sb.push(t.2);
-                        grew = true;
+            for (sa, sb) in stretches(pieces, taken, q, x, y) {
+                // Nothing at y in the way is a move `choose` and `swaps` have
+                // weighed already.
+                if sb.is_empty() || sa.iter().chain(&sb).any(|&i| !pieces[i].movable) {
+                    continue;
+                }
+                let after = |from: usize, out: &[usize], into: &[usize]| {
+                    let mut held: Vec<(i64, i64, usize)> = taken[from]
+                        .iter()
+                        .copied()
+                        .filter(|t| !out.contains(&t.2))
+                        .collect();
+                    held.extend(into.iter().map(|&i| {
+                        let (s, e) = pieces[i].span();
+                        (s, e, i)
+                    }));
+                    held
+                };
+                let (hx, hy) = (after(x, &sa, &sb), after(y, &sb, &sa));
+                let mut before = 0.0;
+                let mut now = 0.0;
+                let mut ok = true;
+                for (set, from, to, held) in [(&sa, x, y, &hy), (&sb, y, x, &hx)] {
+                    for &i in set {
+                        let (Some((m0, b)), Some((m, t))) =
+                            (total(i, from, &taken[from]), total(i, to, held))
+                        else {
+                            ok = false;
+                            break;
+                        };
+                        // Where its mean fits neither tip, the seams decide.
+                        let fits = m <= FIT || (m0 > FIT && m <= LOOSE);
+                        if !fits || sits_still(pieces, anchors, field, i, to) {
+                            ok = false;
+                            break;
+                        }
+                        before += b;
+                        now += t;
                     }
                 }
-                for t in &taken[x] {
-                    if !sa.contains(&t.2) && sb.iter().any(|&j| overlaps(pieces[j].span(), t)) {
-                        sa.push(t.2);
-                        grew = true;
-                    }
+                let gain = before - now;
+                if ok && gain >= CLEAR && best.as_ref().is_none_or(|b| gain > b.0) {
+                    best = Some((gain, y, sa, sb));
                 }
-                if sa.len() + sb.len() > TRADE_MAX {
-                    too_many = true;
-                    break;
-                }
-                if !grew {
-                    break;
-                }
-            }
-            // Nothing at y in the way is a move `choose` and `swaps` have
-            // weighed already.
-            if too_many || sb.is_empty() || sa.iter().chain(&sb).any(|&i| !pieces[i].movable) {
-                continue;
-            }
-            let after = |from: usize, out: &[usize], into: &[usize]| {
-                let mut held: Vec<(i64, i64, usize)> = taken[from]
-                    .iter()
-                    .copied()
-                    .filter(|t| !out.contains(&t.2))
-                    .collect();
-                held.extend(into.iter().map(|&i| {
-                    let (s, e) = pieces[i].span();
-                    (s, e, i)
-                }));
-                held
-            };
-            let (hx, hy) = (after(x, &sa, &sb), after(y, &sb, &sa));
-            let mut before = 0.0;
-            let mut now = 0.0;
-            let mut ok = true;
-            for (set, from, to, held) in [(&sa, x, y, &hy), (&sb, y, x, &hx)] {
-                for &i in set {
-                    let (Some((m0, b)), Some((m, t))) =
-                        (total(i, from, &taken[from]), total(i, to, held))
-                    else {
-                        ok = false;
-                        break;
-                    };
-                    // Where its mean fits neither tip, the seams decide.
-                    let fits = m <= FIT || (m0 > FIT && m <= LOOSE);
-                    if !fits || sits_still(pieces, anchors, field, i, to) {
-                        ok = false;
-                        break;
-                    }
-                    before += b;
-                    now += t;
-                }
-            }
-            let gain = before - now;
-            if ok && gain >= CLEAR && best.as_ref().is_none_or(|b| gain > b.0) {
-                best = Some((gain, y, sa, sb));
             }
         }
         if let Some((gain, y, sa, sb)) = best {
@@ -1188,6 +1182,88 @@ fn trades(
             }
         }
     }
+}
+
+/// The stretches [`trades`] weighs for piece `q` at tip `x` against tip
+/// `y`, each as (pieces at `x`, pieces at `y`): `q` and the pieces of the
+/// two tips overlapping it, closed under overlap across the two tips;
+/// then that stretch grown by the nearest piece of either tip wholly
+/// before it, closed again, up to [`EXTEND`] times, and each of these
+/// grown the same way after it. None with more than [`TRADE_MAX`] pieces
+/// (a stretch that grows past it stops growing there).
+fn stretches(
+    pieces: &[Piece],
+    taken: &[Vec<(i64, i64, usize)>],
+    q: usize,
+    x: usize,
+    y: usize,
+) -> Vec<(Vec<usize>, Vec<usize>)> {
+    let close = |(mut sa, mut sb): (Vec<usize>, Vec<usize>)| loop {
+        let mut grew = false;
+        for t in &taken[y] {
+            if !sb.contains(&t.2) && sa.iter().any(|&i| overlaps(pieces[i].span(), t)) {
+                sb.push(t.2);
+                grew = true;
+            }
+        }
+        for t in &taken[x] {
+            if !sa.contains(&t.2) && sb.iter().any(|&j| overlaps(pieces[j].span(), t)) {
+                sa.push(t.2);
+                grew = true;
+            }
+        }
+        if sa.len() + sb.len() > TRADE_MAX {
+            return None;
+        }
+        if !grew {
+            return Some((sa, sb));
+        }
+    };
+    // The stretch grown by the nearest piece of either tip wholly before
+    // it (`before`) or wholly after it.
+    let grown = |(sa, sb): &(Vec<usize>, Vec<usize>), before: bool| {
+        let (lo, hi) = sa
+            .iter()
+            .chain(sb)
+            .fold((i64::MAX, i64::MIN), |(lo, hi), &i| {
+                let (s, e) = pieces[i].span();
+                (lo.min(s), hi.max(e))
+            });
+        let next = [(x, true), (y, false)]
+            .into_iter()
+            .flat_map(|(tip, at_x)| taken[tip].iter().map(move |t| (t, at_x)))
+            .map(|(t, at_x)| (if before { lo - t.1 } else { t.0 - hi }, t.2, at_x))
+            .filter(|n| n.0 > 0)
+            .min()?;
+        let (mut sa, mut sb) = (sa.clone(), sb.clone());
+        if next.2 {
+            sa.push(next.1);
+        } else {
+            sb.push(next.1);
+        }
+        close((sa, sb))
+    };
+    let Some(first) = close((vec![q], Vec::new())) else {
+        return Vec::new();
+    };
+    // Up to `EXTEND` stretches, each grown once more than the one before.
+    let growing = |from: &(Vec<usize>, Vec<usize>), before: bool| {
+        let mut out: Vec<(Vec<usize>, Vec<usize>)> = Vec::new();
+        while out.len() < EXTEND {
+            let Some(next) = grown(out.last().unwrap_or(from), before) else {
+                break;
+            };
+            out.push(next);
+        }
+        out
+    };
+    let mut out = growing(&first, true);
+    out.insert(0, first);
+    for k in 0..out.len() {
+        let after = growing(&out[k], false);
+        out.extend(after);
+    }
+    out
 }
 
 /// The tracker's anchor `was` when its mean offset fits and no other
@@ -2448,6 +2524,68 @@ mod tests {
         // Without the seams the loose fits alone speak: kept.
         let owner = trade(false);
         assert_eq!(&owner[3..7], &[Some(0), Some(0), Some(1), Some(1)], "kept");
+    }
+
+    /// Where one tip's identity took the other's marker a little before
+    /// the stretch that overlaps across the two tips, that piece is traded
+    /// too: left behind, its seam to the traded stretch speaks against
+    /// the trade (held-out `all` seed 331: a piece of 2 samples just
+    /// before 113 samples of the other marker).
+    #[test]
+    fn a_trade_takes_the_swapped_piece_just_before_its_stretch() {
+        // Tips 0 and 1 as above, their own markers before and after. Tip
+        // 0's identity holds tip 1's marker from frame 492 to 720; tip
+        // 1's identity holds tip 0's from 504 to 720, and already from
+        // 468 to 480, overlapping nothing of tip 0's identity.
+        let ([a, b, _], mut pieces, anchors) = wide_pair(0.05);
+        pieces.extend([
+            piece(0, swaying(492..=720, b, true)),
+            piece(1, swaying(504..=720, a, true)),
+            piece(1, swaying(468..=480, a, true)),
+            piece(0, swaying(108..=456, a, true)),
+            piece(0, swaying(744..=1200, a, true)),
+            piece(1, swaying(108..=456, b, true)),
+            piece(1, swaying(744..=1200, b, true)),
+        ]);
+        let tips = [0, 1, 2, 0, 1, 1, 0, 0, 1, 1];
+        let owner = traded(&pieces, &anchors, &tips);
+        assert_eq!(
+            &owner[3..6],
+            &[Some(1), Some(0), Some(0)],
+            "all three traded back"
+        );
+        assert_eq!(&owner[6..], &[Some(0), Some(0), Some(1), Some(1)]);
+    }
+
+    /// Where the swap runs on past both ends of that stretch, grown at one
+    /// end only it still leaves a seam that misses: it is traded grown at
+    /// both (`all` seed 151, `noise_mm` 1.5: 4 pieces against 2, 1 285
+    /// wrong samples left with one end grown, 58 with both).
+    #[test]
+    fn a_trade_takes_the_swapped_pieces_on_both_sides_of_its_stretch() {
+        // Tip 1 (offset spread 10 mm) holds tip 0's marker from 504 to
+        // 696, where it fits loosely (about 28), its own pieces more than
+        // 0.5 s away; tip 0 (80 mm) holds tip 1's marker from 468 to 744
+        // in three pieces, its own more than 0.5 s away too.
+        let ([a, b, _], mut pieces, anchors) = wide_pair(0.01);
+        pieces.extend([
+            piece(1, swaying(504..=696, a, true)),
+            piece(0, swaying(492..=720, b, true)),
+            piece(0, swaying(468..=480, b, true)),
+            piece(0, swaying(732..=744, b, true)),
+            piece(1, swaying(108..=300, b, true)),
+            piece(0, swaying(108..=300, a, true)),
+            piece(0, swaying(900..=1200, a, true)),
+            piece(1, swaying(900..=1200, b, true)),
+        ]);
+        let tips = [0, 1, 2, 1, 0, 0, 0, 1, 0, 0, 1];
+        let owner = traded(&pieces, &anchors, &tips);
+        assert_eq!(
+            &owner[3..7],
+            &[Some(0), Some(1), Some(1), Some(1)],
+            "all four traded back"
+        );
+        assert_eq!(&owner[7..], &[Some(1), Some(0), Some(0), Some(1)]);
     }
 
     /// In a gust both tips' markers drift off the offsets learnt for them:
