@@ -1106,8 +1106,16 @@ fn trades(
     one_second: i64,
 ) {
     let debug = std::env::var_os("REJOIN_DEBUG").is_some();
+    // A piece's mean cost at a tip does not depend on where the pieces
+    // are: the stretches of one piece share most of their pieces, and
+    // each piece is weighed at the same two tips in every one of them.
+    let means = std::cell::RefCell::new(HashMap::new());
     let total = |i: usize, a: usize, held: &[(i64, i64, usize)]| {
-        cost_at(pieces, anchors, field, i, a, held, one_second)
+        let c = *means
+            .borrow_mut()
+            .entry((i, a))
+            .or_insert_with(|| cost(pieces, anchors, field, i, a, one_second));
+        c.map(|c| (c, c + seams(pieces, held, i, one_second)))
     };
     for &q in order {
         let Some(x) = owner[q] else {
