@@ -163,6 +163,34 @@ const SPLIT_GAP: i64 = 2;
 /// §4a), 1.5 against 3 took seeds 117–123 from 238 to 121 with [`JUMP`]
 /// and from 157 to 40 without it, and changed nothing on 103–109.
 const SPLIT_MISS: f64 = 1.5;
+/// A gap of at least this long (s) whose path carries across is cut all
+/// the same where another marker meets it ([`meets`]): two tips passing
+/// close move alike, so the path of one carries across to the other.
+/// On `all` seed 216 one trace held tip 9's marker, was not measured for
+/// 18 frames while tip 69's marker passed 10 mm from it, and went on with
+/// tip 69's marker, whose own trace had ended 3 frames before the gap
+/// did: 92 samples of tip 69 in tip 9 and 13 of tip 9 in tip 69. Cut
+/// there, the pass puts both back (106 → 1 wrong samples). Wrong samples,
+/// `all` / `noise_mm` 1.5, seeds 100–249: 1 467 / 3 722 without these
+/// cuts; 1 195 / 3 877 cutting at every gap of [`SPLIT_GAP`] frames or
+/// more that another marker meets (seed 129 under `noise_mm` 1.5 lost 387
+/// after a cut across 4 frames); 1 293 / 3 468 from 6 frames (0.025 s).
+/// Held out, 300–359 768 / 2 127 → 748 / 1 776 (2 frames) and 768 /
+/// 1 776 (6 frames); 360–419 816 / 1 331 → 811 / 1 135 (6 frames), no
+/// seed lost. Cutting every gap over 0.05 s, met or not: 2 089 / 4 500.
+const MEET_GAP_S: f64 = 0.025;
+/// How near (m) the other marker is to where the trace resumed (its last
+/// sample) or to where the trace left off (its first): wide enough for
+/// two tips passing close (10 mm on seed 216), far above 1.5 mm of noise.
+/// Seed 216: 15 mm gave 1 wrong sample, 25 mm none; on 12 seeds that
+/// moved with cuts at every met gap, 15 and 25 mm gave the same but one
+/// (248: 95 at 15 and 20 mm, 48 at 25 mm; not swept further).
+const MEET: f64 = 0.020;
+/// Another trace's run meets a gap when it ends, or begins, between
+/// this long (s) before the gap began and as long after it ended (8
+/// frames at 240 Hz, [`SEAM_K`]): the tracker may let a trace coast a
+/// few frames past its marker's end.
+const MEET_WINDOW_S: f64 = 0.033;
 
 /// A stretch of a trace between two of its cuts (`cut_trace`).
 struct Piece {
@@ -318,6 +346,8 @@ pub(crate) fn rejoin(
     let step = ((one_second as f64 / PROBES_PER_S).round() as i64)
         .max(samples.div_ceil(MAX_PROBES) as i64)
         .max(1);
+    let ends = run_ends(&traces, window.end);
+    let in_frames = |s: f64| ((s * one_second as f64).round() as i64).max(1);
     let mut pieces = Vec::new();
     let n_traces = traces.len();
     let ids: Vec<(usize, Vec<usize>)> = traces.iter().map(|t| (t.id, t.pieces.clone())).collect();
@@ -329,6 +359,9 @@ pub(crate) fn rejoin(
             seams: at,
             step,
             one_second,
+            ends: &ends,
+            meet_gap: in_frames(MEET_GAP_S),
+            meet_window: in_frames(MEET_WINDOW_S),
         };
         cut_trace(t, k, &cuts, &mut pieces);
     }
@@ -371,6 +404,81 @@ struct Cuts<'a> {
     step: i64,
     /// Frames per second.
     one_second: i64,
+    /// Where every trace's measured runs begin and end ([`run_ends`]).
+    ends: &'a [RunEnd],
+    /// [`MEET_GAP_S`] and [`MEET_WINDOW_S`] in frames.
+    meet_gap: i64,
+    meet_window: i64,
+}
+
+/// Where a trace's marker was last seen before a gap of [`SPLIT_GAP`]
+/// frames or more, or first seen after one (a trace's first and last
+/// samples too): the places where a marker can go on in another trace
+/// ([`meets`]).
+#[derive(Clone, Copy, Debug)]
+struct RunEnd {
+    frame: i64,
+    at: DVec3,
+    /// Index of the trace.
+    trace: usize,
+    /// Whether a run begins here (else one ends).
+    begins: bool,
+}
+
+/// Every [`RunEnd`] of `traces` after frame `after`, by frame.
+fn run_ends(traces: &[Trace], after: i64) -> Vec<RunEnd> {
+    let mut out = Vec::new();
+    for (k, t) in traces.iter().enumerate() {
+        let mut last: Option<(i64, DVec3)> = None;
+        let mut end = |frame: i64, at: DVec3, begins: bool| {
+            if frame > after {
+                out.push(RunEnd {
+                    frame,
+                    at,
+                    trace: k,
+                    begins,
+                });
+            }
+        };
+        for (f, p) in t.measurements() {
+            if last.is_none_or(|l| f - l.0 >= SPLIT_GAP) {
+                if let Some((lf, lp)) = last {
+                    end(lf, lp, false);
+                }
+                end(f, p, true);
+            }
+            last = Some((f, p));
+        }
+        if let Some((lf, lp)) = last {
+            end(lf, lp, false);
+        }
+    }
+    out.sort_by_key(|e| (e.frame, e.trace));
+    out
+}
+
+/// Whether another marker meets trace `k`'s gap from `(f0, p0)` to
+/// `(f1, p1)`: another trace's run ends within [`MEET`] of `p1` shortly
+/// before `f1` (the trace may have gone on with that marker), or one
+/// begins within `MEET` of `p0` shortly after `f0` (its own marker may
+/// have gone on there).
+fn meets(cuts: &Cuts<'_>, k: usize, (f0, p0): (i64, DVec3), (f1, p1): (i64, DVec3)) -> bool {
+    if f1 - f0 < cuts.meet_gap {
+        return false;
+    }
+    let w = cuts.meet_window;
+    let first = cuts.ends.partition_point(|e| e.frame < f0 - w);
+    cuts.ends[first..]
+        .iter()
+        .take_while(|e| e.frame <= f1 + w)
+        .filter(|e| e.trace != k)
+        .any(|e| {
+            if e.begins {
+                e.frame > f0 && e.at.distance(p0) <= MEET
+            } else {
+                e.frame < f1 && e.at.distance(p1) <= MEET
+            }
+        })
 }
 
 /// Cuts trace `t` (index `k`) into `out`, after frame `cuts.after`: at
@@ -418,6 +526,8 @@ fn cut_trace(t: Trace, k: usize, cuts: &Cuts<'_>, out: &mut Vec<Piece>) {
         // carries across (testing every step that way would cut and join
         // a piece per frame).
         let step = (gap == 1).then(|| p - before);
+        // A gap another marker meets is cut like a long one.
+        let met = !hard && gap >= SPLIT_GAP && meets(cuts, k, (last, before), (f, p));
         let jumped = matches!((step, last_step), (Some(s), Some(l)) if (s - l).length() > JUMP);
         (before, last_step) = (p, step);
         if (hard || gap >= SPLIT_GAP || jumped) && f > cuts.after {
@@ -439,7 +549,7 @@ fn cut_trace(t: Trace, k: usize, cuts: &Cuts<'_>, out: &mut Vec<Piece>) {
                     tail: End::default(),
                     quiet: None,
                 };
-                cur = Some((piece, !hard && !mine.is_empty()));
+                cur = Some((piece, !hard && !met && !mine.is_empty()));
             }
         }
         if f % cuts.step == 0 {
@@ -1737,27 +1847,39 @@ mod tests {
     }
 
     /// Cuts from frame 0 at 240 Hz, probes every 12 frames, gaps over
-    /// 24 frames always cut.
-    fn test_cuts() -> Cuts<'static> {
+    /// 24 frames always cut, with the other traces' run ends `ends`.
+    fn test_cuts(ends: &[RunEnd]) -> Cuts<'_> {
         Cuts {
             after: 0,
             long: 24,
             seams: &[],
             step: 12,
             one_second: 240,
+            ends,
+            meet_gap: 6,
+            meet_window: 8,
         }
     }
 
-    /// The pieces of a trace measured at `frames` where `at` puts it, cut
-    /// with [`test_cuts`].
-    fn cut_at(mut frames: impl Iterator<Item = i64>, at: impl Fn(i64) -> DVec3) -> Vec<Piece> {
+    /// The pieces of a trace (index 0) measured at `frames` where `at`
+    /// puts it, cut with [`test_cuts`] and no other trace.
+    fn cut_at(frames: impl Iterator<Item = i64>, at: impl Fn(i64) -> DVec3) -> Vec<Piece> {
+        cut_among(frames, at, &[])
+    }
+
+    /// [`cut_at`] beside other traces' run ends `ends`.
+    fn cut_among(
+        mut frames: impl Iterator<Item = i64>,
+        at: impl Fn(i64) -> DVec3,
+        ends: &[RunEnd],
+    ) -> Vec<Piece> {
         let first = frames.next().expect("a trace has a first frame");
         let mut t = Trace::new(3, first, at(first), None);
         for f in frames {
             t.push(f, at(f), None);
         }
         let mut pieces = Vec::new();
-        cut_trace(t, 0, &test_cuts(), &mut pieces);
+        cut_trace(t, 0, &test_cuts(ends), &mut pieces);
         pieces
     }
 
@@ -2229,7 +2351,7 @@ mod tests {
         for f in 14..=17 {
             short.push(f, DVec3::new(0.1 + 0.001 * f as f64, 0.0, 0.0), None);
         }
-        let cuts = test_cuts();
+        let cuts = test_cuts(&[]);
         cut_trace(short, 2, &cuts, &mut pieces);
         assert_eq!(pieces[2].probes.len(), 1, "one probe of its own");
         assert_eq!(pieces[2].probes[0].0, 15);
@@ -2262,6 +2384,43 @@ mod tests {
         assert_eq!(one[0].trace.measured(), 48);
         let two = cut_at(frames(), path(0.015));
         assert_eq!(spans(&two), [(1, 19), (31, 59)], "another marker after it");
+    }
+
+    /// Two markers passing close move alike: a trace hidden for 18 frames
+    /// whose path carries across is cut there when another trace ended
+    /// within 20 mm of where it resumed shortly before (it may have gone
+    /// on with that marker: seed 216), or another began near where it
+    /// left off shortly after; it stays whole when the other marker was
+    /// farther, ended long before, when the trace meets only itself, and
+    /// across a gap of 4 frames.
+    #[test]
+    fn a_trace_is_cut_where_another_marker_meets_its_gap() {
+        let path = |f: i64| DVec3::new(0.001 * f as f64, 0.0, 0.0);
+        let aside = |mm: f64| DVec3::new(0.0, mm / 1000.0, 0.0);
+        let end = |frame: i64, at: DVec3, trace: usize, begins: bool| RunEnd {
+            frame,
+            at,
+            trace,
+            begins,
+        };
+        let hidden = |from: i64, to: i64| (1..from).chain(to..80);
+        let with = |ends: &[RunEnd]| spans(&cut_among(hidden(22, 40), path, ends));
+        assert_eq!(with(&[]), [(1, 79)], "nothing near: its own marker");
+        let ended_near = [end(37, path(40) + aside(10.0), 1, false)];
+        assert_eq!(with(&ended_near), [(1, 21), (40, 79)]);
+        let began_near = [end(45, path(21) + aside(-12.0), 2, true)];
+        assert_eq!(with(&began_near), [(1, 21), (40, 79)]);
+        assert_eq!(
+            with(&[end(37, path(40) + aside(30.0), 1, false)]),
+            [(1, 79)]
+        );
+        assert_eq!(with(&[end(5, path(40) + aside(10.0), 1, false)]), [(1, 79)]);
+        assert_eq!(
+            with(&[end(37, path(40) + aside(10.0), 0, false)]),
+            [(1, 79)]
+        );
+        let short = cut_among(hidden(22, 26), path, &[end(24, path(26), 1, false)]);
+        assert_eq!(spans(&short), [(1, 79)], "a gap of 4 frames carries");
     }
 
     /// A marker swinging 100 mm at 1.5 Hz with 1.5 mm of noise stays one
