@@ -337,7 +337,12 @@ pub(crate) fn rejoin(
     {
         return (traces, 0, loose);
     }
-    let cut = ((CUT_S * one_second as f64).round() as i64).max(1);
+    let in_frames = |s: f64| ((s * one_second as f64).round() as i64).max(1);
+    let (cut, meet_gap, meet_window) = (
+        in_frames(CUT_S),
+        in_frames(MEET_GAP_S),
+        in_frames(MEET_WINDOW_S),
+    );
     // The traces from `n_tips` on are the loose ones.
     let n_tips = traces.len();
     traces.extend(loose);
@@ -348,7 +353,6 @@ pub(crate) fn rejoin(
         .max(samples.div_ceil(MAX_PROBES) as i64)
         .max(1);
     let ends = run_ends(&traces, window.end);
-    let in_frames = |s: f64| ((s * one_second as f64).round() as i64).max(1);
     let mut pieces = Vec::new();
     let n_traces = traces.len();
     let ids: Vec<(usize, Vec<usize>)> = traces.iter().map(|t| (t.id, t.pieces.clone())).collect();
@@ -361,8 +365,8 @@ pub(crate) fn rejoin(
             step,
             one_second,
             ends: &ends,
-            meet_gap: in_frames(MEET_GAP_S),
-            meet_window: in_frames(MEET_WINDOW_S),
+            meet_gap,
+            meet_window,
         };
         cut_trace(t, k, &cuts, &mut pieces);
     }
@@ -528,11 +532,13 @@ fn cut_trace(t: Trace, k: usize, cuts: &Cuts<'_>, out: &mut Vec<Piece>) {
         // carries across (testing every step that way would cut and join
         // a piece per frame).
         let step = (gap == 1).then(|| p - before);
-        // A gap another marker meets is cut like a long one.
-        let met = !hard && gap >= SPLIT_GAP && meets(cuts, k, (last, before), (f, p));
         let jumped = matches!((step, last_step), (Some(s), Some(l)) if (s - l).length() > JUMP);
+        let cuts_here = (hard || gap >= SPLIT_GAP || jumped) && f > cuts.after;
+        // A gap another marker meets is cut like a long one (looked up
+        // only where a piece is cut off).
+        let met = cuts_here && !hard && gap >= SPLIT_GAP && meets(cuts, k, (last, before), (f, p));
         (before, last_step) = (p, step);
-        if (hard || gap >= SPLIT_GAP || jumped) && f > cuts.after {
+        if cuts_here {
             if let Some((c, after_short_gap)) = cur.take() {
                 keep(&mut mine, sealed(c, &mut ends), after_short_gap, cuts);
             }
