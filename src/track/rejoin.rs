@@ -37,8 +37,8 @@ const CUT_S: f64 = 0.1;
 /// Offsets are sampled this often (per second): enough to average a twig's
 /// swing, few enough to keep for an hour's markers.
 const PROBES_PER_S: f64 = 20.0;
-/// Most probes kept for a take (32 bytes each, plus 12 per tip and probe
-/// frame).
+/// Most probes kept for a take (32 bytes each, plus 16 per tip and probe
+/// frame in each of the two [`Field`]s).
 const MAX_PROBES: usize = 1_000_000;
 /// Neighbours whose displacements give a tip's expected displacement:
 /// the nearest this many measured at the probe, among the nearest
@@ -704,14 +704,14 @@ fn anchors(pieces: &[Piece], window: RestWindow, step: i64, n_tips: usize) -> Ve
             .map(|&(d2, b)| (b, 1.0 / (d2.sqrt() + 0.01)))
             .collect();
     }
-    let field = Field::new(pieces, &out, step);
+    let field = Field::joined(pieces, &out, step);
     for a in 0..out.len() {
         let from = pieces[out[a].piece].from;
         let wind = |p: &Piece| -> Vec<DVec3> {
             p.probes
                 .iter()
                 .filter(|(f, _)| *f >= window.end)
-                .filter_map(|&(f, q)| field.offset(pieces, &out, a, from, f, q))
+                .filter_map(|&(f, q)| field.offset(&out, a, from, f, q))
                 .collect()
         };
         // The piece holding the still phase is the tip's own; the pieces
@@ -739,50 +739,71 @@ fn anchors(pieces: &[Piece], window: RestWindow, step: i64, n_tips: usize) -> Ve
     out
 }
 
-/// Where each anchor's trace (as the tracker made it) was at the probes.
+/// Where each anchor's marker was at the probes: as the tracker joined
+/// its trace ([`Field::joined`]), or as the first round placed the pieces
+/// ([`Field::placed`]).
 struct Field {
-    /// Per anchor, its trace's position at each probe frame (`k * step`;
-    /// single precision, NaN where not measured: 12 bytes a slot).
+    /// Per anchor, its position at each probe frame (`k * step`; single
+    /// precision, NaN where not measured: 12 bytes a slot).
     at: Vec<Vec<[f32; 3]>>,
+    /// The trace each slot's position came from (`u32::MAX`: none; 4
+    /// bytes a slot), so that a piece is never its own neighbour.
+    by: Vec<Vec<u32>>,
     step: i64,
 }
 
 impl Field {
-    fn new(pieces: &[Piece], anchors: &[Anchor], step: i64) -> Self {
+    /// The field of the traces as the tracker joined them: each anchor's
+    /// slots from the pieces of its own trace.
+    fn joined(pieces: &[Piece], anchors: &[Anchor], step: i64) -> Self {
+        let mut of_trace: HashMap<usize, usize> = HashMap::new();
+        for (a, an) in anchors.iter().enumerate() {
+            of_trace.insert(pieces[an.piece].from, a);
+        }
+        let owner: Vec<Option<usize>> = pieces
+            .iter()
+            .map(|p| of_trace.get(&p.from).copied())
+            .collect();
+        Field::placed(pieces, anchors, &owner, step)
+    }
+
+    /// The field with each anchor's slots from the pieces `owner` gives it
+    /// (`None`: a piece of no tip, in no slot).
+    fn placed(pieces: &[Piece], anchors: &[Anchor], owner: &[Option<usize>], step: i64) -> Self {
         let frames = pieces
             .iter()
             .map(|p| p.trace.last_frame() + 1)
             .max()
             .unwrap_or(0);
         let n = (frames / step + 1).max(0) as usize;
-        let mut of_trace: std::collections::HashMap<usize, usize> =
-            std::collections::HashMap::new();
-        for (a, an) in anchors.iter().enumerate() {
-            of_trace.insert(pieces[an.piece].from, a);
-        }
         let mut at = vec![vec![[f32::NAN; 3]; n]; anchors.len()];
-        for p in pieces {
-            if let Some(&a) = of_trace.get(&p.from) {
-                // A short piece's own probe (`finished`) falls between
-                // two slots.
-                for &(f, q) in p.probes.iter().filter(|x| x.0 % step == 0) {
-                    if let Some(slot) = at[a].get_mut((f / step) as usize) {
-                        *slot = q.as_vec3().to_array();
-                    }
+        let mut by = vec![vec![u32::MAX; n]; anchors.len()];
+        for (p, a) in pieces.iter().zip(owner) {
+            let Some(a) = *a else { continue };
+            // A short piece's own probe (`finished`) falls between two
+            // slots.
+            for &(f, q) in p.probes.iter().filter(|x| x.0 % step == 0) {
+                let k = (f / step) as usize;
+                if let Some(slot) = at[a].get_mut(k) {
+                    *slot = q.as_vec3().to_array();
+                    by[a][k] = p.from as u32;
                 }
             }
         }
-        Field { at, step }
+        Field { at, by, step }
     }
 
-    /// Anchor `a`'s trace at frame `f`: at a probe frame as measured,
-    /// between two (a short piece's probe) on the line between them, when
-    /// both were measured (at 20 probes a second a 1.5 Hz sway of 100 mm
-    /// bends away from that line by under 3 mm).
-    fn at(&self, a: usize, f: i64) -> Option<DVec3> {
+    /// Anchor `a` at frame `f`: at a probe frame as measured, between
+    /// two (a short piece's probe) on the line between them, when both
+    /// were measured (at 20 probes a second a 1.5 Hz sway of 100 mm bends
+    /// away from that line by under 3 mm), and by a trace other than
+    /// `own`.
+    fn at(&self, a: usize, f: i64, own: usize) -> Option<DVec3> {
         let slot = |k: i64| {
-            let q = self.at[a].get(usize::try_from(k).ok()?)?;
-            (!q[0].is_nan()).then(|| DVec3::new(q[0] as f64, q[1] as f64, q[2] as f64))
+            let k = usize::try_from(k).ok()?;
+            let q = self.at[a].get(k)?;
+            (!q[0].is_nan() && self.by[a][k] != own as u32)
+                .then(|| DVec3::new(q[0] as f64, q[1] as f64, q[2] as f64))
         };
         let (k, r) = (f / self.step, f % self.step);
         if r == 0 {
@@ -792,19 +813,11 @@ impl Field {
     }
 
     /// The offset of position `p` at probe `f` from where anchor `a`'s
-    /// [`NEIGHBOURS`] nearest measured neighbours put it, leaving out the
-    /// neighbours whose trace is `own` (the trace `p` came from); `None`
+    /// [`NEIGHBOURS`] nearest measured neighbours put it, leaving out
+    /// the slots filled by trace `own` (the trace `p` came from); `None`
     /// when those measured carry under 30 % of the weight of the tips
     /// looked at to find them.
-    fn offset(
-        &self,
-        pieces: &[Piece],
-        anchors: &[Anchor],
-        a: usize,
-        own: usize,
-        f: i64,
-        p: DVec3,
-    ) -> Option<DVec3> {
+    fn offset(&self, anchors: &[Anchor], a: usize, own: usize, f: i64, p: DVec3) -> Option<DVec3> {
         let an = &anchors[a];
         let (mut sum, mut w, mut total) = (DVec3::ZERO, 0.0, 0.0);
         let mut used = 0;
@@ -813,10 +826,7 @@ impl Field {
                 break;
             }
             total += wb;
-            if pieces[anchors[b].piece].from == own {
-                continue;
-            }
-            if let Some(q) = self.at(b, f) {
+            if let Some(q) = self.at(b, f, own) {
                 sum += (q - anchors[b].rest) * wb;
                 w += wb;
                 used += 1;
@@ -828,7 +838,6 @@ impl Field {
 
 /// The anchor each piece goes to (`None`: a piece of its own).
 fn assign(pieces: &[Piece], anchors: &[Anchor], step: i64, one_second: i64) -> Vec<Option<usize>> {
-    let field = Field::new(pieces, anchors, step);
     let mut owner: Vec<Option<usize>> = vec![None; pieces.len()];
     // Spans taken, per anchor.
     let mut taken: Vec<Vec<(i64, i64, usize)>> = vec![Vec::new(); anchors.len()];
@@ -852,10 +861,13 @@ fn assign(pieces: &[Piece], anchors: &[Anchor], step: i64, one_second: i64) -> V
         .collect();
     order.sort_by_key(|&i| (std::cmp::Reverse(pieces[i].trace.measured()), i));
     let debug = std::env::var_os("REJOIN_DEBUG").is_some();
-    let place = |i: usize, owner: &mut [Option<usize>], taken: &mut [Vec<(i64, i64, usize)>]| {
+    let place = |field: &Field,
+                 i: usize,
+                 owner: &mut [Option<usize>],
+                 taken: &mut [Vec<(i64, i64, usize)>]| {
         let p = &pieces[i];
         let span = p.span();
-        let costs = candidates(pieces, anchors, &field, taken, i, one_second);
+        let costs = candidates(pieces, anchors, field, taken, i, one_second);
         let was = anchor_of_trace(p.from).filter(|&a| !taken[a].iter().any(|t| overlaps(span, t)));
         // A tip free during the piece whose neighbours are hidden cannot
         // be judged; nearer the piece than a tip it fits only loosely, it
@@ -872,13 +884,13 @@ fn assign(pieces: &[Piece], anchors: &[Anchor], step: i64, one_second: i64) -> V
         let choice = choose(
             &costs,
             was,
-            &|a| motion_ratio(pieces, anchors, &field, i, a),
-            &|a| sits_still(pieces, anchors, &field, i, a),
+            &|a| motion_ratio(pieces, anchors, field, i, a),
+            &|a| sits_still(pieces, anchors, field, i, a),
             &hidden_nearer,
             p.quiet.is_some(),
         );
         if debug {
-            debug_place(pieces, anchors, &field, taken, i, &costs, was, choice);
+            debug_place(pieces, anchors, field, taken, i, &costs, was, choice);
         }
         if let Some(a) = choice {
             owner[i] = Some(a);
@@ -892,19 +904,53 @@ fn assign(pieces: &[Piece], anchors: &[Anchor], step: i64, one_second: i64) -> V
     // whose seams were there to miss (held-out `all` seed 105: 121 samples
     // of a tip moved to another 165 mm away, mean cost 6.1 there with no
     // seam, 6.5 at its own tip with seams of 19).
+    //
+    // The first round judges each piece by its tips' neighbours as the
+    // tracker joined them; the second, and the swaps after it, by the
+    // neighbours where the first round put their pieces. A swap the
+    // tracker made between two tips shows in every tip near them: a tip's
+    // neighbour that holds another tip's marker says the tip moved as that
+    // marker did, off by the two tips' distance (`all` seed 419: tips 37
+    // and 65, about 100 mm apart; from frame 5 657 the tracker's tip 65
+    // held tip 37's marker, which the first round moved back, and from
+    // 6 455 its tip 37 held tip 65's. Judged by tip 65 as the tracker
+    // joined it, tip 37's own marker cost 40.1 at tip 37 and tip 65's
+    // 14.6: 203 samples of tip 65 stayed in tip 37 and 262 of tip 37's
+    // were left out. With the first round's neighbours, 13 wrong samples.)
+    // The trades (`trades`) are weighed on the tracker's neighbours: on
+    // the first round's they found nothing on seed 225, where two tips'
+    // markers swapped for 0.5 s went back with them (180 wrong samples
+    // against none). Wrong samples, `all` / `noise_mm` 1.5, seeds 100–249:
+    // 1 293 / 3 468 on the tracker's neighbours throughout; 1 439 / 1 681
+    // on the first round's for the trades too; 1 286 / 2 358 for the
+    // second round only; 1 259 / 1 681 as here. Held out: 300–359 768 /
+    // 1 776 → 613 / 1 384, 360–419 811 / 1 135 → 645 / 1 271, 264–299
+    // 555 / 2 297 → 505 / 1 985.
+    let joined = Field::joined(pieces, anchors, step);
+    let mut placed: Option<Field> = None;
     for _ in 0..ROUNDS {
+        let field = placed.as_ref().unwrap_or(&joined);
         for &i in &order {
             if let Some(a) = owner[i].take() {
                 taken[a].retain(|t| t.2 != i);
             }
-            place(i, &mut owner, &mut taken);
+            place(field, i, &mut owner, &mut taken);
+        }
+        if placed.is_none() {
+            placed = Some(Field::placed(pieces, anchors, &owner, step));
         }
     }
     swaps(
-        pieces, anchors, &field, &order, &mut owner, &mut taken, one_second,
+        pieces,
+        anchors,
+        placed.as_ref().unwrap_or(&joined),
+        &order,
+        &mut owner,
+        &mut taken,
+        one_second,
     );
     trades(
-        pieces, anchors, &field, &order, &mut owner, &mut taken, one_second,
+        pieces, anchors, &joined, &order, &mut owner, &mut taken, one_second,
     );
     owner
 }
@@ -1589,7 +1635,7 @@ fn told(
 ) -> (Vec<DVec3>, Vec<DVec3>) {
     let from = pieces[i].from;
     at.iter()
-        .filter_map(|&(f, q)| Some((q, q - field.offset(pieces, anchors, a, from, f, q)?)))
+        .filter_map(|&(f, q)| Some((q, q - field.offset(anchors, a, from, f, q)?)))
         .unzip()
 }
 
@@ -1652,7 +1698,7 @@ fn cost(
     let offs: Vec<DVec3> = p
         .probes
         .iter()
-        .filter_map(|&(f, q)| field.offset(pieces, anchors, a, p.from, f, q))
+        .filter_map(|&(f, q)| field.offset(anchors, a, p.from, f, q))
         .collect();
     if offs.is_empty() {
         return None;
@@ -2278,7 +2324,7 @@ mod tests {
             anchor(0, DVec3::ZERO, vec![(1, 1.0)]),
             anchor(1, DVec3::new(0.1, 0.0, 0.0), vec![(0, 1.0)]),
         ];
-        let field = Field::new(&pieces, &anchors, 12);
+        let field = Field::joined(&pieces, &anchors, 12);
         let ratio = |i: usize| motion_ratio(&pieces, &anchors, &field, i, 0);
         assert!(ratio(2).is_some_and(|r| r < STILL_RATIO), "{:?}", ratio(2));
         assert!(ratio(3).is_some_and(|r| r >= STILL_RATIO), "{:?}", ratio(3));
@@ -2333,7 +2379,7 @@ mod tests {
                 anchor(0, DVec3::ZERO, vec![(1, 1.0)]),
                 anchor(1, DVec3::X * 0.1, vec![(0, 1.0)]),
             ];
-            let field = Field::new(&pieces, &anchors, 12);
+            let field = Field::joined(&pieces, &anchors, 12);
             (2..5)
                 .map(|i| sits_still(&pieces, &anchors, &field, i, 0))
                 .collect()
@@ -2367,9 +2413,9 @@ mod tests {
             anchor(0, DVec3::ZERO, vec![(1, 1.0)]),
             anchor(1, DVec3::new(0.1, 0.0, 0.0), vec![(0, 1.0)]),
         ];
-        let field = Field::new(&pieces, &anchors, 12);
+        let field = Field::joined(&pieces, &anchors, 12);
         let q = pieces[2].probes[0].1;
-        let off = field.offset(&pieces, &anchors, 1, 2, 15, q).unwrap();
+        let off = field.offset(&anchors, 1, 2, 15, q).unwrap();
         assert!(off.length() < 1e-6, "where its neighbour says: {off}");
         let at_b = cost(&pieces, &anchors, &field, 2, 1, 240).unwrap();
         let at_a = cost(&pieces, &anchors, &field, 2, 0, 240).unwrap();
@@ -2471,13 +2517,13 @@ mod tests {
         }
         let near = (1..=16).map(|b| (b, 1.0)).collect();
         anchors.insert(0, anchor(0, DVec3::ZERO, near));
-        let field = Field::new(&pieces, &anchors, 12);
+        let field = Field::joined(&pieces, &anchors, 12);
         let q = DVec3::new(0.03, 0.0, 0.0);
-        let off = field.offset(&pieces, &anchors, 0, 99, 12, q);
+        let off = field.offset(&anchors, 0, 99, 12, q);
         assert!(off.is_some_and(|o| o.length() < 1e-6), "{off:?}");
         // The 8 hidden ones alone say nothing.
         anchors[0].near.truncate(NEIGHBOURS);
-        assert_eq!(field.offset(&pieces, &anchors, 0, 99, 12, q), None);
+        assert_eq!(field.offset(&anchors, 0, 99, 12, q), None);
     }
 
     /// A seam that fits is evidence for a tip; a tip with no piece near
@@ -2583,6 +2629,46 @@ mod tests {
         assert_eq!((owner[3], owner[4]), (Some(0), None), "tip 1 is busy");
     }
 
+    #[test]
+    fn a_piece_is_judged_by_its_tips_neighbours_where_the_first_round_put_them() {
+        // Every marker sways 30 mm along x at 1 Hz. Tips A (origin) and B
+        // (100 mm along x) are judged by tip N, 200 mm along y; tip C,
+        // 30 mm along y, by A (weight 10) and B (weight 1). From frame 480
+        // to 720 the tracker swapped A's and B's markers, C's own trace was
+        // hidden and C's marker went on as a trace of no tip.
+        let (a, b, c, n) = (
+            DVec3::ZERO,
+            DVec3::new(0.1, 0.0, 0.0),
+            DVec3::new(0.0, 0.03, 0.0),
+            DVec3::new(0.0, 0.2, 0.0),
+        );
+        let pieces = vec![
+            settled(piece(0, swaying(0..=96, a, true))),
+            settled(piece(1, swaying(0..=96, b, true))),
+            settled(piece(2, swaying(0..=96, c, true))),
+            settled(piece(3, swaying(0..=960, n, true))),
+            piece(1, swaying(480..=720, a, true)),
+            piece(0, swaying(480..=720, b, true)),
+            piece(4, swaying(480..=720, c, true)),
+        ];
+        let anchors = vec![
+            anchor(0, a, vec![(3, 1.0)]),
+            anchor(1, b, vec![(3, 1.0)]),
+            anchor(2, c, vec![(0, 10.0), (1, 1.0)]),
+            anchor(3, n, vec![(0, 1.0)]),
+        ];
+        // As the tracker joined them, C's neighbours say C moved 82 mm
+        // towards B: its own marker does not fit it.
+        let joined = Field::joined(&pieces, &anchors, 12);
+        assert!(cost(&pieces, &anchors, &joined, 6, 2, 240).unwrap() > LOOSE);
+        let owner = assign(&pieces, &anchors, 12, 240);
+        assert_eq!(
+            (owner[4], owner[5], owner[6]),
+            (Some(0), Some(1), Some(2)),
+            "the swap undone, and C's marker back at C"
+        );
+    }
+
     /// Tips 0 and 1, 45 mm apart along x, both alone on their limbs (tip
     /// 0's offset spreads 80 mm, tip 1's `spread_1`, and tip 1's is learnt
     /// 20 mm from its marker), judged by tip 2, 200 mm along y: where the
@@ -2661,7 +2747,7 @@ mod tests {
             taken[t].push((s, e, i));
         }
         let order: Vec<usize> = (3..pieces.len()).collect();
-        let field = Field::new(pieces, anchors, 12);
+        let field = Field::joined(pieces, anchors, 12);
         trades(pieces, anchors, &field, &order, &mut owner, &mut taken, 240);
         owner
     }
@@ -2820,7 +2906,7 @@ mod tests {
             piece(1, swaying(1104..=1200, b, true)),
         ]);
         let tips = [0, 1, 2, 0, 0, 1, 1, 0, 0, 1, 1];
-        let field = Field::new(&pieces, &anchors, 12);
+        let field = Field::joined(&pieces, &anchors, 12);
         for (i, own) in [(3, 1), (4, 1), (5, 0), (6, 0)] {
             let at = |t: usize| cost(&pieces, &anchors, &field, i, t, 240).unwrap();
             let (mine, there) = (at(own), at(1 - own));
