@@ -936,9 +936,7 @@ fn assign(pieces: &[Piece], anchors: &[Anchor], step: i64, one_second: i64) -> V
             }
             place(field, i, &mut owner, &mut taken);
         }
-        if placed.is_none() {
-            placed = Some(Field::placed(pieces, anchors, &owner, step));
-        }
+        placed.get_or_insert_with(|| Field::placed(pieces, anchors, &owner, step));
     }
     swaps(
         pieces,
