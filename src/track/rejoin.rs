@@ -370,7 +370,7 @@ pub(crate) fn rejoin(
         };
         cut_trace(t, k, &cuts, &mut pieces);
     }
-    let anchors = anchors(&pieces, window, step, n_tips);
+    let (anchors, joined) = anchors(&pieces, window, step, n_tips);
     if anchors.len() < 3 {
         let (out, left) = rebuild(pieces, &[], &[], (n_traces, n_tips), &ids);
         return (out, 0, left);
@@ -385,7 +385,7 @@ pub(crate) fn rejoin(
             );
         }
     }
-    let owner = assign(&pieces, &anchors, step, one_second);
+    let owner = assign(&pieces, &anchors, &joined, one_second);
     let moved = pieces
         .iter()
         .enumerate()
@@ -675,8 +675,10 @@ impl EndSamples {
 }
 
 /// The pieces holding the still phase, with their neighbours and offsets;
-/// pieces of the loose traces (from `n_tips` on) hold none.
-fn anchors(pieces: &[Piece], window: RestWindow, step: i64, n_tips: usize) -> Vec<Anchor> {
+/// pieces of the loose traces (from `n_tips` on) hold none. With them,
+/// the [`Field`] they were measured on, as the tracker joined the traces
+/// (`assign` judges its first round on it).
+fn anchors(pieces: &[Piece], window: RestWindow, step: i64, n_tips: usize) -> (Vec<Anchor>, Field) {
     let mut out: Vec<Anchor> = pieces
         .iter()
         .enumerate()
@@ -736,7 +738,7 @@ fn anchors(pieces: &[Piece], window: RestWindow, step: i64, n_tips: usize) -> Ve
             out[a].spread = spread.max(SPREAD_MIN);
         }
     }
-    out
+    (out, field)
 }
 
 /// Where each anchor's marker was at the probes: as the tracker joined
@@ -836,8 +838,14 @@ impl Field {
     }
 }
 
-/// The anchor each piece goes to (`None`: a piece of its own).
-fn assign(pieces: &[Piece], anchors: &[Anchor], step: i64, one_second: i64) -> Vec<Option<usize>> {
+/// The anchor each piece goes to (`None`: a piece of its own), the
+/// first round judged on `joined` ([`Field::joined`]).
+fn assign(
+    pieces: &[Piece],
+    anchors: &[Anchor],
+    joined: &Field,
+    one_second: i64,
+) -> Vec<Option<usize>> {
     let mut owner: Vec<Option<usize>> = vec![None; pieces.len()];
     // Spans taken, per anchor.
     let mut taken: Vec<Vec<(i64, i64, usize)>> = vec![Vec::new(); anchors.len()];
@@ -926,29 +934,28 @@ fn assign(pieces: &[Piece], anchors: &[Anchor], step: i64, one_second: i64) -> V
     // second round only; 1 259 / 1 681 as here. Held out: 300–359 768 /
     // 1 776 → 613 / 1 384, 360–419 811 / 1 135 → 645 / 1 271, 264–299
     // 555 / 2 297 → 505 / 1 985.
-    let joined = Field::joined(pieces, anchors, step);
     let mut placed: Option<Field> = None;
     for _ in 0..ROUNDS {
-        let field = placed.as_ref().unwrap_or(&joined);
+        let field = placed.as_ref().unwrap_or(joined);
         for &i in &order {
             if let Some(a) = owner[i].take() {
                 taken[a].retain(|t| t.2 != i);
             }
             place(field, i, &mut owner, &mut taken);
         }
-        placed.get_or_insert_with(|| Field::placed(pieces, anchors, &owner, step));
+        placed.get_or_insert_with(|| Field::placed(pieces, anchors, &owner, joined.step));
     }
     swaps(
         pieces,
         anchors,
-        placed.as_ref().unwrap_or(&joined),
+        placed.as_ref().unwrap_or(joined),
         &order,
         &mut owner,
         &mut taken,
         one_second,
     );
     trades(
-        pieces, anchors, &joined, &order, &mut owner, &mut taken, one_second,
+        pieces, anchors, joined, &order, &mut owner, &mut taken, one_second,
     );
     owner
 }
@@ -1965,6 +1972,17 @@ mod tests {
         p
     }
 
+    /// The piece of trace `from` holding the still phase, swaying about
+    /// `rest` from frame 0 to `last`.
+    fn resting(from: usize, rest: DVec3, last: i64) -> Piece {
+        settled(piece(from, swaying(0..=last, rest, true)))
+    }
+
+    /// [`assign`] with probes every 12 frames at 240 Hz.
+    fn assigned(pieces: &[Piece], anchors: &[Anchor]) -> Vec<Option<usize>> {
+        assign(pieces, anchors, &Field::joined(pieces, anchors, 12), 240)
+    }
+
     /// A tip held by `piece`, resting at `rest`, with offset 0 and the
     /// least spread.
     fn anchor(piece: usize, rest: DVec3, near: Vec<(usize, f64)>) -> Anchor {
@@ -2583,9 +2601,9 @@ mod tests {
         );
         let setup = |reflection: bool, b_busy: bool, drift: f64| {
             let mut pieces = vec![
-                settled(piece(0, swaying(0..=96, a, true))),
-                settled(piece(1, swaying(0..=96, b, true))),
-                settled(piece(2, swaying(0..=960, n, true))),
+                resting(0, a, 96),
+                resting(1, b, 96),
+                resting(2, n, 960),
                 // Tip 1's marker in tip 0's identity, 45 mm from tip 0,
                 // whose spread is 40 mm: the tracker's choice stands.
                 piece(0, swaying(480..=720, b + DVec3::new(0.0, 0.0, drift), true)),
@@ -2612,18 +2630,18 @@ mod tests {
             (pieces, anchors)
         };
         let (pieces, anchors) = setup(false, false, 0.0);
-        let owner = assign(&pieces, &anchors, 12, 240);
+        let owner = assigned(&pieces, &anchors);
         assert_eq!((owner[3], owner[4]), (Some(1), Some(0)), "swapped back");
         // Tip 1's offset has drifted 27 mm from what it was learnt as (cost
         // 19 there, above the fit bound 9): still better than left out.
         let (pieces, anchors) = setup(false, false, 0.027);
-        let owner = assign(&pieces, &anchors, 12, 240);
+        let owner = assigned(&pieces, &anchors);
         assert_eq!((owner[3], owner[4]), (Some(1), Some(0)), "drifted");
         let (pieces, anchors) = setup(true, false, 0.0);
-        let owner = assign(&pieces, &anchors, 12, 240);
+        let owner = assigned(&pieces, &anchors);
         assert_eq!((owner[3], owner[4]), (Some(0), None), "a reflection");
         let (pieces, anchors) = setup(false, true, 0.0);
-        let owner = assign(&pieces, &anchors, 12, 240);
+        let owner = assigned(&pieces, &anchors);
         assert_eq!((owner[3], owner[4]), (Some(0), None), "tip 1 is busy");
     }
 
@@ -2641,10 +2659,10 @@ mod tests {
             DVec3::new(0.0, 0.2, 0.0),
         );
         let pieces = vec![
-            settled(piece(0, swaying(0..=96, a, true))),
-            settled(piece(1, swaying(0..=96, b, true))),
-            settled(piece(2, swaying(0..=96, c, true))),
-            settled(piece(3, swaying(0..=960, n, true))),
+            resting(0, a, 96),
+            resting(1, b, 96),
+            resting(2, c, 96),
+            resting(3, n, 960),
             piece(1, swaying(480..=720, a, true)),
             piece(0, swaying(480..=720, b, true)),
             piece(4, swaying(480..=720, c, true)),
@@ -2659,7 +2677,7 @@ mod tests {
         // towards B: its own marker does not fit it.
         let joined = Field::joined(&pieces, &anchors, 12);
         assert!(cost(&pieces, &anchors, &joined, 6, 2, 240).unwrap() > LOOSE);
-        let owner = assign(&pieces, &anchors, 12, 240);
+        let owner = assigned(&pieces, &anchors);
         assert_eq!(
             (owner[4], owner[5], owner[6]),
             (Some(0), Some(1), Some(2)),
@@ -2677,11 +2695,7 @@ mod tests {
             DVec3::new(0.045, 0.0, 0.0),
             DVec3::new(0.0, 0.2, 0.0),
         );
-        let pieces = vec![
-            settled(piece(0, swaying(0..=96, a, true))),
-            settled(piece(1, swaying(0..=96, b, true))),
-            settled(piece(2, swaying(0..=1200, n, true))),
-        ];
+        let pieces = vec![resting(0, a, 96), resting(1, b, 96), resting(2, n, 1200)];
         let mut anchors = vec![
             anchor(0, a, vec![(2, 1.0)]),
             anchor(1, b, vec![(2, 1.0)]),
@@ -2724,13 +2738,13 @@ mod tests {
             (pieces, anchors)
         };
         let (pieces, anchors) = setup(true);
-        let owner = assign(&pieces, &anchors, 12, 240);
+        let owner = assigned(&pieces, &anchors);
         assert_eq!((owner[3], owner[4]), (Some(1), Some(0)), "traded back");
         assert_eq!(&owner[5..], &[Some(0), Some(0), Some(1), Some(1)]);
         // Without the seams nothing but the loose fits speaks for trading
         // (costs 0.75 + 5.1 against 0.84 + 0): no clear gain.
         let (pieces, anchors) = setup(false);
-        let owner = assign(&pieces, &anchors, 12, 240);
+        let owner = assigned(&pieces, &anchors);
         assert_eq!((owner[3], owner[4]), (Some(0), Some(1)), "kept");
     }
 
@@ -2935,9 +2949,9 @@ mod tests {
             let b = DVec3::new(0.06, 0.0, 0.0);
             let (n, m) = (DVec3::new(0.0, 0.2, 0.0), DVec3::new(0.0, -0.2, 0.0));
             let pieces = vec![
-                settled(piece(0, swaying(0..=96, tip_0, true))),
-                settled(piece(1, swaying(0..=96, b, true))),
-                settled(piece(2, swaying(0..=960, n, true))),
+                resting(0, tip_0, 96),
+                resting(1, b, 96),
+                resting(2, n, 960),
                 settled(piece(
                     3,
                     swaying(0..=if hidden { 96 } else { 960 }, m, true),
@@ -2951,7 +2965,7 @@ mod tests {
                 anchor(3, m, vec![(0, 1.0)]),
             ];
             anchors[1].spread = 0.015;
-            assign(&pieces, &anchors, 12, 240)[4]
+            assigned(&pieces, &anchors)[4]
         };
         // At tip 0, which cannot be judged: not to tip 1, 60 mm away
         // (cost 26, under 36, and every other tip far).
