@@ -2821,7 +2821,7 @@ mod tests {
         ];
         anchors[1].spread = 0.046;
         // On the spread learnt in the calm, A's own marker at the top of
-        // its swing does not fit A, and W, free then, fits it loosely.
+        // its swing does not fit A, and W, free then, fits it.
         let joined = Field::joined(&pieces, &anchors, 12);
         assert!(cost(&pieces, &anchors, &joined, 4, 0, 240).unwrap() > FIT);
         assert!(cost(&pieces, &anchors, &joined, 4, 1, 240).unwrap() < FIT);
