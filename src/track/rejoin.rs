@@ -1001,47 +1001,39 @@ fn assign(
     // (`widened`). Wrong samples, seeds 100–249: 1 259 / 1 681 → 1 038 /
     // 1 374; held out, 300–359 613 / 1 384 → 523 / 1 508, 360–419 645 /
     // 1 271 → 476 / 1 066, 264–299 505 / 1 985 → 399 / 1 464.
-    let mut placed: Option<Field> = None;
-    let mut wide: Option<Vec<Anchor>> = None;
-    for _ in 0..ROUNDS {
-        let field = placed.as_ref().unwrap_or(joined);
-        let judged = wide.as_deref().unwrap_or(anchors);
+    let round = |anchors: &[Anchor],
+                 field: &Field,
+                 owner: &mut [Option<usize>],
+                 taken: &mut [Vec<(i64, i64, usize)>]| {
         for &i in &order {
             if let Some(a) = owner[i].take() {
                 taken[a].retain(|t| t.2 != i);
             }
-            place(judged, field, i, &mut owner, &mut taken);
+            place(anchors, field, i, owner, taken);
         }
-        if placed.is_none() {
-            let first = Field::placed(pieces, anchors, &owner, joined.step);
-            let w = widened(pieces, anchors, &first, &owner, wind_from);
-            if debug {
-                for (a, (was, now)) in anchors.iter().zip(&w).enumerate() {
-                    if now.spread > was.spread {
-                        eprintln!(
-                            "anchor a{a} spread widened {:.1} → {:.1} mm",
-                            was.spread * 1000.0,
-                            now.spread * 1000.0
-                        );
-                    }
-                }
+    };
+    round(anchors, joined, &mut owner, &mut taken);
+    let placed = Field::placed(pieces, anchors, &owner, joined.step);
+    let wide = widened(pieces, anchors, &placed, &owner, wind_from);
+    if debug {
+        for (a, (was, now)) in anchors.iter().zip(&wide).enumerate() {
+            if now.spread > was.spread {
+                eprintln!(
+                    "anchor a{a} spread widened {:.1} → {:.1} mm",
+                    was.spread * 1000.0,
+                    now.spread * 1000.0
+                );
             }
-            wide = Some(w);
-            placed = Some(first);
         }
     }
-    let anchors = wide.as_deref().unwrap_or(anchors);
+    for _ in 1..ROUNDS {
+        round(&wide, &placed, &mut owner, &mut taken);
+    }
     swaps(
-        pieces,
-        anchors,
-        placed.as_ref().unwrap_or(joined),
-        &order,
-        &mut owner,
-        &mut taken,
-        one_second,
+        pieces, &wide, &placed, &order, &mut owner, &mut taken, one_second,
     );
     trades(
-        pieces, anchors, joined, &order, &mut owner, &mut taken, one_second,
+        pieces, &wide, joined, &order, &mut owner, &mut taken, one_second,
     );
     owner
 }
@@ -2681,6 +2673,23 @@ mod tests {
         assert!(away > fits + LOOSE, "moving away: {away}");
     }
 
+    /// Tips 0 (origin) and 1 (45 mm along x), both judged by tip 2 (200
+    /// mm along y, judged by tip 0): where the three rest, and their
+    /// anchors, held by pieces 0, 1 and 2 ([`anchor`]).
+    fn limb_pair() -> ([DVec3; 3], Vec<Anchor>) {
+        let at = [
+            DVec3::ZERO,
+            DVec3::new(0.045, 0.0, 0.0),
+            DVec3::new(0.0, 0.2, 0.0),
+        ];
+        let anchors = vec![
+            anchor(0, at[0], vec![(2, 1.0)]),
+            anchor(1, at[1], vec![(2, 1.0)]),
+            anchor(2, at[2], vec![(0, 1.0)]),
+        ];
+        (at, anchors)
+    }
+
     /// A tip alone on its limb keeps another tip's marker that fits it
     /// loosely, and its own marker, back as a trace of no tip, finds it
     /// taken (`all` seed 112): the two are put right together.
@@ -2693,11 +2702,7 @@ mod tests {
         // of 40 mm) at the origin, tip 1 at 45 mm along x, tip 2, the
         // neighbour both are judged by, 200 mm along y. Still phase to
         // frame 96; the swap from frame 480 to 720.
-        let (a, b, n) = (
-            DVec3::ZERO,
-            DVec3::new(0.045, 0.0, 0.0),
-            DVec3::new(0.0, 0.2, 0.0),
-        );
+        let ([a, b, n], _) = limb_pair();
         let setup = |reflection: bool, b_busy: bool, drift: f64| {
             let mut pieces = vec![
                 resting(0, a, 96),
@@ -2720,11 +2725,7 @@ mod tests {
                     swaying(480..=720, b + DVec3::new(0.0, 0.0, 0.004), true),
                 ));
             }
-            let mut anchors = vec![
-                anchor(0, a, vec![(2, 1.0)]),
-                anchor(1, b, vec![(2, 1.0)]),
-                anchor(2, n, vec![(0, 1.0)]),
-            ];
+            let (_, mut anchors) = limb_pair();
             anchors[0].spread = 0.04;
             (pieces, anchors)
         };
@@ -2792,11 +2793,7 @@ mod tests {
         // mm along x, alone on its limb, spreads 46 mm; both are judged
         // by tip N, 200 mm along y. W's marker is hidden from frame 552 to
         // 648, while A's is at the top of its swing (24 mm).
-        let (a, w, n) = (
-            DVec3::ZERO,
-            DVec3::new(0.045, 0.0, 0.0),
-            DVec3::new(0.0, 0.2, 0.0),
-        );
+        let ([a, w, n], mut anchors) = limb_pair();
         let gust = |f: i64| {
             let z = 0.025 * (f as f64 / 480.0 * std::f64::consts::TAU).sin();
             a + DVec3::new(0.0, 0.0, z)
@@ -2813,11 +2810,6 @@ mod tests {
             piece(0, swinging(660..=1200)),
             piece(1, swaying(108..=540, w, true)),
             piece(1, swaying(660..=1200, w, true)),
-        ];
-        let mut anchors = vec![
-            anchor(0, a, vec![(2, 1.0)]),
-            anchor(1, w, vec![(2, 1.0)]),
-            anchor(2, n, vec![(0, 1.0)]),
         ];
         anchors[1].spread = 0.046;
         // On the spread learnt in the calm, A's own marker at the top of
@@ -2841,17 +2833,8 @@ mod tests {
     /// 20 mm from its marker), judged by tip 2, 200 mm along y: where the
     /// three rest, their pieces of the still phase and their anchors.
     fn wide_pair(spread_1: f64) -> ([DVec3; 3], Vec<Piece>, Vec<Anchor>) {
-        let (a, b, n) = (
-            DVec3::ZERO,
-            DVec3::new(0.045, 0.0, 0.0),
-            DVec3::new(0.0, 0.2, 0.0),
-        );
+        let ([a, b, n], mut anchors) = limb_pair();
         let pieces = vec![resting(0, a, 96), resting(1, b, 96), resting(2, n, 1200)];
-        let mut anchors = vec![
-            anchor(0, a, vec![(2, 1.0)]),
-            anchor(1, b, vec![(2, 1.0)]),
-            anchor(2, n, vec![(0, 1.0)]),
-        ];
         anchors[0].spread = 0.08;
         anchors[1].spread = spread_1;
         anchors[1].mean = DVec3::new(0.0, 0.0, 0.02);
