@@ -72,6 +72,11 @@ const TRUSTED_PROBES: usize = 40;
 /// 0.6 a tip widens only where the offsets over the whole take strayed
 /// twice as far as in its first 2 s.
 const WIDEN: f64 = 0.6;
+/// How much a tip's wider spread counts against it where a piece is
+/// placed ([`weigh_spreads`]): this times the log of how much larger the
+/// variance of the piece's mean is at the tip than at the narrowest tip
+/// it is judged at, added to both of its costs there.
+const WIDE_WEIGHT: f64 = 1.0;
 /// A piece fits a tip when its mean offset is within this many standard
 /// errors (squared: 3²).
 const FIT: f64 = 9.0;
@@ -936,7 +941,8 @@ fn assign(
                  taken: &mut [Vec<(i64, i64, usize)>]| {
         let p = &pieces[i];
         let span = p.span();
-        let costs = candidates(pieces, anchors, field, taken, i, one_second);
+        let mut costs = candidates(pieces, anchors, field, taken, i, one_second);
+        weigh_spreads(&mut costs, anchors, p, one_second);
         let was = anchor_of_trace(p.from).filter(|&a| !taken[a].iter().any(|t| overlaps(span, t)));
         // A tip free during the piece whose neighbours are hidden cannot
         // be judged; nearer the piece than a tip it fits only loosely, it
@@ -1787,11 +1793,53 @@ fn cost(
         return None;
     }
     let mean = offs.iter().copied().sum::<DVec3>() / offs.len() as f64;
+    let var = mean_variance(&anchors[a], p, offs.len(), one_second);
+    Some(mean.distance_squared(anchors[a].mean) / var)
+}
+
+/// The variance (m²) of the mean offset of piece `p`, judged on `probes`
+/// of its probes, at anchor `an`: the tip's spread over the piece's
+/// independent swings ([`SWING_HZ`]), with the floor's error.
+fn mean_variance(an: &Anchor, p: &Piece, probes: usize, one_second: i64) -> f64 {
     let span_s = (p.trace.len() as f64 / one_second.max(1) as f64).max(0.0);
-    let n_eff = (span_s * SWING_HZ).clamp(1.0, offs.len() as f64);
-    let an = &anchors[a];
-    let var = an.spread * an.spread / n_eff + SPREAD_MIN * SPREAD_MIN;
-    Some(mean.distance_squared(an.mean) / var)
+    let n_eff = (span_s * SWING_HZ).clamp(1.0, probes.max(1) as f64);
+    an.spread * an.spread / n_eff + SPREAD_MIN * SPREAD_MIN
+}
+
+/// Adds to piece `p`'s costs at each tip ((with seams, mean alone, tip),
+/// as [`candidates`] gives them) [`WIDE_WEIGHT`] times the log of how
+/// much larger its mean's variance is there than at the narrowest of
+/// those tips.
+///
+/// A cost is a squared distance in units of the tip's variance, so a tip
+/// alone on its limb, whose offset spreads widely, fits every marker near
+/// it cheaply; the Gaussian's normaliser, 3 ln σ² in −2 ln L, is what
+/// charges for that width, and the cost leaves it out (`all` seed 288,
+/// `noise_mm` 1.5: tip 62's offset spreads 87 mm; tip 61's marker, held
+/// by tip 62's identity for 2.8 s, cost 2.8 there, 145 mm from the
+/// offset learnt for it, and 2.7 at tip 61, 33 mm from its own: 518
+/// samples stayed in tip 62, and tip 62's own marker, its seams missing
+/// those, was left out; 549 → 0). Wrong samples, `all` / `noise_mm` 1.5,
+/// one seed per run: seeds 100–249 1 038 / 1 374 → 1 199 / 1 180 (225:
+/// 0 → 180, a swap undone before by a gain of 2.2 over its bound, −0.1
+/// now); held out, 300–359 523 / 1 508 → 521 / 1 423, 360–419 476 /
+/// 1 066 → 466 / 922, 264–299 399 / 1 464 → 249 / 822.
+///
+/// Weight 1, a third of the Gaussian's own: on the 19 worst seeds (593 /
+/// 3 045), 0.5 gave 593 / 2 716, 1 479 / 2 090, 2 711 / 2 725 and 3
+/// 475 / 2 207, where a tip swinging off its neighbours in a gust lost
+/// its own marker to a narrower tip near it (held-out seed 331 under
+/// `noise_mm` 1.5, 115 → 1 098). The narrowest tip judged pays nothing;
+/// the narrowest whose mean is at most [`LOOSE`] instead (so that a tip
+/// far off does not raise the others' costs): 579 / 2 217.
+fn weigh_spreads(costs: &mut [(f64, f64, usize)], anchors: &[Anchor], p: &Piece, one_second: i64) {
+    let var = |a: usize| mean_variance(&anchors[a], p, p.probes.len(), one_second);
+    let least = costs.iter().map(|c| var(c.2)).fold(f64::INFINITY, f64::min);
+    for c in costs.iter_mut() {
+        let wide = WIDE_WEIGHT * (var(c.2) / least).ln();
+        c.0 += wide;
+        c.1 += wide;
+    }
 }
 
 /// Piece `i`'s [`cost`] at anchor `a`, alone and with its [`seams`] to
@@ -2676,6 +2724,30 @@ mod tests {
     /// Tips 0 (origin) and 1 (45 mm along x), both judged by tip 2 (200
     /// mm along y, judged by tip 0): where the three rest, and their
     /// anchors, held by pieces 0, 1 and 2 ([`anchor`]).
+    /// Of two tips a piece fits equally, the one whose offset spreads
+    /// wider pays the log of how much wider its mean's variance is; the
+    /// narrowest tip judged pays nothing, so its costs keep their
+    /// meaning against the fit bounds.
+    #[test]
+    fn a_wide_tip_pays_for_its_width_and_the_narrowest_nothing() {
+        let ([_, b, _], mut anchors) = limb_pair();
+        anchors[0].spread = 0.087;
+        anchors[1].spread = 0.02;
+        anchors[2].spread = 0.03;
+        // A second of a marker (241 frames): two independent swings.
+        let p = piece(3, swaying(480..=720, b, true));
+        let mut costs = vec![(2.7, 2.7, 0), (-3.0, 2.7, 1), (40.0, 40.0, 2)];
+        weigh_spreads(&mut costs, &anchors, &p, 240);
+        let var = |s: f64| s * s / (2.0 * 241.0 / 240.0) + SPREAD_MIN * SPREAD_MIN;
+        assert_eq!((costs[1].0, costs[1].1), (-3.0, 2.7), "narrowest");
+        let wide = (var(0.087) / var(0.02)).ln();
+        assert!((wide - 2.8).abs() < 0.1, "{wide}");
+        assert!((costs[0].0 - (2.7 + wide)).abs() < 1e-12);
+        assert!((costs[0].1 - (2.7 + wide)).abs() < 1e-12);
+        let middle = (var(0.03) / var(0.02)).ln();
+        assert!((costs[2].1 - (40.0 + middle)).abs() < 1e-12);
+    }
+
     fn limb_pair() -> ([DVec3; 3], Vec<Anchor>) {
         let at = [
             DVec3::ZERO,
@@ -2711,13 +2783,22 @@ mod tests {
                 // Tip 1's marker in tip 0's identity, 45 mm from tip 0,
                 // whose spread is 40 mm: the tracker's choice stands.
                 piece(0, swaying(480..=720, b + DVec3::new(0.0, 0.0, drift), true)),
-                // Tip 0's marker as a trace of no tip (or a reflection
-                // sitting still 10 mm from it).
-                piece(
-                    3,
-                    swaying(480..=720, a + DVec3::new(0.0, 0.0, 0.01), !reflection),
-                ),
+                // Tip 0's marker as a trace of no tip.
+                piece(3, swaying(480..=720, a + DVec3::new(0.0, 0.0, 0.01), true)),
             ];
+            if reflection {
+                // Or a reflection sitting still 10 mm from it, measured in
+                // every frame with 0.3 mm of noise: quiet.
+                let mut rng = crate::rng::Rng::new(3);
+                let still = (480..=720)
+                    .map(|f| {
+                        let noise = DVec3::new(rng.normal(), rng.normal(), rng.normal());
+                        (f, a + DVec3::new(0.0, 0.0, 0.01) + noise * 0.0003)
+                    })
+                    .collect();
+                pieces[4] = piece(3, still);
+                assert!(pieces[4].quiet.is_some());
+            }
             if b_busy {
                 // Tip 1 holds a piece of its own over the same frames.
                 pieces.push(piece(
@@ -2737,12 +2818,23 @@ mod tests {
         let (pieces, anchors) = setup(false, false, 0.027);
         let owner = assigned(&pieces, &anchors);
         assert_eq!((owner[3], owner[4]), (Some(1), Some(0)), "drifted");
+        // A reflection sitting still at tip 0 takes nothing. Tip 1's
+        // marker costs 0 at tip 1 and 1.3 at tip 0, whose spread is 8
+        // times wider: weighed for that width (`weigh_spreads`, 5.6), tip
+        // 0 no longer keeps it, but tip 1 does not lead by enough to take
+        // it while tip 0 is free. It is left to the steps after (`reclaim`
+        // fills tip 1's gap), not kept in the wrong tip.
         let (pieces, anchors) = setup(true, false, 0.0);
         let owner = assigned(&pieces, &anchors);
-        assert_eq!((owner[3], owner[4]), (Some(0), None), "a reflection");
+        assert_eq!((owner[3], owner[4]), (None, None), "a reflection");
+        // Tip 1 holds a marker of its own as well (judged after the one
+        // in tip 0's identity, which, weighed so, does not stay at tip 0
+        // while tip 1 is free): tip 0's marker comes back, and the one
+        // near tip 1 is left out.
         let (pieces, anchors) = setup(false, true, 0.0);
         let owner = assigned(&pieces, &anchors);
-        assert_eq!((owner[3], owner[4]), (Some(0), None), "tip 1 is busy");
+        assert_eq!((owner[3], owner[4]), (None, Some(0)), "tip 1 is busy");
+        assert_eq!(owner[5], Some(1));
     }
 
     #[test]
