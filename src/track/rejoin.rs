@@ -2951,6 +2951,18 @@ mod tests {
         ([a, b, n], pieces, anchors)
     }
 
+    /// Tips 0 and 1's own markers, at `a` and `b`, before and after what
+    /// a test swaps: from frame 108 to `until` and from `from` to 1200
+    /// (tip 0's, then tip 1's), as pieces of tips 0, 0, 1 and 1.
+    fn own_beside(a: DVec3, b: DVec3, until: [i64; 2], from: [i64; 2]) -> [Piece; 4] {
+        [
+            piece(0, swaying(108..=until[0], a, true)),
+            piece(0, swaying(from[0]..=1200, a, true)),
+            piece(1, swaying(108..=until[1], b, true)),
+            piece(1, swaying(from[1]..=1200, b, true)),
+        ]
+    }
+
     /// Not when nothing but the loose fit of two wide tips speaks for
     /// trading.
     #[test]
@@ -2972,12 +2984,7 @@ mod tests {
             if own_pieces_beside {
                 // Each tip's own marker up to 0.1 s before and from 0.1 s
                 // after the swapped pieces: their seams miss by 45 mm.
-                pieces.extend([
-                    piece(0, swaying(108..=456, a, true)),
-                    piece(0, swaying(744..=1200, a, true)),
-                    piece(1, swaying(108..=468, b, true)),
-                    piece(1, swaying(732..=1200, b, true)),
-                ]);
+                pieces.extend(own_beside(a, b, [456, 468], [744, 732]));
             }
             (pieces, anchors)
         };
@@ -3029,12 +3036,7 @@ mod tests {
             ]);
             let mut tips = vec![0, 1, 2, 0, 0, 1, 1];
             if own_pieces_beside {
-                pieces.extend([
-                    piece(0, swaying(108..=456, a, true)),
-                    piece(0, swaying(1032..=1200, a, true)),
-                    piece(1, swaying(108..=468, b, true)),
-                    piece(1, swaying(1020..=1200, b, true)),
-                ]);
+                pieces.extend(own_beside(a, b, [456, 468], [1032, 1020]));
                 tips.extend([0, 0, 1, 1]);
             }
             traded(&pieces, &anchors, &tips)
@@ -3069,12 +3071,9 @@ mod tests {
             piece(0, swaying(492..=720, b, true)),
             piece(1, swaying(504..=684, a, true)),
             piece(1, swaying(700..=716, a, true)),
-            piece(0, swaying(108..=456, a, true)),
-            piece(0, swaying(744..=1200, a, true)),
-            piece(1, swaying(108..=456, b, true)),
-            piece(1, swaying(744..=1200, b, true)),
-            piece(2, swaying(732..=1200, n, true)),
         ]);
+        pieces.extend(own_beside(a, b, [456, 456], [744, 744]));
+        pieces.push(piece(2, swaying(732..=1200, n, true)));
         let tips = [0, 1, 2, 0, 1, 1, 0, 0, 1, 1, 2];
         let field = Field::joined(&pieces, &anchors, 12);
         assert!(cost(&pieces, &anchors, &field, 5, 0, 240).is_none());
@@ -3104,11 +3103,8 @@ mod tests {
             piece(0, swaying(492..=720, b, true)),
             piece(1, swaying(504..=720, a, true)),
             piece(1, swaying(468..=480, a, true)),
-            piece(0, swaying(108..=456, a, true)),
-            piece(0, swaying(744..=1200, a, true)),
-            piece(1, swaying(108..=456, b, true)),
-            piece(1, swaying(744..=1200, b, true)),
         ]);
+        pieces.extend(own_beside(a, b, [456, 456], [744, 744]));
         let tips = [0, 1, 2, 0, 1, 1, 0, 0, 1, 1];
         let owner = traded(&pieces, &anchors, &tips);
         assert_eq!(
@@ -3162,12 +3158,7 @@ mod tests {
             pieces.push(piece(1, swaying(at + 48..=at + 144, a, true)));
             tips.extend([0, 1]);
         }
-        pieces.extend([
-            piece(0, swaying(108..=456, a, true)),
-            piece(0, swaying(1128..=1200, a, true)),
-            piece(1, swaying(108..=456, b, true)),
-            piece(1, swaying(1128..=1200, b, true)),
-        ]);
+        pieces.extend(own_beside(a, b, [456, 456], [1128, 1128]));
         tips.extend([0, 0, 1, 1]);
         let owner = traded(&pieces, &anchors, &tips);
         let back: Vec<Option<usize>> = (0..10).map(|k| Some(1 - k % 2)).collect();
@@ -3193,11 +3184,8 @@ mod tests {
             piece(0, swaying(744..=983, b, true)),
             piece(1, swaying(576..=815, a, true)),
             piece(1, swaying(840..=1079, a, true)),
-            piece(0, swaying(108..=456, a, true)),
-            piece(0, swaying(1104..=1200, a, true)),
-            piece(1, swaying(108..=456, b, true)),
-            piece(1, swaying(1104..=1200, b, true)),
         ]);
+        pieces.extend(own_beside(a, b, [456, 456], [1104, 1104]));
         let tips = [0, 1, 2, 0, 0, 1, 1, 0, 0, 1, 1];
         let field = Field::joined(&pieces, &anchors, 12);
         for (i, own) in [(3, 1), (4, 1), (5, 0), (6, 0)] {
