@@ -2809,19 +2809,19 @@ mod tests {
                    frames: std::ops::RangeInclusive<i64>,
                    at: &dyn Fn(i64) -> DVec3,
                    begins: bool| {
-            let samples: Vec<(i64, DVec3)> = frames.map(|f| (f, at(f))).collect();
-            let &(frame, at) = if begins {
-                &samples[0]
-            } else {
-                &samples[samples.len() - 1]
-            };
-            RunEnd {
-                frame,
-                at,
-                trace,
-                begins,
-                line: End::fit(&samples[samples.len().saturating_sub(SEAM_K)..]),
+            // Its ends as the pass finds them, named as trace `trace`'s.
+            let mut frames = frames.into_iter();
+            let first = frames.next().expect("a run has a first frame");
+            let mut t = Trace::new(9, first, at(first), None);
+            for f in frames {
+                t.push(f, at(f), None);
             }
+            let mut end = run_ends(&[t], 0)
+                .into_iter()
+                .find(|e| e.begins == begins)
+                .expect("a run has two ends");
+            end.trace = trace;
+            end
         };
         let with = |ends: &[RunEnd]| spans(&cut_among(1..80, held, ends));
         assert_eq!(with(&[]), [(1, 79)], "no run near: its own marker");
@@ -2831,9 +2831,7 @@ mod tests {
         };
         assert_eq!(with(&[run(1, 34..=40, &elsewhere, false)]), [(1, 79)]);
         assert_eq!(with(&[run(1, 24..=30, &b, false)]), [(1, 79)]);
-        let mut went_on = run(2, 41..=48, &a, true);
-        went_on.line = End::fit(&(41..=48).map(|f| (f, a(f))).collect::<Vec<_>>());
-        assert_eq!(with(&[went_on]), [(1, 40), (41, 79)]);
+        assert_eq!(with(&[run(2, 41..=48, &a, true)]), [(1, 40), (41, 79)]);
     }
 
     /// A marker swinging 100 mm at 1.5 Hz with 1.5 mm of noise stays one
