@@ -2230,6 +2230,9 @@ mod tests {
         false
     }
 
+    /// For `choose`: the piece is long enough for its ends' lines.
+    const LINED: bool = true;
+
     /// A movable piece cut from trace `from`, measured at its probes.
     fn piece(from: usize, probes: Vec<(i64, DVec3)>) -> Piece {
         let mut trace = Trace::new(from, probes[0].0, probes[0].1, None);
@@ -2364,7 +2367,7 @@ mod tests {
                 &seen,
                 &whole,
                 false,
-                true
+                LINED
             ),
             Some(0)
         );
@@ -2380,7 +2383,7 @@ mod tests {
                 &seen,
                 &whole,
                 false,
-                true
+                LINED
             ),
             Some(0)
         );
@@ -2394,7 +2397,7 @@ mod tests {
                 &seen,
                 &whole,
                 false,
-                true
+                LINED
             ),
             Some(1)
         );
@@ -2411,7 +2414,7 @@ mod tests {
                 &seen,
                 &whole,
                 false,
-                true
+                LINED
             ),
             None
         );
@@ -2426,7 +2429,7 @@ mod tests {
                 &seen,
                 &whole,
                 false,
-                true
+                LINED
             ),
             None
         );
@@ -2441,7 +2444,7 @@ mod tests {
                 &seen,
                 &whole,
                 false,
-                true
+                LINED
             ),
             None
         );
@@ -2456,7 +2459,7 @@ mod tests {
                 &seen,
                 &whole,
                 false,
-                true
+                LINED
             ),
             Some(0)
         );
@@ -2464,7 +2467,16 @@ mod tests {
         // unless a tip that cannot be judged is nearer the piece (`all`
         // seed 224: tip 65 13 mm away, the tracker's 172 mm).
         assert_eq!(
-            choose(&[], Some(0), &moves, &not_still, &seen, &whole, false, true),
+            choose(
+                &[],
+                Some(0),
+                &moves,
+                &not_still,
+                &seen,
+                &whole,
+                false,
+                LINED
+            ),
             Some(0)
         );
         assert_eq!(
@@ -2476,7 +2488,7 @@ mod tests {
                 &hidden,
                 &whole,
                 false,
-                true
+                LINED
             ),
             None
         );
@@ -2493,7 +2505,7 @@ mod tests {
                 &seen,
                 &whole,
                 false,
-                true
+                LINED
             ),
             None
         );
@@ -2507,7 +2519,7 @@ mod tests {
                 &seen,
                 &whole,
                 false,
-                true
+                LINED
             ),
             Some(0)
         );
@@ -2524,7 +2536,7 @@ mod tests {
                 &hidden,
                 &whole,
                 false,
-                true
+                LINED
             ),
             None
         );
@@ -2537,7 +2549,7 @@ mod tests {
                 &seen,
                 &whole,
                 false,
-                true
+                LINED
             ),
             Some(0)
         );
@@ -2553,7 +2565,7 @@ mod tests {
                 &seen,
                 &whole,
                 false,
-                true
+                LINED
             ),
             Some(1)
         );
@@ -2567,7 +2579,7 @@ mod tests {
                 &hidden,
                 &whole,
                 false,
-                true
+                LINED
             ),
             Some(0)
         );
@@ -2589,7 +2601,7 @@ mod tests {
                 &seen,
                 &whole,
                 false,
-                true,
+                LINED,
             )
         };
         // 34 samples: 3.9 with the seams at tip 68, mean 9.7; 25.6 and
@@ -2627,12 +2639,12 @@ mod tests {
                     &seen,
                     &whole,
                     false,
-                    true
+                    LINED
                 ),
                 Some(0)
             );
             assert_eq!(
-                choose(costs, Some(0), &moves, &still, &seen, &whole, false, true),
+                choose(costs, Some(0), &moves, &still, &seen, &whole, false, LINED),
                 None
             );
         }
@@ -2647,11 +2659,11 @@ mod tests {
         // Seed 100: 72 samples of tip 63 in its 132-frame hole.
         let tip_63 = [(27.1, 19.2, 0), (1110.1, 1110.1, 1), (3542.1, 1608.5, 2)];
         assert_eq!(
-            choose(&tip_63, None, &moving, &not_still, &seen, &whole, false, true),
+            choose(&tip_63, None, &moving, &not_still, &seen, &whole, false, LINED),
             Some(0)
         );
         assert_eq!(
-            choose(&tip_63, None, &still, &not_still, &seen, &whole, false, true),
+            choose(&tip_63, None, &still, &not_still, &seen, &whole, false, LINED),
             None
         );
         // Held-out seed 109: a reflection of 45 samples, near tip 61 only.
@@ -2665,7 +2677,7 @@ mod tests {
                 &seen,
                 &whole,
                 false,
-                true
+                LINED
             ),
             None
         );
@@ -2679,7 +2691,7 @@ mod tests {
                 &seen,
                 &whole,
                 false,
-                true
+                LINED
             ),
             None
         );
@@ -2693,7 +2705,7 @@ mod tests {
                 &seen,
                 &whole,
                 false,
-                true
+                LINED
             ),
             None
         );
@@ -2707,7 +2719,7 @@ mod tests {
                 &seen,
                 &whole,
                 false,
-                true
+                LINED
             ),
             Some(0)
         );
@@ -2725,20 +2737,20 @@ mod tests {
         // seams miss: no tip.
         let ghost = [(128.3, 8.2, 0)];
         assert_eq!(
-            choose(&ghost, None, &moving, &not_still, &seen, &torn_at, false, true),
+            choose(&ghost, None, &moving, &not_still, &seen, &torn_at, false, LINED),
             None
         );
         // Seed 233: tip 30's own marker, mean 2.7, seams 85 against two
         // samples of a ghost just before it; its other seam fits.
         let own = [(87.7, 2.7, 0)];
         assert_eq!(
-            choose(&own, None, &moving, &not_still, &seen, &whole, false, true),
+            choose(&own, None, &moving, &not_still, &seen, &whole, false, LINED),
             Some(0)
         );
         // Seams missing by less than LOOSE in all: the mean decides.
         let near = [(30.0, 8.2, 0)];
         assert_eq!(
-            choose(&near, None, &moving, &not_still, &seen, &torn_at, false, true),
+            choose(&near, None, &moving, &not_still, &seen, &torn_at, false, LINED),
             Some(0)
         );
         // The tracker's tip keeps a piece its mean fits all the same
@@ -2752,7 +2764,7 @@ mod tests {
                 &seen,
                 &torn_at,
                 false,
-                true
+                LINED
             ),
             Some(0)
         );
@@ -2769,7 +2781,7 @@ mod tests {
                 &seen,
                 &torn_at,
                 false,
-                true
+                LINED
             ),
             None
         );
@@ -2782,7 +2794,7 @@ mod tests {
                 &seen,
                 &whole,
                 false,
-                true
+                LINED
             ),
             Some(0)
         );
@@ -2823,7 +2835,7 @@ mod tests {
                 &seen,
                 &whole,
                 false,
-                true
+                LINED
             ),
             Some(1)
         );
@@ -2838,7 +2850,7 @@ mod tests {
                 &seen,
                 &whole,
                 false,
-                true
+                LINED
             ),
             None
         );
@@ -2860,11 +2872,11 @@ mod tests {
         let seed_358 = [(10.1, 10.1, 0), (183.5, 163.8, 1)];
         for costs in [&seed_334[..], &seed_358[..]] {
             assert_eq!(
-                choose(costs, None, &moving, &not_still, &seen, &whole, false, true),
+                choose(costs, None, &moving, &not_still, &seen, &whole, false, LINED),
                 Some(0)
             );
             assert_eq!(
-                choose(costs, None, &moving, &not_still, &seen, &whole, true, true),
+                choose(costs, None, &moving, &not_still, &seen, &whole, true, LINED),
                 None
             );
         }
@@ -2879,7 +2891,7 @@ mod tests {
                 &seen,
                 &whole,
                 false,
-                true
+                LINED
             ),
             Some(0)
         );
@@ -2892,7 +2904,7 @@ mod tests {
                 &seen,
                 &whole,
                 true,
-                true
+                LINED
             ),
             None
         );
@@ -2906,7 +2918,7 @@ mod tests {
                 &seen,
                 &whole,
                 true,
-                true
+                LINED
             ),
             Some(0)
         );
@@ -2919,7 +2931,7 @@ mod tests {
                 &seen,
                 &whole,
                 true,
-                true
+                LINED
             ),
             Some(0)
         );
