@@ -2730,74 +2730,29 @@ mod tests {
     /// miss by no more than `LOOSE`; costs as measured on `all` seeds.
     #[test]
     fn a_tip_does_not_take_a_piece_on_its_mean_where_it_continues_none_of_its_pieces() {
-        let moving = |_: usize| Some(1.0);
         let torn_at = |a: usize| a == 0;
+        let place = |costs: &[(f64, f64, usize)], was, torn: &dyn Fn(usize) -> bool| {
+            choose(costs, was, &moves, &not_still, &seen, torn, false, LINED)
+        };
         // Seed 290: a ghost of 38 samples between two pieces of tip 24,
         // mean 8.2, seams 120 there; judged at no other tip. Both of its
         // seams miss: no tip.
         let ghost = [(128.3, 8.2, 0)];
-        assert_eq!(
-            choose(&ghost, None, &moving, &not_still, &seen, &torn_at, false, LINED),
-            None
-        );
+        assert_eq!(place(&ghost, None, &torn_at), None);
         // Seed 233: tip 30's own marker, mean 2.7, seams 85 against two
         // samples of a ghost just before it; its other seam fits.
-        let own = [(87.7, 2.7, 0)];
-        assert_eq!(
-            choose(&own, None, &moving, &not_still, &seen, &whole, false, LINED),
-            Some(0)
-        );
+        assert_eq!(place(&[(87.7, 2.7, 0)], None, &whole), Some(0));
         // Seams missing by less than LOOSE in all: the mean decides.
-        let near = [(30.0, 8.2, 0)];
-        assert_eq!(
-            choose(&near, None, &moving, &not_still, &seen, &torn_at, false, LINED),
-            Some(0)
-        );
+        assert_eq!(place(&[(30.0, 8.2, 0)], None, &torn_at), Some(0));
         // The tracker's tip keeps a piece its mean fits all the same
         // (seams alone take nothing from it).
-        assert_eq!(
-            choose(
-                &ghost,
-                Some(0),
-                &moves,
-                &not_still,
-                &seen,
-                &torn_at,
-                false,
-                LINED
-            ),
-            Some(0)
-        );
+        assert_eq!(place(&ghost, Some(0), &torn_at), Some(0));
         // Given by the tracker to a tip it fits loosely with seams that
         // miss, and fitting another's mean with torn seams there: moved
         // on the mean only where one of those seams fits.
         let other = [(150.0, 20.0, 1), (128.3, 8.2, 0)];
-        assert_eq!(
-            choose(
-                &other,
-                Some(1),
-                &moves,
-                &not_still,
-                &seen,
-                &torn_at,
-                false,
-                LINED
-            ),
-            None
-        );
-        assert_eq!(
-            choose(
-                &other,
-                Some(1),
-                &moves,
-                &not_still,
-                &seen,
-                &whole,
-                false,
-                LINED
-            ),
-            Some(0)
-        );
+        assert_eq!(place(&other, Some(1), &torn_at), None);
+        assert_eq!(place(&other, Some(1), &whole), Some(0));
     }
 
     /// A piece the tracker's tip rejects by its seams goes to a tip whose
@@ -2805,12 +2760,10 @@ mod tests {
     /// fit, clearly best, and it is long enough for its ends' lines.
     #[test]
     fn a_piece_its_tip_rejects_goes_where_its_seams_make_it_fit() {
-        // `all` seed 164: tip 68's marker, 114 samples in tip 34's
-        // identity (anchor 1); tip 68 is anchor 0.
-        let tip_68 = [(6.6, 13.3, 0), (98.0, 12.7, 1)];
-        let take = |lined| {
+        // Anchor 1 is the tracker's tip.
+        let place = |costs: &[(f64, f64, usize)], lined| {
             choose(
-                &tip_68,
+                costs,
                 Some(1),
                 &moves,
                 &not_still,
@@ -2820,40 +2773,17 @@ mod tests {
                 lined,
             )
         };
-        assert_eq!(take(true), Some(0));
+        // `all` seed 164: tip 68's marker, 114 samples in tip 34's
+        // identity (anchor 1); tip 68 is anchor 0.
+        let tip_68 = [(6.6, 13.3, 0), (98.0, 12.7, 1)];
+        assert_eq!(place(&tip_68, LINED), Some(0));
         // Under SEAM_K samples its ends' lines say too little: no tip.
-        assert_eq!(take(false), None);
+        assert_eq!(place(&tip_68, false), None);
         // Its tracker's tip does not reject it (seams within LOOSE): it
         // stays, the seams alone take nothing.
-        let kept = [(6.6, 13.3, 0), (20.0, 12.7, 1)];
-        assert_eq!(
-            choose(
-                &kept,
-                Some(1),
-                &moves,
-                &not_still,
-                &seen,
-                &whole,
-                false,
-                LINED
-            ),
-            Some(1)
-        );
+        assert_eq!(place(&[(6.6, 13.3, 0), (20.0, 12.7, 1)], LINED), Some(1));
         // Its mean fits the other tip not even loosely: no tip.
-        let far = [(6.6, 40.0, 0), (98.0, 12.7, 1)];
-        assert_eq!(
-            choose(
-                &far,
-                Some(1),
-                &moves,
-                &not_still,
-                &seen,
-                &whole,
-                false,
-                LINED
-            ),
-            None
-        );
+        assert_eq!(place(&[(6.6, 40.0, 0), (98.0, 12.7, 1)], LINED), None);
     }
 
     /// A piece whose positions spread within its noise keeps or takes a
