@@ -57,6 +57,9 @@ const CANDIDATES: usize = 16;
 /// Independent samples per second of a tip's own swing around its mean
 /// offset (its twig modes are 1–3 Hz).
 const SWING_HZ: f64 = 2.0;
+/// How far (m) a piece of the still phase may sit from its tip's rest
+/// position and from where its neighbours put it.
+const STRAY: f64 = 0.02;
 /// Floor of a tip's offset spread and of the mean's error (m).
 const SPREAD_MIN: f64 = 0.005;
 /// Farthest a tip is compared with a piece: its rest position from the
@@ -435,7 +438,8 @@ pub(crate) fn rejoin(
 
 /// How traces are cut into pieces (`cut_trace`).
 struct Cuts<'a> {
-    /// Frame before which nothing is cut (the still phase's end).
+    /// Frame up to which a trace is cut only where the tracker joined
+    /// pieces on line (the still phase's end).
     after: i64,
     /// Gaps longer than this (frames) always cut.
     long: i64,
@@ -618,9 +622,9 @@ fn takeovers(samples: &[(i64, DVec3)], k: usize, cuts: &Cuts<'_>) -> Vec<i64> {
     out
 }
 
-/// Cuts trace `t` (index `k`) into `out`, after frame `cuts.after`: at
-/// its gaps longer than `cuts.long`, at any gap where a piece the tracker
-/// joined on line begins, and at any other gap of [`SPLIT_GAP`] frames or
+/// Cuts trace `t` (index `k`) into `out`: at any gap where a piece the
+/// tracker joined on line begins, and after frame `cuts.after` at its
+/// gaps longer than `cuts.long` and at any other gap of [`SPLIT_GAP`] frames or
 /// more, or step of more than [`JUMP`] from the one before, across which
 /// its path does not carry; and, carried or not, at a gap another marker
 /// meets ([`meets`]) and where it went on with another run's marker
@@ -678,7 +682,8 @@ fn cut_trace(
         // a piece per frame).
         let step = (gap == 1).then(|| p - before);
         let jumped = matches!((step, last_step), (Some(s), Some(l)) if (s - l).length() > JUMP);
-        let cuts_here = (hard || gap >= SPLIT_GAP || jumped) && f > cuts.after;
+        let cuts_here =
+            (seam && gap > 1) || ((hard || gap >= SPLIT_GAP || jumped) && f > cuts.after);
         // A gap another marker meets is cut like a long one (looked up
         // only where a piece is cut off).
         let met = cuts_here && !hard && gap >= SPLIT_GAP && meets(cuts, k, (last, before), (f, p));
@@ -823,24 +828,38 @@ impl EndSamples {
     }
 }
 
-/// The pieces holding the still phase, with their neighbours and offsets;
-/// pieces of the loose traces (from `n_tips` on) hold none. With them,
+/// The pieces holding the still phase (of each trace, the one with the
+/// most samples in it: a trace is cut where the tracker joined it on line,
+/// in the still phase too), with their neighbours and offsets; pieces of
+/// the loose traces (from `n_tips` on) hold none. With them,
 /// the [`Field`] they were measured on, as the tracker joined the traces
 /// (`assign` judges its first round on it).
 fn anchors(pieces: &[Piece], window: RestWindow, step: i64, n_tips: usize) -> (Vec<Anchor>, Field) {
-    let mut out: Vec<Anchor> = pieces
-        .iter()
-        .enumerate()
-        .filter(|(_, p)| p.from < n_tips)
-        .filter_map(|(i, p)| {
-            let (rest, _, n) = rest::rest_of(&p.trace, window.start, window.end)?;
-            (n >= rest::MIN_REST_SAMPLES).then_some(Anchor {
-                piece: i,
-                rest,
-                near: Vec::new(),
-                mean: DVec3::ZERO,
-                spread: SPREAD_MIN,
-            })
+    let mut best: Vec<(usize, DVec3, usize)> = Vec::new();
+    for (i, p) in pieces.iter().enumerate().filter(|(_, p)| p.from < n_tips) {
+        let Some((rest, _, n)) = rest::rest_of(&p.trace, window.start, window.end) else {
+            continue;
+        };
+        if n < rest::MIN_REST_SAMPLES {
+            continue;
+        }
+        match best.last_mut() {
+            Some(b) if pieces[b.0].from == p.from => {
+                if n > b.2 {
+                    *b = (i, rest, n);
+                }
+            }
+            _ => best.push((i, rest, n)),
+        }
+    }
+    let mut out: Vec<Anchor> = best
+        .into_iter()
+        .map(|(piece, rest, _)| Anchor {
+            piece,
+            rest,
+            near: Vec::new(),
+            mean: DVec3::ZERO,
+            spread: SPREAD_MIN,
         })
         .collect();
     for a in 0..out.len() {
@@ -938,6 +957,52 @@ fn widened(
             an
         })
         .collect()
+}
+
+/// Whether piece `i`, cut off before the still phase ended, is not tip
+/// `a`'s marker: at its median probe before `wind_from` it is more than
+/// [`STRAY`] from the tip's rest position and from where the tip's
+/// neighbours put it (both: a tree handled before its still phase moves
+/// its neighbours too).
+///
+/// Before the wind a tip's marker sits at its rest position, so a piece
+/// the tracker joined to it on line somewhere else is a reflection or
+/// another tip's marker. On `all` seed 336 a reflection of 45 samples,
+/// 62 mm from tip 26, was joined to it 0.7 s before the rest window
+/// while tip 26's own marker ran on as a trace of no tip; the reflection
+/// stayed in tip 26, unjudged, since nothing was cut or judged before the
+/// wind. Only probes before the wind count: a piece of the still phase
+/// running into the wind (seed 415: 1 931 samples, 1.4 s of them still)
+/// strays as far as its tip sways.
+fn astray(
+    pieces: &[Piece],
+    anchors: &[Anchor],
+    field: &Field,
+    i: usize,
+    a: usize,
+    wind_from: i64,
+) -> bool {
+    let (p, an) = (&pieces[i], &anchors[a]);
+    let mut off: Vec<f64> = p
+        .probes
+        .iter()
+        .filter(|(f, _)| *f < wind_from)
+        .filter_map(|&(f, q)| {
+            let o = field.offset(anchors, a, p.from, f, q)?;
+            Some(o.length().min(q.distance(an.rest)))
+        })
+        .collect();
+    let out = !off.is_empty() && median(&mut off) > STRAY;
+    if std::env::var_os("REJOIN_DEBUG").is_some() {
+        eprintln!(
+            "still piece of trace {} {:?} n {} at a{a}: {} probes, astray {out}",
+            p.from,
+            p.span(),
+            p.trace.measured(),
+            off.len()
+        );
+    }
+    out
 }
 
 /// Where each anchor's marker was at the probes: as the tracker joined
@@ -1056,10 +1121,12 @@ fn assign(
         let (s, e) = pieces[an.piece].span();
         taken[a].push((s, e, an.piece));
     }
-    // Pieces before the still phase ended stay where the tracker put them.
+    // Pieces before the still phase ended stay where the tracker put them,
+    // unless they sit away from the tip's rest position there.
     for (i, p) in pieces.iter().enumerate() {
         if owner[i].is_none() && !p.movable {
-            owner[i] = anchor_of_trace(p.from);
+            owner[i] = anchor_of_trace(p.from)
+                .filter(|&a| !astray(pieces, anchors, joined, i, a, wind_from));
             if let Some(a) = owner[i] {
                 taken[a].push((p.span().0, p.span().1, i));
             }
@@ -3008,6 +3075,32 @@ mod tests {
         assert_eq!(spans(&two), [(1, 19), (31, 59)], "another marker after it");
     }
 
+    /// Before the wind a trace is cut where the tracker joined a piece to
+    /// it on line, and nowhere else: not at a gap of 30 frames, longer
+    /// than the gaps that always cut after it.
+    #[test]
+    fn a_trace_is_cut_in_the_still_phase_only_where_the_tracker_joined_it() {
+        let frames = || (0..=90).chain(100..=199).chain(231..=300);
+        let cut = |seams: &[i64]| {
+            let mut f = frames();
+            let mut t = Trace::new(3, f.next().unwrap(), DVec3::ZERO, None);
+            for f in f {
+                t.push(f, DVec3::ZERO, None);
+            }
+            let cuts = Cuts {
+                after: 480,
+                seams,
+                ..test_cuts(&[])
+            };
+            let mut pieces = Vec::new();
+            cut_trace(t, 0, &cuts, &mut Vec::new(), &mut pieces);
+            assert!(pieces.iter().all(|p| !p.movable));
+            spans(&pieces)
+        };
+        assert_eq!(cut(&[100]), [(0, 90), (100, 300)]);
+        assert_eq!(cut(&[]), [(0, 300)]);
+    }
+
     /// Two markers passing close move alike: a trace hidden for 18 frames
     /// whose path carries across is cut there when another trace ended
     /// within 20 mm of where it resumed shortly before (it may have gone
@@ -3222,6 +3315,37 @@ mod tests {
             anchor(2, at[2], vec![(0, 1.0)]),
         ];
         (at, anchors)
+    }
+
+    /// A piece the tracker joined to a tip before the wind, 60 mm from
+    /// where the tip rests while its neighbour rests (a reflection: `all`
+    /// seed 336), is no piece of the tip's; one 5 mm off is, and so is
+    /// one 60 mm off where its neighbour was pushed as far with it (the
+    /// tree handled before its still phase).
+    #[test]
+    fn a_piece_away_from_its_rest_before_the_wind_leaves_its_tip() {
+        let ([a, b, n], anchors) = limb_pair();
+        let up = |mm: f64| DVec3::new(0.0, 0.0, mm / 1000.0);
+        let owner = |off: f64, pushed: bool| {
+            let pieces = vec![
+                settled(piece(0, swaying(48..=960, a, true))),
+                resting(1, b, 960),
+                settled(piece(2, swaying(48..=960, n, true))),
+                // Tip 0's trace before its still piece, and tip 2's.
+                settled(piece(0, swaying(0..=36, a + up(off), true))),
+                settled(piece(
+                    2,
+                    swaying(0..=36, n + if pushed { up(off) } else { up(0.0) }, true),
+                )),
+            ];
+            let owner = assigned(&pieces, &anchors);
+            assert_eq!(owner[..3], [Some(0), Some(1), Some(2)]);
+            assert_eq!(owner[4], Some(2));
+            owner[3]
+        };
+        assert_eq!(owner(60.0, false), None, "a reflection");
+        assert_eq!(owner(5.0, false), Some(0), "its own marker");
+        assert_eq!(owner(60.0, true), Some(0), "the tree pushed");
     }
 
     /// A tip alone on its limb keeps another tip's marker that fits it
