@@ -1928,8 +1928,8 @@ fn choose(
             // 59's identity, mean 25.9, 138.0 with the seams, both
             // missing). Wrong samples, `all` / `noise_mm` 1.5, over the
             // 306 seeds: 1 916 / 3 123 → 1 820 / 2 961, no seed lost.
-            let alone = alone && mean <= LOOSE && (total - mean <= LOOSE || !torn(w));
-            let near = (total <= LOOSE || alone) && fits(mean);
+            let kept_alone = alone && mean <= LOOSE && (total - mean <= LOOSE || !torn(w));
+            let near = (total <= LOOSE || kept_alone) && fits(mean);
             let unseen = mean > FIT && hidden_nearer(w);
             (near && !unseen && !others.any(|c| beaten(total, mean, c))).then_some(w)
         }
