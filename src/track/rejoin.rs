@@ -2307,6 +2307,46 @@ mod tests {
     /// For `choose`: the piece is long enough for its ends' lines.
     const LINED: bool = true;
 
+    /// What `choose` asks about a piece besides its costs, one field per
+    /// argument; a test names only the answers that differ from
+    /// [`JUDGES`].
+    struct Judges<'a> {
+        moves: &'a dyn Fn(usize) -> Option<f64>,
+        still: &'a dyn Fn(usize) -> bool,
+        hidden_nearer: &'a dyn Fn(usize) -> bool,
+        torn: &'a dyn Fn(usize) -> bool,
+        quiet: bool,
+        lined: bool,
+    }
+
+    /// The common answers: the piece moves like every tip, sits still at
+    /// none, every tip nearer it can be judged, no tip's seams tear it
+    /// off, it is not quiet, and it is long enough for its lines.
+    const JUDGES: Judges<'static> = Judges {
+        moves: &moves,
+        still: &not_still,
+        hidden_nearer: &seen,
+        torn: &whole,
+        quiet: false,
+        lined: LINED,
+    };
+
+    impl Judges<'_> {
+        /// Where `choose` puts a piece with `costs` the tracker gave `was`.
+        fn choose(&self, costs: &[(f64, f64, usize)], was: Option<usize>) -> Option<usize> {
+            choose(
+                costs,
+                was,
+                self.moves,
+                self.still,
+                self.hidden_nearer,
+                self.torn,
+                self.quiet,
+                self.lined,
+            )
+        }
+    }
+
     /// A movable piece cut from trace `from`, measured at its probes.
     fn piece(from: usize, probes: Vec<(i64, DVec3)>) -> Piece {
         let mut trace = Trace::new(from, probes[0].0, probes[0].1, None);
@@ -2433,46 +2473,19 @@ mod tests {
     fn the_tracker_keeps_a_piece_only_while_nothing_speaks_against_it() {
         // Fits its own tip, far from any other: stays.
         assert_eq!(
-            choose(
-                &[(1.6, 1.6, 0), (177.6, 177.6, 1)],
-                Some(0),
-                &moves,
-                &not_still,
-                &seen,
-                &whole,
-                false,
-                LINED
-            ),
+            JUDGES.choose(&[(1.6, 1.6, 0), (177.6, 177.6, 1)], Some(0)),
             Some(0)
         );
         // Fits its own tip's mean a little better than another's, but
         // continues the other's pieces (seed 102, 101 samples of tip 69):
         // stays, the seams alone take nothing.
         assert_eq!(
-            choose(
-                &[(15.8, 4.4, 0), (5.5, 5.5, 1)],
-                Some(0),
-                &moves,
-                &not_still,
-                &seen,
-                &whole,
-                false,
-                LINED
-            ),
+            JUDGES.choose(&[(15.8, 4.4, 0), (5.5, 5.5, 1)], Some(0)),
             Some(0)
         );
         // Fits another tip's mean clearly: moves there.
         assert_eq!(
-            choose(
-                &[(30.0, 20.0, 0), (2.0, 2.0, 1)],
-                Some(0),
-                &moves,
-                &not_still,
-                &seen,
-                &whole,
-                false,
-                LINED
-            ),
+            JUDGES.choose(&[(30.0, 20.0, 0), (2.0, 2.0, 1)], Some(0)),
             Some(1)
         );
         // Seed 108: 50 samples of tip 31 in tip 50's: the tracker's tip
@@ -2480,90 +2493,34 @@ mod tests {
         // it no clear winner. Before, the piece stayed; now it is a piece
         // of its own.
         assert_eq!(
-            choose(
-                &[(12.9, 12.9, 0), (16.0, 4.2, 1)],
-                Some(0),
-                &moves,
-                &not_still,
-                &seen,
-                &whole,
-                false,
-                LINED
-            ),
+            JUDGES.choose(&[(12.9, 12.9, 0), (16.0, 4.2, 1)], Some(0)),
             None
         );
         // Seed 100: 9 samples of a neighbour fitting neither tip, whose
         // ends miss the tracker's tip's pieces (73.1 with the seams).
         assert_eq!(
-            choose(
-                &[(39.8, 35.0, 1), (73.1, 27.2, 0)],
-                Some(0),
-                &moves,
-                &not_still,
-                &seen,
-                &whole,
-                false,
-                LINED
-            ),
+            JUDGES.choose(&[(39.8, 35.0, 1), (73.1, 27.2, 0)], Some(0)),
             None
         );
         // Seed 105: 32 samples out of reach of the tracker's tip, fitting
         // no other.
         assert_eq!(
-            choose(
-                &[(118.5, 118.5, 1), (528.9, 159.3, 2)],
-                Some(0),
-                &moves,
-                &not_still,
-                &seen,
-                &whole,
-                false,
-                LINED
-            ),
+            JUDGES.choose(&[(118.5, 118.5, 1), (528.9, 159.3, 2)], Some(0)),
             None
         );
         // Held-out `sway` seed 108: 74 samples of the tip's own marker far
         // off its usual offset, no other tip free: stays.
-        assert_eq!(
-            choose(
-                &[(45.9, 23.0, 0)],
-                Some(0),
-                &moves,
-                &not_still,
-                &seen,
-                &whole,
-                false,
-                LINED
-            ),
-            Some(0)
-        );
+        assert_eq!(JUDGES.choose(&[(45.9, 23.0, 0)], Some(0)), Some(0));
         // Nothing can be judged at all: the tracker's choice stands,
         // unless a tip that cannot be judged is nearer the piece (`all`
         // seed 224: tip 65 13 mm away, the tracker's 172 mm).
+        assert_eq!(JUDGES.choose(&[], Some(0)), Some(0));
         assert_eq!(
-            choose(
-                &[],
-                Some(0),
-                &moves,
-                &not_still,
-                &seen,
-                &whole,
-                false,
-                LINED
-            ),
-            Some(0)
-        );
-        assert_eq!(
-            choose(
-                &[],
-                Some(0),
-                &moves,
-                &not_still,
-                &hidden,
-                &whole,
-                false,
-                LINED
-            ),
+            Judges {
+                hidden_nearer: &hidden,
+                ..JUDGES
+            }
+            .choose(&[], Some(0)),
             None
         );
         // Seed 103, `noise_mm` 1.5, with a shaped spread: 112
@@ -2571,30 +2528,12 @@ mod tests {
         // (7.8) and their own exactly: the tracker's choice no longer
         // stands on a lead of under 9.
         assert_eq!(
-            choose(
-                &[(5.0, 7.8, 0), (0.0, 0.0, 1)],
-                Some(0),
-                &moves,
-                &not_still,
-                &seen,
-                &whole,
-                false,
-                LINED
-            ),
+            JUDGES.choose(&[(5.0, 7.8, 0), (0.0, 0.0, 1)], Some(0)),
             None
         );
         // The same lead against a tracker's tip that fits well: stays.
         assert_eq!(
-            choose(
-                &[(5.0, 1.0, 0), (0.0, 0.0, 1)],
-                Some(0),
-                &moves,
-                &not_still,
-                &seen,
-                &whole,
-                false,
-                LINED
-            ),
+            JUDGES.choose(&[(5.0, 1.0, 0), (0.0, 0.0, 1)], Some(0)),
             Some(0)
         );
         // Held-out `all` seed 152: 163 samples of tip 15 in tip 66's
@@ -2602,59 +2541,28 @@ mod tests {
         // 15, 85 mm away, could not be judged (its neighbours hidden).
         let tip_15 = [(34.6, 34.6, 0), (88.5, 88.5, 1)];
         assert_eq!(
-            choose(
-                &tip_15,
-                Some(0),
-                &moves,
-                &not_still,
-                &hidden,
-                &whole,
-                false,
-                LINED
-            ),
+            Judges {
+                hidden_nearer: &hidden,
+                ..JUDGES
+            }
+            .choose(&tip_15, Some(0)),
             None
         );
-        assert_eq!(
-            choose(
-                &tip_15,
-                Some(0),
-                &moves,
-                &not_still,
-                &seen,
-                &whole,
-                false,
-                LINED
-            ),
-            Some(0)
-        );
+        assert_eq!(JUDGES.choose(&tip_15, Some(0)), Some(0));
         // Held-out `all` seed 181: 148 samples of tip 32 in the identity
         // of tip 66, alone on its limb (spread 85 mm): the mean fits both
         // about equally, the seams only tip 32.
         assert_eq!(
-            choose(
-                &[(350.3, 1.3, 0), (-10.0, 1.6, 1)],
-                Some(0),
-                &moves,
-                &not_still,
-                &seen,
-                &whole,
-                false,
-                LINED
-            ),
+            JUDGES.choose(&[(350.3, 1.3, 0), (-10.0, 1.6, 1)], Some(0)),
             Some(1)
         );
         // A tracker's tip that fits well stays whatever is nearer.
         assert_eq!(
-            choose(
-                &[(6.0, 6.0, 0)],
-                Some(0),
-                &moves,
-                &not_still,
-                &hidden,
-                &whole,
-                false,
-                LINED
-            ),
+            Judges {
+                hidden_nearer: &hidden,
+                ..JUDGES
+            }
+            .choose(&[(6.0, 6.0, 0)], Some(0)),
             Some(0)
         );
     }
@@ -2666,18 +2574,7 @@ mod tests {
     /// identity; `(with seams, mean, tip)`, tip 0 the tracker's).
     #[test]
     fn a_tip_drifted_off_its_offset_still_speaks_against_the_tracker() {
-        let keep = |costs: &[(f64, f64, usize)]| {
-            choose(
-                costs,
-                Some(0),
-                &moves,
-                &not_still,
-                &seen,
-                &whole,
-                false,
-                LINED,
-            )
-        };
+        let keep = |costs: &[(f64, f64, usize)]| JUDGES.choose(costs, Some(0));
         // 34 samples: 3.9 with the seams at tip 68, mean 9.7; 25.6 and
         // 33.6 at tip 4.
         assert_eq!(keep(&[(25.6, 33.6, 0), (3.9, 9.7, 1)]), None);
@@ -2704,21 +2601,13 @@ mod tests {
         // Seed 260: 50 samples in tip 30, no other tip free, mean 27.4.
         let loose = [(87.1, 27.4, 0)];
         for costs in [&alone_on_limb[..], &loose[..]] {
+            assert_eq!(JUDGES.choose(costs, Some(0)), Some(0));
             assert_eq!(
-                choose(
-                    costs,
-                    Some(0),
-                    &moves,
-                    &not_still,
-                    &seen,
-                    &whole,
-                    false,
-                    LINED
-                ),
-                Some(0)
-            );
-            assert_eq!(
-                choose(costs, Some(0), &moves, &still, &seen, &whole, false, LINED),
+                Judges {
+                    still: &still,
+                    ..JUDGES
+                }
+                .choose(costs, Some(0)),
                 None
             );
         }
@@ -2733,68 +2622,56 @@ mod tests {
         // Seed 100: 72 samples of tip 63 in its 132-frame hole.
         let tip_63 = [(27.1, 19.2, 0), (1110.1, 1110.1, 1), (3542.1, 1608.5, 2)];
         assert_eq!(
-            choose(&tip_63, None, &moving, &not_still, &seen, &whole, false, LINED),
+            Judges {
+                moves: &moving,
+                ..JUDGES
+            }
+            .choose(&tip_63, None),
             Some(0)
         );
         assert_eq!(
-            choose(&tip_63, None, &still, &not_still, &seen, &whole, false, LINED),
+            Judges {
+                moves: &still,
+                ..JUDGES
+            }
+            .choose(&tip_63, None),
             None
         );
         // Held-out seed 109: a reflection of 45 samples, near tip 61 only.
         let reflection = [(21.7, 21.7, 0), (302.8, 106.3, 1)];
         assert_eq!(
-            choose(
-                &reflection,
-                None,
-                &still,
-                &not_still,
-                &seen,
-                &whole,
-                false,
-                LINED
-            ),
+            Judges {
+                moves: &still,
+                ..JUDGES
+            }
+            .choose(&reflection, None),
             None
         );
         // Two tips near it (the second under 4 × 36): neither.
         assert_eq!(
-            choose(
-                &[(20.0, 20.0, 0), (100.0, 60.0, 1)],
-                None,
-                &moving,
-                &not_still,
-                &seen,
-                &whole,
-                false,
-                LINED
-            ),
+            Judges {
+                moves: &moving,
+                ..JUDGES
+            }
+            .choose(&[(20.0, 20.0, 0), (100.0, 60.0, 1)], None),
             None
         );
         // Near no tip: none.
         assert_eq!(
-            choose(
-                &[(40.0, 30.0, 0)],
-                None,
-                &moving,
-                &not_still,
-                &seen,
-                &whole,
-                false,
-                LINED
-            ),
+            Judges {
+                moves: &moving,
+                ..JUDGES
+            }
+            .choose(&[(40.0, 30.0, 0)], None),
             None
         );
         // Fitting one tip clearly needs no motion test.
         assert_eq!(
-            choose(
-                &[(3.0, 3.0, 0), (50.0, 50.0, 1)],
-                None,
-                &still,
-                &not_still,
-                &seen,
-                &whole,
-                false,
-                LINED
-            ),
+            Judges {
+                moves: &still,
+                ..JUDGES
+            }
+            .choose(&[(3.0, 3.0, 0), (50.0, 50.0, 1)], None),
             Some(0)
         );
     }
@@ -2806,7 +2683,7 @@ mod tests {
     fn a_tip_does_not_take_a_piece_on_its_mean_where_it_continues_none_of_its_pieces() {
         let torn_at = |a: usize| a == 0;
         let place = |costs: &[(f64, f64, usize)], was, torn: &dyn Fn(usize) -> bool| {
-            choose(costs, was, &moves, &not_still, &seen, torn, false, LINED)
+            Judges { torn, ..JUDGES }.choose(costs, was)
         };
         // Seed 290: a ghost of 38 samples between two pieces of tip 24,
         // mean 8.2, seams 120 there; judged at no other tip. Both of its
@@ -2836,16 +2713,7 @@ mod tests {
     fn the_tracker_keeps_a_piece_alone_on_its_mean_only_where_its_seams_allow() {
         let torn_at = |a: usize| a == 0;
         let keep = |costs: &[(f64, f64, usize)], torn: &dyn Fn(usize) -> bool| {
-            choose(
-                costs,
-                Some(0),
-                &moves,
-                &not_still,
-                &seen,
-                torn,
-                false,
-                LINED,
-            )
+            Judges { torn, ..JUDGES }.choose(costs, Some(0))
         };
         // Seed 379: a reflection of 44 samples in tip 59's identity, mean
         // 25.9, both seams missing (138.0 with them): no tip.
@@ -2864,18 +2732,8 @@ mod tests {
     #[test]
     fn a_piece_its_tip_rejects_goes_where_its_seams_make_it_fit() {
         // Anchor 1 is the tracker's tip.
-        let place = |costs: &[(f64, f64, usize)], lined| {
-            choose(
-                costs,
-                Some(1),
-                &moves,
-                &not_still,
-                &seen,
-                &whole,
-                false,
-                lined,
-            )
-        };
+        let place =
+            |costs: &[(f64, f64, usize)], lined| Judges { lined, ..JUDGES }.choose(costs, Some(1));
         // `all` seed 164: tip 68's marker, 114 samples in tip 34's
         // identity (anchor 1); tip 68 is anchor 0.
         let tip_68 = [(6.6, 13.3, 0), (98.0, 12.7, 1)];
@@ -2905,67 +2763,50 @@ mod tests {
         let seed_358 = [(10.1, 10.1, 0), (183.5, 163.8, 1)];
         for costs in [&seed_334[..], &seed_358[..]] {
             assert_eq!(
-                choose(costs, None, &moving, &not_still, &seen, &whole, false, LINED),
+                Judges {
+                    moves: &moving,
+                    ..JUDGES
+                }
+                .choose(costs, None),
                 Some(0)
             );
             assert_eq!(
-                choose(costs, None, &moving, &not_still, &seen, &whole, true, LINED),
+                Judges {
+                    moves: &moving,
+                    quiet: true,
+                    ..JUDGES
+                }
+                .choose(costs, None),
                 None
             );
         }
         // Given to a tip by the tracker, loosely near it, no other free.
         let loose = [(30.0, 20.0, 0)];
+        assert_eq!(JUDGES.choose(&loose, Some(0)), Some(0));
         assert_eq!(
-            choose(
-                &loose,
-                Some(0),
-                &moves,
-                &not_still,
-                &seen,
-                &whole,
-                false,
-                LINED
-            ),
-            Some(0)
-        );
-        assert_eq!(
-            choose(
-                &loose,
-                Some(0),
-                &moves,
-                &not_still,
-                &seen,
-                &whole,
-                true,
-                LINED
-            ),
+            Judges {
+                quiet: true,
+                ..JUDGES
+            }
+            .choose(&loose, Some(0)),
             None
         );
         // Quiet and fitting: a tip at rest with its neighbours stays.
         assert_eq!(
-            choose(
-                &[(3.0, 3.0, 0)],
-                Some(0),
-                &moves,
-                &not_still,
-                &seen,
-                &whole,
-                true,
-                LINED
-            ),
+            Judges {
+                quiet: true,
+                ..JUDGES
+            }
+            .choose(&[(3.0, 3.0, 0)], Some(0)),
             Some(0)
         );
         assert_eq!(
-            choose(
-                &[(3.0, 3.0, 0), (500.0, 400.0, 1)],
-                None,
-                &moving,
-                &not_still,
-                &seen,
-                &whole,
-                true,
-                LINED
-            ),
+            Judges {
+                moves: &moving,
+                quiet: true,
+                ..JUDGES
+            }
+            .choose(&[(3.0, 3.0, 0), (500.0, 400.0, 1)], None),
             Some(0)
         );
     }
