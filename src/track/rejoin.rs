@@ -685,7 +685,10 @@ fn cut_trace(
             seam = true;
         }
         let gap = f.saturating_sub(last);
-        let hard = gap > cuts.long || (seam && gap > 1);
+        // Where the tracker joined the trace across a gap: cut in the still
+        // phase too.
+        let joined = seam && gap > 1;
+        let hard = gap > cuts.long || joined;
         // A step from the frame before: a jump where it differs from the
         // step before it by more than `JUMP`. Only a candidate, like a
         // short gap: `keep` decides with the same test whether the path
@@ -693,8 +696,7 @@ fn cut_trace(
         // a piece per frame).
         let step = (gap == 1).then(|| p - before);
         let jumped = matches!((step, last_step), (Some(s), Some(l)) if (s - l).length() > JUMP);
-        let cuts_here =
-            (seam && gap > 1) || ((hard || gap >= SPLIT_GAP || jumped) && f > cuts.after);
+        let cuts_here = joined || ((hard || gap >= SPLIT_GAP || jumped) && f > cuts.after);
         // A gap another marker meets is cut like a long one (looked up
         // only where a piece is cut off).
         let met = cuts_here && !hard && gap >= SPLIT_GAP && meets(cuts, k, (last, before), (f, p));
@@ -798,29 +800,27 @@ fn finished(mut p: Piece) -> Piece {
 /// seeds: 1 594 / 2 832 → 1 553 / 2 709, no seed lost (185: 52 / 52 →
 /// 11 / 11; under `noise_mm` 1.5, 341: 86 → 48 and 379: 67 → 23).
 fn quiet(trace: &Trace) -> Option<Quiet> {
+    let all: Vec<(i64, DVec3)> = trace.measurements().collect();
     // Noise per axis from the second differences of consecutive samples
     // (each has variance 6σ² per axis).
     let (mut d2, mut nd) = (0.0, 0usize);
-    let mut last: [Option<(i64, DVec3)>; 2] = [None, None];
-    for (f, q) in trace.measurements() {
-        if let [Some((f0, q0)), Some((f1, q1))] = last {
-            if f - f0 == 2 && f - f1 == 1 {
-                d2 += (q - 2.0 * q1 + q0).length_squared();
-                nd += 1;
-            }
+    for w in all.windows(3) {
+        let [(f0, q0), (f1, q1), (f, q)] = [w[0], w[1], w[2]];
+        if f - f0 == 2 && f - f1 == 1 {
+            d2 += (q - 2.0 * q1 + q0).length_squared();
+            nd += 1;
         }
-        last = [last[1], Some((f, q))];
     }
     if nd < 3 {
         return None;
     }
     let noise2 = 3.0 * d2 / nd as f64 / 18.0;
-    let at: Vec<DVec3> = trace.measurements().map(|x| x.1).collect();
+    let at: Vec<DVec3> = all.iter().map(|x| x.1).collect();
     if mean_square_about_mean(&at) > STILL_NOISE * noise2 {
         return None;
     }
-    let every = trace.measured().div_ceil(MOTION_POINTS).max(1);
-    let samples: Vec<(i64, DVec3)> = trace.measurements().step_by(every).collect();
+    let every = all.len().div_ceil(MOTION_POINTS).max(1);
+    let samples: Vec<(i64, DVec3)> = all.into_iter().step_by(every).collect();
     Some(Quiet { noise2, samples })
 }
 
@@ -982,11 +982,12 @@ fn widened(
         .collect()
 }
 
-/// Whether piece `i`, cut off before the still phase ended, is not tip
-/// `a`'s marker: at its median probe before `wind_from` it is more than
-/// [`STRAY`] from the tip's rest position and from where the tip's
-/// neighbours put it (both: a tree handled before its still phase moves
-/// its neighbours too).
+/// How far piece `i`, cut off before the still phase ended, strays from
+/// tip `a` at its median probe before `wind_from`: the nearer of the
+/// tip's rest position and where the tip's neighbours put it (both: a
+/// tree handled before its still phase moves its neighbours too); `None`
+/// where no probe can be judged. Over [`STRAY`], it is not the tip's
+/// marker.
 ///
 /// Before the wind a tip's marker sits at its rest position, so a piece
 /// the tracker joined to it on line somewhere else is a reflection or
@@ -997,14 +998,14 @@ fn widened(
 /// wind. Only probes before the wind count: a piece of the still phase
 /// running into the wind (seed 415: 1 931 samples, 1.4 s of them still)
 /// strays as far as its tip sways.
-fn astray(
+fn stray(
     pieces: &[Piece],
     anchors: &[Anchor],
     field: &Field,
     i: usize,
     a: usize,
     wind_from: i64,
-) -> bool {
+) -> Option<f64> {
     let (p, an) = (&pieces[i], &anchors[a]);
     let mut off: Vec<f64> = p
         .probes
@@ -1015,17 +1016,7 @@ fn astray(
             Some(o.length().min(q.distance(an.rest)))
         })
         .collect();
-    let out = !off.is_empty() && median(&mut off) > STRAY;
-    if std::env::var_os("REJOIN_DEBUG").is_some() {
-        eprintln!(
-            "still piece of trace {} {:?} n {} at a{a}: {} probes, astray {out}",
-            p.from,
-            p.span(),
-            p.trace.measured(),
-            off.len()
-        );
-    }
-    out
+    (!off.is_empty()).then(|| median(&mut off))
 }
 
 /// Where each anchor's marker was at the probes: as the tracker joined
@@ -1144,12 +1135,24 @@ fn assign(
         let (s, e) = pieces[an.piece].span();
         taken[a].push((s, e, an.piece));
     }
+    let debug = std::env::var_os("REJOIN_DEBUG").is_some();
     // Pieces before the still phase ended stay where the tracker put them,
     // unless they sit away from the tip's rest position there.
     for (i, p) in pieces.iter().enumerate() {
         if owner[i].is_none() && !p.movable {
-            owner[i] = anchor_of_trace(p.from)
-                .filter(|&a| !astray(pieces, anchors, joined, i, a, wind_from));
+            owner[i] = anchor_of_trace(p.from).filter(|&a| {
+                let off = stray(pieces, anchors, joined, i, a, wind_from);
+                if debug {
+                    eprintln!(
+                        "still piece of trace {} {:?} n {} at a{a}: strays {:.1?} mm",
+                        p.from,
+                        p.span(),
+                        p.trace.measured(),
+                        off.map(|d| d * 1000.0)
+                    );
+                }
+                off.is_none_or(|d| d <= STRAY)
+            });
             if let Some(a) = owner[i] {
                 taken[a].push((p.span().0, p.span().1, i));
             }
@@ -1159,7 +1162,6 @@ fn assign(
         .filter(|&i| pieces[i].movable && owner[i].is_none())
         .collect();
     order.sort_by_key(|&i| (std::cmp::Reverse(pieces[i].trace.measured()), i));
-    let debug = std::env::var_os("REJOIN_DEBUG").is_some();
     let place = |anchors: &[Anchor],
                  field: &Field,
                  i: usize,
@@ -1188,12 +1190,7 @@ fn assign(
             &|a| motion_ratio(pieces, anchors, field, i, a),
             &|a| sits_still(pieces, anchors, field, i, a),
             &hidden_nearer,
-            &|a| torn(pieces, &taken[a], i, one_second),
-            &|a| {
-                seam_terms(pieces, &taken[a], i, one_second)
-                    .iter()
-                    .all(Option::is_none)
-            },
+            &|a| seam_terms(pieces, &taken[a], i, one_second),
             p.quiet.is_some(),
             p.trace.measured() >= SEAM_K,
         );
@@ -1799,12 +1796,13 @@ fn stretches(
 /// nor does a `quiet` piece (its positions spread within its noise,
 /// [`quiet`]) keep or take a tip by nearness alone, nor a piece another
 /// tip continues clearly better by its seams and its mean. A tip whose
-/// pieces beside the piece in time it continues by no seam (`torn(a)`)
-/// does not take it on its mean alone; a tip whose pieces it continues
+/// pieces beside the piece in time it continues by no seam ([`torn`], of
+/// `seams(a)`, the piece's [`seam_terms`] at tip `a`) does not take it on
+/// its mean alone; a tip whose pieces it continues
 /// so well that its whole cost fits takes it from a tracker's tip whose
 /// seams reject it, where its mean fits only loosely, when the piece is
 /// long enough for its ends' lines (`lined`), and from a tracker's tip
-/// with no piece near it in time to seam it to (`seamless(a)`) whose mean
+/// with no piece near it in time to seam it to ([`seamless`]) whose mean
 /// fits only loosely.
 #[allow(clippy::too_many_arguments)] // each is one thing the piece's judges ask
 fn choose(
@@ -1813,8 +1811,7 @@ fn choose(
     moves: &dyn Fn(usize) -> Option<f64>,
     still: &dyn Fn(usize) -> bool,
     hidden_nearer: &dyn Fn(usize) -> bool,
-    torn: &dyn Fn(usize) -> bool,
-    seamless: &dyn Fn(usize) -> bool,
+    seams: &dyn Fn(usize) -> [Option<f64>; 2],
     quiet: bool,
     lined: bool,
 ) -> Option<usize> {
@@ -1883,7 +1880,7 @@ fn choose(
     // → 483 / 795, 360–419 466 / 650 → 456 / 569, 264–299 249 / 815 →
     // 185 / 738; no seed lost.
     if let Some((tb, mb, b)) = best {
-        if mb <= FIT && second - tb >= CLEAR && (tb - mb <= LOOSE || !torn(b)) {
+        if mb <= FIT && second - tb >= CLEAR && (tb - mb <= LOOSE || !torn(&seams(b))) {
             return Some(b);
         }
         // A piece the tracker's tip rejects by its seams (over REJECT in
@@ -1914,8 +1911,9 @@ fn choose(
         // 1.5, the 306 seeds: 1 639 / 2 880 → 1 594 / 2 832, no seed
         // lost (396: 45 → 0; under `noise_mm` 1.5, 360: 41 → 6 and 301:
         // 104 → 91).
-        let blind =
-            mine.is_some_and(|(total, mean, w)| w != b && mean > FIT && tb < total && seamless(w));
+        let blind = mine.is_some_and(|(total, mean, w)| {
+            w != b && mean > FIT && tb < total && seamless(&seams(w))
+        });
         if lined && blind && mb <= LOOSE && tb <= FIT && tb < mb {
             return Some(b);
         }
@@ -1980,7 +1978,7 @@ fn choose(
             // 59's identity, mean 25.9, 138.0 with the seams, both
             // missing). Wrong samples, `all` / `noise_mm` 1.5, over the
             // 306 seeds: 1 916 / 3 123 → 1 820 / 2 961, no seed lost.
-            let kept_alone = alone && mean <= LOOSE && (total - mean <= LOOSE || !torn(w));
+            let kept_alone = alone && mean <= LOOSE && (total - mean <= LOOSE || !torn(&seams(w)));
             let near = (total <= LOOSE || kept_alone) && fits(mean);
             let unseen = mean > FIT && hidden_nearer(w);
             (near && !unseen && !others.any(|c| beaten(total, mean, c))).then_some(w)
@@ -2217,12 +2215,17 @@ fn seam_terms(
     })
 }
 
-/// Whether piece `i` continues none of the pieces `taken` at a tip next
-/// to it in time, with at least one there to continue ([`seams`]: each
-/// seam's term above nothing).
-fn torn(pieces: &[Piece], taken: &[(i64, i64, usize)], i: usize, one_second: i64) -> bool {
-    let terms = seam_terms(pieces, taken, i, one_second);
+/// Whether a piece with these [`seam_terms`] at a tip continues none of
+/// the tip's pieces next to it in time, with at least one there to
+/// continue (each seam's term above nothing).
+fn torn(terms: &[Option<f64>; 2]) -> bool {
     terms.iter().any(Option::is_some) && terms.iter().flatten().all(|&t| t > 0.0)
+}
+
+/// Whether a piece with these [`seam_terms`] at a tip has no piece of the
+/// tip within [`SEAM_S`] of it to be seamed to.
+fn seamless(terms: &[Option<f64>; 2]) -> bool {
+    terms.iter().all(Option::is_none)
 }
 
 /// How far the straight lines of a piece's `tail` (last measured at
@@ -2350,15 +2353,21 @@ mod tests {
         true
     }
 
+    /// For `choose`: seams that fit on both sides.
+    const FITTING: [Option<f64>; 2] = [Some(-1.0), Some(-1.0)];
+
+    /// For `choose`: seams that miss on both sides.
+    const MISSING: [Option<f64>; 2] = [Some(50.0), Some(50.0)];
+
     /// For `choose`: the piece continues a piece of every tip beside it
-    /// in time, or has none there.
-    fn whole(_: usize) -> bool {
-        false
+    /// in time, on both sides.
+    fn whole(_: usize) -> [Option<f64>; 2] {
+        FITTING
     }
 
-    /// For `choose`: every tip has a piece within SEAM_S of the piece.
-    fn seamed(_: usize) -> bool {
-        false
+    /// For `choose`: the seams of a piece tip `a` is `torn_at` at.
+    fn tear(torn_at: usize) -> impl Fn(usize) -> [Option<f64>; 2] {
+        move |a| if a == torn_at { MISSING } else { FITTING }
     }
 
     /// For `choose`: the piece is long enough for its ends' lines.
@@ -2371,22 +2380,20 @@ mod tests {
         moves: &'a dyn Fn(usize) -> Option<f64>,
         still: &'a dyn Fn(usize) -> bool,
         hidden_nearer: &'a dyn Fn(usize) -> bool,
-        torn: &'a dyn Fn(usize) -> bool,
-        seamless: &'a dyn Fn(usize) -> bool,
+        seams: &'a dyn Fn(usize) -> [Option<f64>; 2],
         quiet: bool,
         lined: bool,
     }
 
     /// The common answers: the piece moves like every tip, sits still at
-    /// none, every tip nearer it can be judged, no tip's seams tear it
-    /// off, every tip has a seam to judge it by, it is not quiet, and it
-    /// is long enough for its lines.
+    /// none, every tip nearer it can be judged, it continues every tip's
+    /// pieces beside it on both sides, it is not quiet, and it is long
+    /// enough for its lines.
     const JUDGES: Judges<'static> = Judges {
         moves: &moves,
         still: &not_still,
         hidden_nearer: &seen,
-        torn: &whole,
-        seamless: &seamed,
+        seams: &whole,
         quiet: false,
         lined: LINED,
     };
@@ -2400,8 +2407,7 @@ mod tests {
                 self.moves,
                 self.still,
                 self.hidden_nearer,
-                self.torn,
-                self.seamless,
+                self.seams,
                 self.quiet,
                 self.lined,
             )
@@ -2745,10 +2751,11 @@ mod tests {
     /// miss by no more than `LOOSE`; costs as measured on `all` seeds.
     #[test]
     fn a_tip_does_not_take_a_piece_on_its_mean_where_it_continues_none_of_its_pieces() {
-        let torn_at = |a: usize| a == 0;
-        let place = |costs: &[(f64, f64, usize)], was, torn: &dyn Fn(usize) -> bool| {
-            Judges { torn, ..JUDGES }.choose(costs, was)
-        };
+        let torn_at = tear(0);
+        let place =
+            |costs: &[(f64, f64, usize)], was, seams: &dyn Fn(usize) -> [Option<f64>; 2]| {
+                Judges { seams, ..JUDGES }.choose(costs, was)
+            };
         // Seed 290: a ghost of 38 samples between two pieces of tip 24,
         // mean 8.2, seams 120 there; judged at no other tip. Both of its
         // seams miss: no tip.
@@ -2775,9 +2782,9 @@ mod tests {
     /// at most LOOSE in all.
     #[test]
     fn the_tracker_keeps_a_piece_alone_on_its_mean_only_where_its_seams_allow() {
-        let torn_at = |a: usize| a == 0;
-        let keep = |costs: &[(f64, f64, usize)], torn: &dyn Fn(usize) -> bool| {
-            Judges { torn, ..JUDGES }.choose(costs, Some(0))
+        let torn_at = tear(0);
+        let keep = |costs: &[(f64, f64, usize)], seams: &dyn Fn(usize) -> [Option<f64>; 2]| {
+            Judges { seams, ..JUDGES }.choose(costs, Some(0))
         };
         // Seed 379: a reflection of 44 samples in tip 59's identity, mean
         // 25.9, both seams missing (138.0 with them): no tip.
@@ -2847,16 +2854,16 @@ mod tests {
     #[test]
     fn a_join_no_seam_spans_gives_way_to_a_tip_whose_seams_fit() {
         // Anchor 1 is the tracker's tip, with no piece near the piece.
-        let unseamed = |a: usize| a == 1;
-        let place = |costs: &[(f64, f64, usize)], seamless: &dyn Fn(usize) -> bool| {
-            Judges { seamless, ..JUDGES }.choose(costs, Some(1))
+        let unseamed = |a: usize| if a == 1 { [None, None] } else { FITTING };
+        let place = |costs: &[(f64, f64, usize)], seams: &dyn Fn(usize) -> [Option<f64>; 2]| {
+            Judges { seams, ..JUDGES }.choose(costs, Some(1))
         };
         // Held-out `all` seed 396: 45 samples of tip 65 (anchor 0) in tip
         // 40's identity, 1.2 s after tip 40 was last seen.
         let tip_65 = [(5.0, 10.9, 0), (9.2, 9.2, 1)];
         assert_eq!(place(&tip_65, &unseamed), Some(0));
         // With a seam at the tracker's tip (its cost the same), it stays.
-        assert_eq!(place(&tip_65, &seamed), Some(1));
+        assert_eq!(place(&tip_65, &whole), Some(1));
         // The tracker's tip fits its mean: it stays.
         assert_eq!(place(&[(5.0, 10.9, 0), (8.0, 8.0, 1)], &unseamed), Some(1));
         // The other tip's seams do not bring its cost to a fit: it stays.
