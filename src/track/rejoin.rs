@@ -123,23 +123,6 @@ const STILL_RATIO: f64 = 0.5;
 /// × on held-out `all` seeds, some up to 1.9), a marker that moves as
 /// much as its noise doubles it.
 const STILL_NOISE: f64 = 1.3;
-/// ... or, for a piece of `n` samples, at least [`QUIET_SAMPLES`] of
-/// them, `1 + QUIET_SCATTER / √n` where that is more ([`quiet`]). The
-/// ratio of a reflection's spread to its noise measured on its own
-/// samples scatters about 1 by about 0.85 / √n (drawn: 0.19 for 21
-/// samples, 0.13 for 41, 0.08 for 100), so that a fixed 1.3 took 6 % of
-/// the reflections of 21 samples and 2 % of those of 41 for moving
-/// markers (`all` seeds 227 and 332: reflections of 21 samples at 1.33
-/// and 1.37, each given to a tip). `1 + 2.5 / √n` is about the 99th
-/// percentile of that ratio from 16 to 60 samples (1.55 for 21, where
-/// 1.54 was drawn; 1.39 for 41, 1.35 drawn) and 1.3 from 69 on.
-const QUIET_SCATTER: f64 = 2.5;
-/// Pieces shorter than this keep [`STILL_NOISE`]: over a few samples a
-/// marker moves no more than its noise either (of markers of 8 samples
-/// drifting 5 mm under 1 mm of noise, 20 % spread within 1.3 × their
-/// noise, 53 % within `1 + 2.5 / √8`; on `all` seed 196 an 8-sample piece
-/// of tip 66 at 1.39 was taken for a reflection and left its tip).
-const QUIET_SAMPLES: usize = 2 * SEAM_K;
 /// ... while the tip's neighbours say it moved (RMS about the mean over
 /// the piece) at least this many times the noise: below, a tip at the
 /// turn of its swing sits as still as a reflection.
@@ -804,21 +787,18 @@ fn finished(mut p: Piece) -> Piece {
 }
 
 /// `trace`'s [`Quiet`] when its positions spread about their mean by no
-/// more than [`STILL_NOISE`] times what its own noise gives (more for a
-/// piece of [`QUIET_SAMPLES`] samples or more, less than 69:
-/// [`QUIET_SCATTER`]), the noise measured from its second differences (a
-/// marker's motion adds nothing there at 240 Hz); `None` for a piece that
-/// moves, or too short to tell.
+/// more than [`STILL_NOISE`] times what its own noise gives, measured from
+/// its second differences (a marker's motion adds nothing there at
+/// 240 Hz); `None` for a piece that moves, or too short to tell.
 ///
 /// The spread is taken over every sample, as the noise is: over the
 /// [`MOTION_POINTS`] kept for [`sits_still`] alone, half the samples of
 /// a reflection of 41 under `all`'s 1 mm noise spread more than 1.3
 /// times its noise (1.2 over them all), and it passed for a moving
 /// marker (seed 185: given to a tip 123 mm away, its mean loose there);
-/// of 400 such reflections drawn, 375 read as quiet that way, 392 over
-/// every sample. Wrong samples, `all` / `noise_mm` 1.5, the 306 seeds:
-/// 1 594 / 2 832 → 1 553 / 2 709, no seed lost (185: 52 / 52 → 11 / 11;
-/// under `noise_mm` 1.5, 341: 86 → 48 and 379: 67 → 23).
+/// of 400 such reflections drawn, 375 read as quiet that way, 392 now. Wrong samples, `all` / `noise_mm` 1.5, the 306
+/// seeds: 1 594 / 2 832 → 1 553 / 2 709, no seed lost (185: 52 / 52 →
+/// 11 / 11; under `noise_mm` 1.5, 341: 86 → 48 and 379: 67 → 23).
 fn quiet(trace: &Trace) -> Option<Quiet> {
     let all: Vec<(i64, DVec3)> = trace.measurements().collect();
     // Noise per axis from the second differences of consecutive samples
@@ -836,12 +816,7 @@ fn quiet(trace: &Trace) -> Option<Quiet> {
     }
     let noise2 = 3.0 * d2 / nd as f64 / 18.0;
     let at: Vec<DVec3> = all.iter().map(|x| x.1).collect();
-    let bound = if at.len() < QUIET_SAMPLES {
-        STILL_NOISE
-    } else {
-        STILL_NOISE.max(1.0 + QUIET_SCATTER / (at.len() as f64).sqrt())
-    };
-    if mean_square_about_mean(&at) > bound * noise2 {
+    if mean_square_about_mean(&at) > STILL_NOISE * noise2 {
         return None;
     }
     let every = all.len().div_ceil(MOTION_POINTS).max(1);
@@ -2903,51 +2878,6 @@ mod tests {
             "{still} of {draws} reflections quiet"
         );
         assert_eq!(moving, 0);
-    }
-
-    /// Of `draws` pieces of `n` samples under 1 mm of noise per axis
-    /// (`all`'s) drifting `drift_mm` along x over them, how many `quiet`
-    /// holds still.
-    fn quiet_of(seed: u64, draws: usize, n: i64, drift_mm: f64) -> usize {
-        let mut rng = crate::rng::Rng::new(seed);
-        (0..draws)
-            .filter(|_| {
-                let samples: Vec<(i64, DVec3)> = (0..n)
-                    .map(|f| {
-                        let drift = drift_mm / 1000.0 * f as f64 / (n - 1) as f64;
-                        let noise = DVec3::new(rng.normal(), rng.normal(), rng.normal());
-                        (f, DVec3::new(0.3 + drift, 0.5, 1.2) + noise * 0.001)
-                    })
-                    .collect();
-                quiet(&piece(0, samples).trace).is_some()
-            })
-            .count()
-    }
-
-    /// The bound on a quiet piece's spread widens with the scatter of a
-    /// reflection's spread over few samples, from 16 samples on: nearly
-    /// every reflection of 21 samples reads as quiet, no marker drifting
-    /// 10 mm over them does, and markers of 8 samples drifting 5 mm read
-    /// as quiet no more often than under the fixed bound.
-    #[test]
-    fn the_quiet_bound_widens_for_a_reflection_of_few_samples() {
-        // Seeds 227 and 332: reflections of 21 samples at 1.33 and 1.37
-        // times their noise. Under 1.3 about 94 % of them read as quiet.
-        let draws = 400;
-        let still = quiet_of(227, draws, 21, 0.0);
-        assert!(
-            still * 100 >= draws * 97,
-            "{still} of {draws} reflections of 21 samples quiet"
-        );
-        assert_eq!(quiet_of(332, draws, 21, 10.0), 0);
-        // Seed 196: an 8-sample piece of tip 66's marker at 1.39. About
-        // 20 % of such markers read as quiet under 1.3, half under the
-        // widened bound.
-        let short = quiet_of(196, draws, 8, 5.0);
-        assert!(
-            short * 100 <= draws * 33,
-            "{short} of {draws} markers of 8 samples quiet"
-        );
     }
 
     /// A piece the tracker joined to a tip across a gap no seam spans,
