@@ -25,7 +25,8 @@
 //! frame by frame; this pass changes only pieces the tracker joined across
 //! a gap, and gives traces of no tip to a tip.
 
-use std::collections::HashMap;
+use std::collections::{HashMap, VecDeque};
+use std::iter::Peekable;
 
 use glam::DVec3;
 
@@ -402,6 +403,7 @@ pub(crate) fn rejoin(
         .max(samples.div_ceil(MAX_PROBES) as i64)
         .max(1);
     let ends = run_ends(&traces, window.end);
+    let crossing = crossings(&traces, window.end);
     let mut pieces = Vec::new();
     let n_traces = traces.len();
     let ids: Vec<(usize, Vec<usize>)> = traces.iter().map(|t| (t.id, t.pieces.clone())).collect();
@@ -415,6 +417,7 @@ pub(crate) fn rejoin(
             step,
             one_second,
             ends: &ends,
+            crossing: &crossing,
             meet_gap,
             meet_window,
         };
@@ -462,6 +465,9 @@ struct Cuts<'a> {
     one_second: i64,
     /// Where every trace's measured runs begin and end ([`run_ends`]).
     ends: &'a [RunEnd],
+    /// Where a trace went on past another that came within [`MEET`] of
+    /// it ([`crossings`]), as ends of runs that did not end.
+    crossing: &'a [RunEnd],
     /// [`MEET_GAP_S`] and [`MEET_WINDOW_S`] in frames.
     meet_gap: i64,
     meet_window: i64,
@@ -522,6 +528,149 @@ fn run_ends(traces: &[Trace], after: i64) -> Vec<RunEnd> {
     out
 }
 
+/// Where a trace went on past another trace's marker within [`MEET`] of
+/// it, both measured in consecutive frames after frame `after`: where
+/// trace `b`'s position at frame `f - 1` lies within `MEET` of another
+/// trace's at `f`, and both traces are measured at `f - 1` and `f`, `b`'s
+/// line over its last [`SEAM_K`] samples up to `f - 1` as the end of a
+/// run there, for [`takeovers`] to weigh whether the other trace went on
+/// with `b`'s marker at `f` while `b` went on with the other's. Sorted
+/// by frame, then trace.
+///
+/// Two markers passing within a few millimetres in a gust are told
+/// apart by nothing but their paths, and a tracker taking the nearest
+/// marker may hand each trace the other's (`all` seed 328: tips 69 and
+/// 4, 4.1 mm apart at frame 5 228, exchanged there; 49 samples of tip
+/// 69 in tip 4's identity and 7 of tip 4 in tip 69's). No run ends
+/// there, so [`rivals`] alone found nothing to weigh.
+fn crossings(traces: &[Trace], after: i64) -> Vec<RunEnd> {
+    let mut out = Vec::new();
+    // Each trace's samples up to the frame before, at most SEAM_K, of
+    // its current run of consecutive frames.
+    let mut recent: Vec<VecDeque<(i64, DVec3)>> = vec![VecDeque::new(); traces.len()];
+    // The frame each trace last had an end at, so that it gets one once.
+    let mut emitted = vec![i64::MIN; traces.len()];
+    // The frame before, sorted by x.
+    let mut before: (i64, Vec<(usize, DVec3)>) = (i64::MIN, Vec::new());
+    for (frame, now) in ByFrame::new(traces) {
+        if frame > after && before.0 == frame - 1 {
+            for &(a, p) in &now {
+                if recent[a].back().is_none_or(|s| s.0 != frame - 1) {
+                    continue;
+                }
+                let near = before.1.partition_point(|x| x.1.x < p.x - MEET);
+                for &(b, q) in before.1[near..].iter().take_while(|x| x.1.x <= p.x + MEET) {
+                    let measured_now = || now.iter().any(|x| x.0 == b);
+                    if b == a || q.distance(p) > MEET || emitted[b] == frame - 1 || !measured_now()
+                    {
+                        continue;
+                    }
+                    emitted[b] = frame - 1;
+                    out.push(RunEnd {
+                        frame: frame - 1,
+                        at: q,
+                        trace: b,
+                        begins: false,
+                        line: End::fit(&recent[b].iter().copied().collect::<Vec<_>>()),
+                    });
+                }
+            }
+        }
+        // The lines at `after` and later need no sample older than
+        // SEAM_K frames before it, nor the frame before sorted.
+        if frame < after - SEAM_K as i64 {
+            continue;
+        }
+        for &(k, p) in &now {
+            let run = &mut recent[k];
+            if run.back().is_some_and(|s| s.0 < frame - 1) {
+                run.clear();
+            }
+            if run.len() == SEAM_K {
+                run.pop_front();
+            }
+            run.push_back((frame, p));
+        }
+        let mut sorted = now;
+        sorted.sort_by(|x, y| x.1.x.total_cmp(&y.1.x));
+        before = (frame, sorted);
+    }
+    out.sort_by_key(|e| (e.frame, e.trace));
+    out
+}
+
+/// One trace's measured samples in order, with their frames.
+type Samples<'a> = Box<dyn Iterator<Item = (i64, DVec3)> + 'a>;
+
+/// Every trace's measured samples frame by frame, as (frame, [(trace,
+/// position)]), skipping frames where none is measured. Each frame asks
+/// only the traces begun by then with samples left (a heap of the
+/// traces' next frames was no faster).
+struct ByFrame<'a> {
+    samples: Vec<Peekable<Samples<'a>>>,
+    /// The traces by first frame, and how many of them have begun.
+    order: Vec<(i64, usize)>,
+    begun: usize,
+    /// The traces begun with samples left.
+    active: Vec<usize>,
+    /// The next frame to give.
+    frame: i64,
+}
+
+impl<'a> ByFrame<'a> {
+    fn new(traces: &'a [Trace]) -> Self {
+        let samples = traces
+            .iter()
+            .map(|t| (Box::new(t.measurements()) as Samples<'a>).peekable())
+            .collect();
+        let mut order: Vec<(i64, usize)> = traces
+            .iter()
+            .enumerate()
+            .map(|(k, t)| (t.first_frame(), k))
+            .collect();
+        order.sort_unstable();
+        let frame = order.first().map_or(0, |x| x.0);
+        ByFrame {
+            samples,
+            order,
+            begun: 0,
+            active: Vec::new(),
+            frame,
+        }
+    }
+}
+
+impl Iterator for ByFrame<'_> {
+    type Item = (i64, Vec<(usize, DVec3)>);
+
+    fn next(&mut self) -> Option<Self::Item> {
+        loop {
+            if self.active.is_empty() {
+                let &(first, _) = self.order.get(self.begun)?;
+                self.frame = self.frame.max(first);
+            }
+            while let Some(&(_, k)) = self.order.get(self.begun).filter(|x| x.0 <= self.frame) {
+                self.active.push(k);
+                self.begun += 1;
+            }
+            let frame = self.frame;
+            self.frame += 1;
+            let mut now = Vec::new();
+            let samples = &mut self.samples;
+            self.active.retain(|&k| {
+                if let Some((_, p)) = samples[k].next_if(|x| x.0 == frame) {
+                    now.push((k, p));
+                }
+                samples[k].peek().is_some()
+            });
+            if !now.is_empty() {
+                now.sort_unstable_by_key(|x| x.0);
+                return Some((frame, now));
+            }
+        }
+    }
+}
+
 /// Whether another marker meets trace `k`'s gap from `(f0, p0)` to
 /// `(f1, p1)`: another trace's run ends within [`MEET`] of `p1` shortly
 /// before `f1` (the trace may have gone on with that marker), or one
@@ -580,45 +729,115 @@ fn rivals(
 /// own line before it ([`miss`]), which they miss by more than
 /// [`TAKEOVER_FLOOR`]. Decided on the samples after the step, so found
 /// in a pass of its own before [`cut_trace`] cuts.
+///
+/// From one frame to the next the run may also be one that did not end:
+/// another trace's marker within `MEET` of where the trace went on, both
+/// traces measured on both frames ([`crossings`]). Such a cut is taken
+/// back, with any after it, where within [`SEAM_K`] frames the trace's
+/// samples carry on its own line from before the cut `TAKEOVER` times
+/// better than the other marker's: the two markers flickered between the
+/// traces for a frame or two, and the tracker's joins on either side
+/// stand. Cut there too, the pieces of two tips passing 5 mm apart were
+/// judged on means that fitted both, and the longer went to the wrong
+/// one (held-out seed 404 under `noise_mm` 1.5: markers exchanged at
+/// frame 5 048 and back at 5 051; 6 wrong samples left uncut, 161 cut at
+/// the crossing only, 161 cut at both).
 fn takeovers(samples: &[(i64, DVec3)], k: usize, cuts: &Cuts<'_>) -> Vec<i64> {
     let debug = std::env::var_os("REJOIN_DEBUG").is_some();
     let mut out = Vec::new();
-    let mut cursor = 0;
+    let (mut cursor, mut cross) = (0, 0);
+    // The trace's samples from step `i` on up to the next gap of
+    // SPLIT_GAP, at most SEAM_K, as a line.
+    let head_at = |i: usize| {
+        let after = &samples[i + 1..(i + 1 + SEAM_K).min(samples.len())];
+        let run = 1 + after
+            .windows(2)
+            .take_while(|x| x[1].0 - x[0].0 < SPLIT_GAP)
+            .count();
+        End::fit(&after[..run])
+    };
+    // The last cut where the trace went on with a marker it crossed, for
+    // SEAM_K frames after it: its frame, the trace's own line before it
+    // and the other marker's.
+    let mut crossed: Option<(i64, End, End)> = None;
+    // Up to SEAM_K frames after a flicker was taken back the lines on
+    // either side hold samples of both markers: no crossing is weighed.
+    let mut blurred_until = i64::MIN;
     for (i, w) in samples.windows(2).enumerate() {
         let [(f0, p0), (f1, p1)] = [w[0], w[1]];
         if f1 <= cuts.after || f1 - f0 >= cuts.meet_gap {
             continue;
+        }
+        if let Some((fc, mine, theirs)) = crossed {
+            if f1 - fc > SEAM_K as i64 || f1 - f0 > 1 {
+                crossed = None;
+            } else {
+                let head = head_at(i);
+                let back = miss(&mine, &head, (fc - 1, f1), cuts.one_second);
+                let stay = miss(&theirs, &head, (fc - 1, f1), cuts.one_second);
+                let flicker = stay > TAKEOVER_FLOOR && back * TAKEOVER < stay;
+                if debug {
+                    eprintln!(
+                        "trace {k} steps {f0}..{f1} back to its own line before {fc}? \
+                         it misses by {back:.2}, the other's by {stay:.2}: {}",
+                        if flicker {
+                            "its cuts from there taken back"
+                        } else {
+                            "no"
+                        }
+                    );
+                }
+                if flicker {
+                    out.retain(|&f| f < fc);
+                    crossed = None;
+                    blurred_until = f1 + SEAM_K as i64;
+                    continue;
+                }
+            }
         }
         // The steps come in time order: the run ends before this one's
         // are never looked at again.
         while cuts.ends.get(cursor).is_some_and(|e| e.frame < f0) {
             cursor += 1;
         }
-        let rivals = rivals(&cuts.ends[cursor..], k, (f0, p0), (f1, p1));
+        while cuts.crossing.get(cross).is_some_and(|e| e.frame < f0) {
+            cross += 1;
+        }
+        let mut rivals = rivals(&cuts.ends[cursor..], k, (f0, p0), (f1, p1));
+        let ended = rivals.len();
+        if f1 - f0 == 1 && f1 > blurred_until {
+            rivals.extend(
+                cuts.crossing[cross..]
+                    .iter()
+                    .take_while(|e| e.frame == f0)
+                    .filter(|e| e.trace != k && e.at.distance(p1) <= MEET)
+                    .copied(),
+            );
+        }
         if rivals.is_empty() {
             continue;
         }
         // The trace's own line before the step, and its samples from the
         // step on up to the next gap of SPLIT_GAP.
         let tail = End::fit(&samples[(i + 1).saturating_sub(SEAM_K)..=i]);
-        let after = &samples[i + 1..(i + 1 + SEAM_K).min(samples.len())];
-        let run = 1 + after
-            .windows(2)
-            .take_while(|x| x[1].0 - x[0].0 < SPLIT_GAP)
-            .count();
-        let head = End::fit(&after[..run]);
+        let head = head_at(i);
         let own = miss(&tail, &head, (f0, f1), cuts.one_second);
-        let alt = rivals
+        let (alt, by) = rivals
             .iter()
-            .map(|r| {
-                if r.begins {
+            .enumerate()
+            .map(|(j, r)| {
+                let m = if r.begins {
                     miss(&tail, &r.line, (f0, r.frame), cuts.one_second)
                 } else {
                     miss(&r.line, &head, (r.frame, f1), cuts.one_second)
-                }
+                };
+                (m, j)
             })
-            .fold(f64::INFINITY, f64::min);
+            .fold((f64::INFINITY, 0), |a, b| if b.0 < a.0 { b } else { a });
         let cut = own > TAKEOVER_FLOOR && alt * TAKEOVER < own;
+        if cut && by >= ended && crossed.is_none() {
+            crossed = Some((f1, tail, rivals[by].line));
+        }
         if debug {
             eprintln!(
                 "trace {k} steps {f0}..{f1} onto another run? own line misses by {own:.2}, \
@@ -2456,6 +2675,7 @@ mod tests {
             step: 12,
             one_second: 240,
             ends,
+            crossing: &[],
             meet_gap: 6,
             meet_window: 8,
         }
@@ -3238,6 +3458,59 @@ mod tests {
         assert_eq!(with(&[run(1, 34..=40, &elsewhere, false)]), [(1, 79)]);
         assert_eq!(with(&[run(1, 24..=30, &b, false)]), [(1, 79)]);
         assert_eq!(with(&[run(2, 41..=48, &a, true)]), [(1, 40), (41, 79)]);
+    }
+
+    /// Two markers passing 4 mm apart, each held by a trace with no frame
+    /// missing: a trace that went on with the other's marker where they
+    /// were closest is cut there, one that kept its own is not, and one
+    /// that held the other's for three frames and came back is not
+    /// either (seeds 328 and 404).
+    #[test]
+    fn a_trace_is_cut_where_it_went_on_with_a_marker_it_passed() {
+        let noise = |f: i64| 0.0005 * (((f * 7919) % 13) as f64 - 6.0) / 6.0;
+        // A along x at 1 mm a frame; B beside it, 4 mm away at frame 40,
+        // closing and parting at 0.5 mm a frame.
+        let a = |f: i64| DVec3::new(0.001 * f as f64 + noise(f), 0.0, 0.0);
+        let b = |f: i64| {
+            let y = (0.004f64.powi(2) + (0.0005 * (f - 40) as f64).powi(2)).sqrt();
+            DVec3::new(0.001 * f as f64, y + noise(f + 5), 0.0)
+        };
+        // The two traces, trace 0 holding B's marker over `swapped`.
+        let traces = |swapped: &dyn Fn(i64) -> bool| -> Vec<Trace> {
+            [true, false]
+                .map(|first| {
+                    let at = |f: i64| if first != swapped(f) { a(f) } else { b(f) };
+                    let mut t = Trace::new(usize::from(!first), 1, at(1), None);
+                    for f in 2..80 {
+                        t.push(f, at(f), None);
+                    }
+                    t
+                })
+                .into()
+        };
+        let cut = |traces: Vec<Trace>| {
+            let crossing = crossings(&traces, 0);
+            let none: [RunEnd; 0] = [];
+            let mut cuts = test_cuts(&none);
+            cuts.crossing = &crossing;
+            traces
+                .into_iter()
+                .enumerate()
+                .map(|(k, t)| {
+                    let mut pieces = Vec::new();
+                    cut_trace(t, k, &cuts, &mut Vec::new(), &mut pieces);
+                    spans(&pieces)
+                })
+                .collect::<Vec<_>>()
+        };
+        let whole = vec![(1, 79)];
+        assert_eq!(cut(traces(&|_| false)), [whole.clone(), whole.clone()]);
+        let exchanged = vec![(1, 40), (41, 79)];
+        assert_eq!(cut(traces(&|f| f > 40)), [exchanged.clone(), exchanged]);
+        assert_eq!(
+            cut(traces(&|f| (41..=43).contains(&f))),
+            [whole.clone(), whole]
+        );
     }
 
     /// A marker swinging 100 mm at 1.5 Hz with 1.5 mm of noise stays one
