@@ -738,13 +738,14 @@ fn rivals(
 /// other marker's, by as many times as the other's beat its own at the
 /// cut and at least `TAKEOVER`: the two markers flickered between the
 /// traces for a frame or two, and the tracker's joins on either side
-/// stand. (By `TAKEOVER` alone, held-out seed 363 under `noise_mm` 1.5
-/// lost 9 samples: tip 49's trace held tip 68's marker 4.5 mm away for 9
-/// frames, cut at 7.6 times, taken back at 3.8.) Cut there too, the pieces of two tips passing 5 mm apart were
+/// stand. Cut there too, the pieces of two tips passing 5 mm apart were
 /// judged on means that fitted both, and the longer went to the wrong
 /// one (held-out seed 404 under `noise_mm` 1.5: markers exchanged at
 /// frame 5 048 and back at 5 051; 6 wrong samples left uncut, 161 cut at
-/// the crossing only, 161 cut at both).
+/// the crossing only, 161 cut at both). By `TAKEOVER` alone, held-out
+/// seed 363 under `noise_mm` 1.5 lost 9 samples: tip 49's trace held tip
+/// 68's marker 4.5 mm away for 9 frames, cut at 7.6 times, taken back at
+/// 3.8.
 fn takeovers(samples: &[(i64, DVec3)], k: usize, cuts: &Cuts<'_>) -> Vec<i64> {
     let debug = std::env::var_os("REJOIN_DEBUG").is_some();
     let mut out = Vec::new();
