@@ -664,7 +664,6 @@ impl Iterator for ByFrame<'_> {
                 samples[k].peek().is_some()
             });
             if !now.is_empty() {
-                now.sort_unstable_by_key(|x| x.0);
                 return Some((frame, now));
             }
         }
@@ -699,7 +698,8 @@ fn meets(cuts: &Cuts<'_>, k: usize, (f0, p0): (i64, DVec3), (f1, p1): (i64, DVec
 /// its step from `(f0, p0)` to `(f1, p1)`: one that ended from `f0` on,
 /// before `f1`, within [`MEET`] of `p1`, or one that began after `f0`,
 /// by `f1`, within `MEET` of `p0` (where the trace's own marker went on),
-/// among `ends` (the run ends from some frame before `f0` on).
+/// among `ends` (the run ends, or the ends [`crossings`] gives, from
+/// some frame before `f0` on).
 fn rivals(
     ends: &[RunEnd],
     k: usize,
@@ -808,18 +808,12 @@ fn takeovers(samples: &[(i64, DVec3)], k: usize, cuts: &Cuts<'_>) -> Vec<i64> {
         while cuts.crossing.get(cross).is_some_and(|e| e.frame < f0) {
             cross += 1;
         }
-        let mut rivals = rivals(&cuts.ends[cursor..], k, (f0, p0), (f1, p1));
-        let ended = rivals.len();
+        let mut others = rivals(&cuts.ends[cursor..], k, (f0, p0), (f1, p1));
+        let ended = others.len();
         if f1 - f0 == 1 && f1 > blurred_until {
-            rivals.extend(
-                cuts.crossing[cross..]
-                    .iter()
-                    .take_while(|e| e.frame == f0)
-                    .filter(|e| e.trace != k && e.at.distance(p1) <= MEET)
-                    .copied(),
-            );
+            others.extend(rivals(&cuts.crossing[cross..], k, (f0, p0), (f1, p1)));
         }
-        if rivals.is_empty() {
+        if others.is_empty() {
             continue;
         }
         // The trace's own line before the step, and its samples from the
@@ -827,21 +821,23 @@ fn takeovers(samples: &[(i64, DVec3)], k: usize, cuts: &Cuts<'_>) -> Vec<i64> {
         let tail = End::fit(&samples[(i + 1).saturating_sub(SEAM_K)..=i]);
         let head = head_at(i);
         let own = miss(&tail, &head, (f0, f1), cuts.one_second);
-        let (alt, by) = rivals
+        let Some((by, alt)) = others
             .iter()
-            .enumerate()
-            .map(|(j, r)| {
-                let m = if r.begins {
+            .map(|r| {
+                if r.begins {
                     miss(&tail, &r.line, (f0, r.frame), cuts.one_second)
                 } else {
                     miss(&r.line, &head, (r.frame, f1), cuts.one_second)
-                };
-                (m, j)
+                }
             })
-            .fold((f64::INFINITY, 0), |a, b| if b.0 < a.0 { b } else { a });
+            .enumerate()
+            .min_by(|x, y| x.1.total_cmp(&y.1))
+        else {
+            continue;
+        };
         let cut = own > TAKEOVER_FLOOR && alt * TAKEOVER < own;
         if cut && by >= ended && crossed.is_none() {
-            crossed = Some((f1, tail, rivals[by].line, own / alt));
+            crossed = Some((f1, tail, others[by].line, own / alt));
         }
         if debug {
             eprintln!(
