@@ -700,10 +700,10 @@ enum Meet {
     /// tip 68's, hidden for 30 frames 6 mm from it; tip 68's run had
     /// ended 20 frames before tip 9's gap, out of the window, and its
     /// line reached 12 mm from where the trace went on: 73 samples of tip
-    /// 9 in tip 68's identity, 0 cut there. Such a run is weaker evidence
-    /// than a near one (the line is carried up to 0.1 s), so the piece cut
-    /// off stays with its trace's other piece unless it clearly fits
-    /// elsewhere ([`Piece::soft`]).
+    /// 9 in tip 68's identity uncut, none cut there. Such a run is weaker
+    /// evidence than a near one (the line is carried up to 0.1 s), so the
+    /// shorter of the two pieces is judged with the tip the longer was
+    /// given as the tracker's ([`Piece::soft`]).
     Far,
 }
 
@@ -3495,18 +3495,13 @@ mod tests {
         // before the gap, moving along beside the path 10 mm from it (its
         // last 8 samples' line), and one standing still there.
         let moving = |frame: i64, begins: bool| {
-            let run: Vec<(i64, DVec3)> = (frame - 7..=frame)
-                .map(|f| (f, path(f) + aside(10.0)))
-                .collect();
-            let line = if begins {
-                End::fit(
-                    &run.iter()
-                        .map(|&(f, p)| (f + 7, p + path(7)))
-                        .collect::<Vec<_>>(),
-                )
+            let frames = if begins {
+                frame..=frame + 7
             } else {
-                End::fit(&run)
+                frame - 7..=frame
             };
+            let run: Vec<(i64, DVec3)> = frames.map(|f| (f, path(f) + aside(10.0))).collect();
+            let line = End::fit(&run);
             RunEnd {
                 frame,
                 at: line.reach(frame as f64),
