@@ -267,7 +267,7 @@ struct Piece {
     /// had given the whole trace wrongly while the longer piece left it
     /// (`all` seed 313: 10 samples of tip 66 kept in tip 1; seed 341: 4
     /// samples). Giving every piece cut at a short gap the tip of its
-    /// longer neighbour instead lost 26 seeds (1 401 → 1 497 wrong
+    /// longer neighbour instead lost 19 seeds (1 401 → 1 497 wrong
     /// samples under `all`).
     soft: bool,
 }
