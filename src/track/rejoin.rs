@@ -1445,16 +1445,23 @@ fn assign(
                  taken: &mut [Vec<(i64, i64, usize)>]| {
         let p = &pieces[i];
         let span = p.span();
+        // A tip holding a piece during this one, or the pieces of one
+        // trace on both sides of it across a soft cut (`in_soft_hole`).
+        let busy = |a: usize| {
+            taken[a].iter().any(|t| overlaps(span, t))
+                || in_soft_hole(pieces, owner, &taken[a], span, a)
+        };
         let mut costs = candidates(pieces, anchors, field, taken, i, one_second);
+        costs.retain(|c| !busy(c.2));
         weigh_spreads(&mut costs, anchors, p, one_second);
         let was = across_soft_cut(pieces, owner, i)
             .or_else(|| anchor_of_trace(p.from))
-            .filter(|&a| !taken[a].iter().any(|t| overlaps(span, t)));
+            .filter(|&a| !busy(a));
         // A tip free during the piece whose neighbours are hidden cannot
         // be judged; nearer the piece than a tip it fits only loosely, it
         // may be the piece's own.
         let hidden: Vec<usize> = unjudged(anchors, &costs, p.near())
-            .filter(|&b| !taken[b].iter().any(|t| overlaps(span, t)))
+            .filter(|&b| !busy(b))
             .collect();
         let hidden_nearer = |a: usize| {
             let d = anchors[a].rest.distance(p.near());
@@ -1574,6 +1581,32 @@ fn across_soft_cut(pieces: &[Piece], owner: &[Option<usize>], i: usize) -> Optio
             .and_then(|q| joined(i + 1, q))
     };
     before.or_else(after)
+}
+
+/// Whether `span` lies in the gap between two pieces of one trace cut
+/// apart at a far meet ([`Piece::soft`]) that tip `a` both holds
+/// (`taken`, its pieces): where the identity pass kept the tracker's join
+/// across that gap, the tip's marker was hidden there, and no other piece
+/// goes in. `all` seed 233: tip 17's trace was cut at a far meet, both
+/// pieces went back to tip 17, and a 3-sample trace of tip 69's marker
+/// the tracker had given tip 17's identity took the 10 frames between
+/// them (3 wrong samples, 2 fills bridging two markers).
+fn in_soft_hole(
+    pieces: &[Piece],
+    owner: &[Option<usize>],
+    taken: &[(i64, i64, usize)],
+    (s, e): (i64, i64),
+    a: usize,
+) -> bool {
+    // A trace's pieces lie next to each other, in time order.
+    taken.iter().any(|&(first, _, j)| {
+        pieces[j].soft
+            && j > 0
+            && pieces[j - 1].from == pieces[j].from
+            && owner[j - 1] == Some(a)
+            && pieces[j - 1].span().1 < s
+            && e < first
+    })
 }
 
 /// The tips near piece `i` (its first probe within [`REACH`] of their
@@ -3900,6 +3933,39 @@ mod tests {
         assert_eq!(owners(0.015, true), Some(1));
         assert_eq!(owners(0.015, false), Some(0), "kept in the tracker's tip");
         assert_eq!(owners(0.0, false), None, "left out");
+    }
+
+    /// The gap a soft cut leaves between two pieces of one trace is the
+    /// tip's only while the tip holds both: nothing else goes in.
+    #[test]
+    fn a_tip_holding_both_pieces_of_a_soft_cut_holds_the_gap_between_them() {
+        let at = DVec3::ZERO;
+        let setup = |soft: bool| {
+            let mut after = piece(0, swaying(624..=720, at, true));
+            after.soft = soft;
+            vec![piece(0, swaying(480..=600, at, true)), after]
+        };
+        let taken = [(480, 600, 0), (624, 720, 1)];
+        let pieces = setup(true);
+        let both = [Some(0), Some(0)];
+        assert!(in_soft_hole(&pieces, &both, &taken, (606, 618), 0));
+        assert!(
+            !in_soft_hole(&pieces, &both, &taken, (590, 618), 0),
+            "not inside"
+        );
+        assert!(
+            !in_soft_hole(&pieces, &both, &taken, (606, 618), 1),
+            "another tip's"
+        );
+        let split = [Some(1), Some(0)];
+        assert!(
+            !in_soft_hole(&pieces, &split, &taken[1..], (606, 618), 0),
+            "one piece only"
+        );
+        assert!(
+            !in_soft_hole(&setup(false), &both, &taken, (606, 618), 0),
+            "a hard cut"
+        );
     }
 
     #[test]
