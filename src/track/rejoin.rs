@@ -1452,7 +1452,7 @@ fn assign(
                 || in_soft_hole(pieces, owner, &taken[a], span, a)
         };
         let mut costs = candidates(pieces, anchors, field, taken, i, one_second);
-        costs.retain(|c| !busy(c.2));
+        costs.retain(|c| !in_soft_hole(pieces, owner, &taken[c.2], span, c.2));
         weigh_spreads(&mut costs, anchors, p, one_second);
         let was = across_soft_cut(pieces, owner, i)
             .or_else(|| anchor_of_trace(p.from))
