@@ -723,17 +723,15 @@ fn meets(cuts: &Cuts<'_>, k: usize, (f0, p0): (i64, DVec3), (f1, p1): (i64, DVec
         .take_while(|e| e.frame <= f1 + far)
         .filter(|e| e.trace != k)
     {
-        // The side of the gap the run may have handed its marker to, or
-        // taken the trace's from, and whether it ended or began near the
-        // gap in time.
-        let (beside, at, near) = if e.begins {
-            (e.frame > f0, (f0, p0), e.frame <= f1 + w)
-        } else {
-            (e.frame < f1, (f1, p1), e.frame >= f0 - w)
-        };
-        if !beside {
+        let Some(at) = handover(e, (f0, p0), (f1, p1)) else {
             continue;
-        }
+        };
+        // Whether it ended or began near the gap in time.
+        let near = if e.begins {
+            e.frame <= f1 + w
+        } else {
+            e.frame >= f0 - w
+        };
         if near && e.at.distance(at.1) <= MEET {
             return Meet::Near;
         }
@@ -760,15 +758,22 @@ fn rivals(
         .skip_while(|e| e.frame < f0)
         .take_while(|e| e.frame <= f1)
         .filter(|e| e.trace != k)
-        .filter(|e| {
-            if e.begins {
-                e.frame > f0 && e.at.distance(p0) <= MEET
-            } else {
-                e.frame < f1 && e.at.distance(p1) <= MEET
-            }
-        })
+        .filter(|e| handover(e, (f0, p0), (f1, p1)).is_some_and(|at| e.at.distance(at.1) <= MEET))
         .copied()
         .collect()
+}
+
+/// Where across a trace's step or gap from `(f0, p0)` to `(f1, p1)`
+/// another run's end `e` may have handed the trace its marker, or taken
+/// the trace's: where the trace went on, for a run that ended before
+/// `f1`; where it left off, for one that began after `f0`. `None` for an
+/// end on the wrong side.
+fn handover(e: &RunEnd, (f0, p0): (i64, DVec3), (f1, p1): (i64, DVec3)) -> Option<(i64, DVec3)> {
+    if e.begins {
+        (e.frame > f0).then_some((f0, p0))
+    } else {
+        (e.frame < f1).then_some((f1, p1))
+    }
 }
 
 /// The frames where trace `t` (index `k`) went on with another marker
@@ -1563,24 +1568,23 @@ fn assign(
 /// was cut from at a [`Meet::Far`] gap ([`Piece::soft`]): the tip the
 /// tracker's join across that gap gives it, where that piece has one.
 fn across_soft_cut(pieces: &[Piece], owner: &[Option<usize>], i: usize) -> Option<usize> {
-    let p = &pieces[i];
-    // A trace's pieces lie next to each other, in time order.
-    let joined = |j: usize, q: &Piece| {
-        (q.from == p.from && q.trace.measured() > p.trace.measured())
+    // Its tip, where that piece is the longer.
+    let tip = |j: usize| {
+        (pieces[j].trace.measured() > pieces[i].trace.measured())
             .then_some(owner[j])
             .flatten()
     };
-    let before = i
-        .checked_sub(1)
-        .filter(|_| p.soft)
-        .and_then(|j| joined(j, &pieces[j]));
-    let after = || {
-        pieces
-            .get(i + 1)
-            .filter(|q| q.soft)
-            .and_then(|q| joined(i + 1, q))
-    };
-    before.or_else(after)
+    let before = soft_cut_from(pieces, i).and_then(tip);
+    before.or_else(|| soft_cut_from(pieces, i + 1).and_then(|_| tip(i + 1)))
+}
+
+/// The piece of the same trace that piece `j` was cut from at a
+/// [`Meet::Far`] gap ([`Piece::soft`]): the one before it, as a trace's
+/// pieces lie next to each other in time order.
+fn soft_cut_from(pieces: &[Piece], j: usize) -> Option<usize> {
+    let p = pieces.get(j).filter(|p| p.soft)?;
+    let i = j.checked_sub(1)?;
+    (pieces[i].from == p.from).then_some(i)
 }
 
 /// Whether `span` lies in the gap between two pieces of one trace cut
@@ -1598,14 +1602,9 @@ fn in_soft_hole(
     (s, e): (i64, i64),
     a: usize,
 ) -> bool {
-    // A trace's pieces lie next to each other, in time order.
     taken.iter().any(|&(first, _, j)| {
-        pieces[j].soft
-            && j > 0
-            && pieces[j - 1].from == pieces[j].from
-            && owner[j - 1] == Some(a)
-            && pieces[j - 1].span().1 < s
-            && e < first
+        soft_cut_from(pieces, j)
+            .is_some_and(|i| owner[i] == Some(a) && pieces[i].span().1 < s && e < first)
     })
 }
 
