@@ -811,6 +811,10 @@ fn handover(e: &RunEnd, (f0, p0): (i64, DVec3), (f1, p1): (i64, DVec3)) -> Optio
 /// seed 363 under `noise_mm` 1.5 lost 9 samples: tip 49's trace held tip
 /// 68's marker 4.5 mm away for 9 frames, cut at 7.6 times, taken back at
 /// 3.8.
+///
+/// Also returns every step weighed against a crossed trace's line, cut
+/// or not ([`Crossed`]), for [`exchanges`] to weigh the two traces
+/// together.
 fn takeovers(samples: &[(i64, DVec3)], k: usize, cuts: &Cuts<'_>) -> (Vec<i64>, Vec<Crossed>) {
     let debug = std::env::var_os("REJOIN_DEBUG").is_some();
     let mut out = Vec::new();
@@ -1024,8 +1028,10 @@ fn exchanges(
 /// gaps longer than `cuts.long` and at any other gap of [`SPLIT_GAP`] frames or
 /// more, or step of more than [`JUMP`] from the one before, across which
 /// its path does not carry; and, carried or not, at a gap another marker
-/// meets ([`meets`]) and where it went on with another run's marker
-/// ([`takeovers`]). `samples` is a buffer for the trace's samples.
+/// meets ([`meets`]), where it went on with another run's marker
+/// ([`takeovers`]), and where the trace it crossed was cut for going on
+/// with its marker ([`exchanges`]). `samples` is a buffer for the
+/// trace's samples.
 ///
 /// A join across a short gap is as much a decision of the tracker as one
 /// across a long gap: in a gust a tip hidden for 5 frames as its neighbour
@@ -1059,15 +1065,15 @@ fn cut_trace(
     samples.clear();
     samples.extend(t.measurements());
     let mut takeovers = takeovers(samples, k, cuts).0;
-    let from = cuts.exchanged.partition_point(|x| x.0 < k);
-    let exchanged = cuts.exchanged[from..].iter().take_while(|x| x.0 == k);
-    if exchanged.clone().next().is_some() {
+    let exchanged = &cuts.exchanged
+        [cuts.exchanged.partition_point(|x| x.0 < k)..cuts.exchanged.partition_point(|x| x.0 <= k)];
+    if !exchanged.is_empty() {
         if std::env::var_os("REJOIN_DEBUG").is_some() {
-            for x in exchanged.clone() {
+            for x in exchanged {
                 eprintln!("trace {k} cut at {}: the trace it crossed was", x.1);
             }
         }
-        takeovers.extend(exchanged.map(|x| x.1));
+        takeovers.extend(exchanged.iter().map(|x| x.1));
         takeovers.sort_unstable();
         takeovers.dedup();
     }
@@ -2943,6 +2949,31 @@ mod tests {
         pieces
     }
 
+    /// The spans of each trace's pieces, cut beside each other with the
+    /// crossings between them ([`crossings`]), and where `together`, the
+    /// exchanges weighed on both traces ([`exchanges`]).
+    fn cut_crossing(traces: Vec<Trace>, together: bool) -> Vec<Vec<(i64, i64)>> {
+        let (crossing, passed) = crossings(&traces, 0);
+        let none: [RunEnd; 0] = [];
+        let mut cuts = test_cuts(&none);
+        cuts.crossing = &crossing;
+        let exchanged = if together {
+            exchanges(&traces, &passed, &cuts, &mut Vec::new())
+        } else {
+            Vec::new()
+        };
+        cuts.exchanged = &exchanged;
+        traces
+            .into_iter()
+            .enumerate()
+            .map(|(k, t)| {
+                let mut pieces = Vec::new();
+                cut_trace(t, k, &cuts, &mut Vec::new(), &mut pieces);
+                spans(&pieces)
+            })
+            .collect()
+    }
+
     /// The frames each piece spans, first and last.
     fn spans(pieces: &[Piece]) -> Vec<(i64, i64)> {
         pieces.iter().map(Piece::span).collect()
@@ -3760,21 +3791,7 @@ mod tests {
                 })
                 .into()
         };
-        let cut = |traces: Vec<Trace>| {
-            let (crossing, _) = crossings(&traces, 0);
-            let none: [RunEnd; 0] = [];
-            let mut cuts = test_cuts(&none);
-            cuts.crossing = &crossing;
-            traces
-                .into_iter()
-                .enumerate()
-                .map(|(k, t)| {
-                    let mut pieces = Vec::new();
-                    cut_trace(t, k, &cuts, &mut Vec::new(), &mut pieces);
-                    spans(&pieces)
-                })
-                .collect::<Vec<_>>()
-        };
+        let cut = |traces: Vec<Trace>| cut_crossing(traces, false);
         let whole = vec![(1, 79)];
         assert_eq!(cut(traces(&|_| false)), [whole.clone(), whole.clone()]);
         let exchanged = vec![(1, 40), (41, 79)];
@@ -3818,27 +3835,7 @@ mod tests {
                 })
                 .collect::<Vec<_>>()
         };
-        let cut = |traces: Vec<Trace>, together: bool| {
-            let (crossing, passed) = crossings(&traces, 0);
-            let none: [RunEnd; 0] = [];
-            let mut cuts = test_cuts(&none);
-            cuts.crossing = &crossing;
-            let exchanged = if together {
-                exchanges(&traces, &passed, &cuts, &mut Vec::new())
-            } else {
-                Vec::new()
-            };
-            cuts.exchanged = &exchanged;
-            traces
-                .into_iter()
-                .enumerate()
-                .map(|(k, t)| {
-                    let mut pieces = Vec::new();
-                    cut_trace(t, k, &cuts, &mut Vec::new(), &mut pieces);
-                    spans(&pieces)
-                })
-                .collect::<Vec<_>>()
-        };
+        let cut = cut_crossing;
         let whole = vec![(1, 79)];
         let exchanged = vec![(1, 40), (41, 79)];
         let a_then_b = |f: i64| if f <= 40 { a(f) } else { b(f) };
