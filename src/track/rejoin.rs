@@ -430,10 +430,10 @@ pub(crate) fn rejoin(
         crossing: &crossing,
         meet_gap,
         meet_window,
-        exchanged: &[],
+        takeovers: &[],
     };
-    let exchanged = exchanges(&traces, &passed, &cuts, &mut buffer);
-    cuts.exchanged = &exchanged;
+    let found = exchanges(&traces, &passed, &cuts, &mut buffer);
+    cuts.takeovers = &found;
     for (k, t) in traces.into_iter().enumerate() {
         cuts.seams = seams.get(&t.id).map_or(&[][..], Vec::as_slice);
         cut_trace(t, k, &cuts, &mut buffer, &mut pieces);
@@ -486,9 +486,10 @@ struct Cuts<'a> {
     /// [`MEET_GAP_S`] and [`MEET_WINDOW_S`] in frames.
     meet_gap: i64,
     meet_window: i64,
-    /// Where a trace is cut because the trace it crossed was
-    /// ([`exchanges`]): (trace, first frame after the step), sorted.
-    exchanged: &'a [(usize, i64)],
+    /// Per trace, its [`takeovers`] where [`exchanges`] found them
+    /// already (the traces that went on near another's marker, with the
+    /// exchanges added); `None`, or no entry: `cut_trace` finds them.
+    takeovers: &'a [Option<Vec<i64>>],
 }
 
 /// Where a trace's marker was last seen before a gap of [`SPLIT_GAP`]
@@ -980,15 +981,17 @@ struct Crossed {
 /// went on near another's marker ([`crossings`]) is decoded once more
 /// here.
 ///
-/// Returns (trace, first frame after the step), sorted.
+/// Returns, per trace, the frames [`takeovers`] cuts it at with the
+/// exchanges added, sorted, for the traces that went on near another's
+/// marker (the only ones an exchange can cut); `None` for the others.
 fn exchanges(
     traces: &[Trace],
     passed: &[bool],
     cuts: &Cuts<'_>,
     buffer: &mut Vec<(i64, DVec3)>,
-) -> Vec<(usize, i64)> {
+) -> Vec<Option<Vec<i64>>> {
     let mut steps: HashMap<(usize, i64), Crossed> = HashMap::new();
-    let mut cut_at = vec![Vec::new(); traces.len()];
+    let mut cut_at: Vec<Option<Vec<i64>>> = vec![None; traces.len()];
     for (k, t) in traces.iter().enumerate() {
         // Only a trace that went on near another's marker has a crossed
         // step to weigh.
@@ -999,16 +1002,17 @@ fn exchanges(
         buffer.extend(t.measurements());
         let (at, crossed) = takeovers(buffer, k, cuts);
         steps.extend(crossed.into_iter().map(|s| ((k, s.frame), s)));
-        cut_at[k] = at;
+        cut_at[k] = Some(at);
     }
     // Another cut of the first trace within SEAM_K frames: the markers
     // are still tangled there, not parted.
     let tangled = |k: usize, f: i64| {
         cut_at[k]
             .iter()
+            .flatten()
             .any(|&g| g != f && (g - f).abs() <= SEAM_K as i64)
     };
-    let mut out: Vec<(usize, i64)> = steps
+    let mut exchanged: Vec<(usize, i64)> = steps
         .iter()
         .filter(|((k, f), s)| s.cut && !tangled(*k, *f))
         .filter(|(_, s)| {
@@ -1018,9 +1022,21 @@ fn exchanges(
         })
         .map(|(_, s)| (s.other, s.frame))
         .collect();
-    out.sort_unstable();
-    out.dedup();
-    out
+    exchanged.sort_unstable();
+    let debug = std::env::var_os("REJOIN_DEBUG").is_some();
+    for (k, f) in exchanged {
+        if debug {
+            eprintln!("trace {k} cut at {f}: the trace it crossed was");
+        }
+        // The trace crossed has a step of its own there, so it went on
+        // near the other's marker too.
+        cut_at[k].get_or_insert_with(Vec::new).push(f);
+    }
+    for at in cut_at.iter_mut().flatten() {
+        at.sort_unstable();
+        at.dedup();
+    }
+    cut_at
 }
 
 /// Cuts trace `t` (index `k`) into `out`: at any gap where a piece the
@@ -1064,19 +1080,14 @@ fn cut_trace(
     // own, cost the clean stage on pine-35 about 8 %, this about 4 %.
     samples.clear();
     samples.extend(t.measurements());
-    let mut takeovers = takeovers(samples, k, cuts).0;
-    let exchanged = &cuts.exchanged
-        [cuts.exchanged.partition_point(|x| x.0 < k)..cuts.exchanged.partition_point(|x| x.0 <= k)];
-    if !exchanged.is_empty() {
-        if std::env::var_os("REJOIN_DEBUG").is_some() {
-            for x in exchanged {
-                eprintln!("trace {k} cut at {}: the trace it crossed was", x.1);
-            }
+    let own;
+    let takeovers = match cuts.takeovers.get(k) {
+        Some(Some(found)) => found.as_slice(),
+        _ => {
+            own = takeovers(samples, k, cuts).0;
+            own.as_slice()
         }
-        takeovers.extend(exchanged.iter().map(|x| x.1));
-        takeovers.sort_unstable();
-        takeovers.dedup();
-    }
+    };
     let mut ends = EndSamples::default();
     let mut last = i64::MIN;
     let (mut before, mut last_step): (DVec3, Option<DVec3>) = (DVec3::ZERO, None);
@@ -2923,7 +2934,7 @@ mod tests {
             crossing: &[],
             meet_gap: 6,
             meet_window: 8,
-            exchanged: &[],
+            takeovers: &[],
         }
     }
 
@@ -2957,12 +2968,12 @@ mod tests {
         let none: [RunEnd; 0] = [];
         let mut cuts = test_cuts(&none);
         cuts.crossing = &crossing;
-        let exchanged = if together {
+        let found = if together {
             exchanges(&traces, &passed, &cuts, &mut Vec::new())
         } else {
             Vec::new()
         };
-        cuts.exchanged = &exchanged;
+        cuts.takeovers = &found;
         traces
             .into_iter()
             .enumerate()
