@@ -159,6 +159,33 @@ const SEAM_ACC: f64 = 2.5;
 /// 3.3). Chosen on seeds 103–109 (0: 258 wrong samples, 3: 258, 6: 160,
 /// 9: 258), checked on seeds 110–116, never tuned on: 1 554 → 1 425.
 const SEAM_FIT: f64 = 6.0;
+/// The least expected miss (m) of a seam that ranks the tips for a piece
+/// ([`seam_terms`]), where the path is straight and both lines were
+/// fitted to [`SEAM_K`] samples: a little over what two such lines miss
+/// by under 1 mm of noise, carried to the middle of a gap of a few
+/// frames (about 2.3 mm). A line of fewer samples has a less sure
+/// velocity, and its seams keep [`SPREAD_MIN`], the least spread of a
+/// tip's offset, as do the cuts' tests ([`takeovers`], [`keep`]), which
+/// were tuned with it. Against 5 mm a seam told a tip's own marker from
+/// a neighbour's only past twice that, and in a gust, where the means
+/// fit both tips loosely, the seams are what tells them apart (`all`
+/// seed 225: tip 60's 126 samples in tip 40's identity, taken back by a
+/// swap that now gains 6.0 over its bound, and tip 40's 54 with them;
+/// 180 → 0 wrong samples).
+///
+/// Wrong samples, `all` / `noise_mm` 1.5, one seed per run, the 306
+/// sweep seeds: 1 354 / 2 152 with 5 mm for every seam; 1 207 / 1 967 at
+/// 4 mm and 1 145 / 1 926 at 3 mm for every seam, where seeds 119 (2 →
+/// 83: tip 62's marker back 12 frames after passing tip 24 at 2.4 mm)
+/// and 336 (0 → 22 under both: a piece of 6 samples whose seams to its
+/// own tip's pieces missed, left out, and a neighbour's piece after it
+/// kept) were lost; 2.5 mm lost seed 164 (0 → 86). As here, 1 059 /
+/// 2 080 (seeds 100–249 722 / 811 → 480 / 788; held out, 300–359 317 /
+/// 515 → 293 / 502, 360–419 175 / 329 → 146 / 350; 264–299 140 / 497 →
+/// 140 / 440), two seeds lost: 130 (0 → 9) and 383 under `noise_mm` 1.5
+/// (36 → 102: tip 14's marker, its mean 1.2 at tip 65 and 13.1 at its
+/// own, stays in tip 65).
+const SEAM_FLOOR: f64 = 0.003;
 
 /// A trace is also cut between two samples of consecutive frames whose
 /// step differs from the step before by more than this (m) ...
@@ -304,6 +331,10 @@ struct End {
     at: DVec3,
     /// Velocity (m per frame); zero from a single sample.
     v: DVec3,
+    /// How many samples the line was fitted to: under [`SEAM_K`], its
+    /// velocity is less sure and its seams are judged looser
+    /// ([`SEAM_FLOOR`]).
+    samples: usize,
 }
 
 impl End {
@@ -321,7 +352,12 @@ impl End {
         } else {
             DVec3::ZERO
         };
-        End { frame, at, v }
+        End {
+            frame,
+            at,
+            v,
+            samples: samples.len(),
+        }
     }
 
     /// The line at frame `f`.
@@ -848,8 +884,8 @@ fn takeovers(samples: &[(i64, DVec3)], k: usize, cuts: &Cuts<'_>) -> (Vec<i64>, 
                 crossed = None;
             } else {
                 let head = head_at(i);
-                let back = miss(&mine, &head, (fc - 1, f1), cuts.one_second);
-                let stay = miss(&theirs, &head, (fc - 1, f1), cuts.one_second);
+                let back = miss(&mine, &head, (fc - 1, f1), cuts.one_second, SPREAD_MIN);
+                let stay = miss(&theirs, &head, (fc - 1, f1), cuts.one_second, SPREAD_MIN);
                 // Back as clearly as it left, at least TAKEOVER times.
                 let flicker = stay > TAKEOVER_FLOOR && back * TAKEOVER.max(ratio) < stay;
                 if debug {
@@ -892,14 +928,14 @@ fn takeovers(samples: &[(i64, DVec3)], k: usize, cuts: &Cuts<'_>) -> (Vec<i64>, 
         // step on up to the next gap of SPLIT_GAP.
         let tail = End::fit(&samples[(i + 1).saturating_sub(SEAM_K)..=i]);
         let head = head_at(i);
-        let own = miss(&tail, &head, (f0, f1), cuts.one_second);
+        let own = miss(&tail, &head, (f0, f1), cuts.one_second, SPREAD_MIN);
         let Some((by, alt)) = others
             .iter()
             .map(|r| {
                 if r.begins {
-                    miss(&tail, &r.line, (f0, r.frame), cuts.one_second)
+                    miss(&tail, &r.line, (f0, r.frame), cuts.one_second, SPREAD_MIN)
                 } else {
-                    miss(&r.line, &head, (r.frame, f1), cuts.one_second)
+                    miss(&r.line, &head, (r.frame, f1), cuts.one_second, SPREAD_MIN)
                 }
             })
             .enumerate()
@@ -1166,7 +1202,9 @@ fn cut_trace(
 fn keep(mine: &mut Vec<Piece>, p: Piece, after_short_gap: bool, cuts: &Cuts<'_>) {
     if let Some(before) = mine.last_mut().filter(|_| after_short_gap) {
         let gap = (before.trace.last_frame(), p.trace.first_frame());
-        if gap.1 > gap.0 && miss(&before.tail, &p.head, gap, cuts.one_second) <= SPLIT_MISS {
+        if gap.1 > gap.0
+            && miss(&before.tail, &p.head, gap, cuts.one_second, SPREAD_MIN) <= SPLIT_MISS
+        {
             before.tail = p.tail;
             before.probes.extend(p.probes);
             // Appends whole: it begins after the piece before ends.
@@ -2694,8 +2732,12 @@ fn seam_terms(
     [before.map(|b| (b.2, i)), after.map(|n| (i, n.2))].map(|side| {
         let (l, r) = side?;
         let (from, to) = (pieces[l].trace.last_frame(), pieces[r].trace.first_frame());
-        ((to - from) as f64 / sec <= SEAM_S)
-            .then(|| miss(&pieces[l].tail, &pieces[r].head, (from, to), one_second) - SEAM_FIT)
+        ((to - from) as f64 / sec <= SEAM_S).then(|| {
+            let (tail, head) = (&pieces[l].tail, &pieces[r].head);
+            let full = tail.samples >= SEAM_K && head.samples >= SEAM_K;
+            let floor = if full { SEAM_FLOOR } else { SPREAD_MIN };
+            miss(tail, head, (from, to), one_second, floor) - SEAM_FIT
+        })
     })
 }
 
@@ -2714,15 +2756,15 @@ fn seamless(terms: &[Option<f64>; 2]) -> bool {
 
 /// How far the straight lines of a piece's `tail` (last measured at
 /// frame `gap.0`) and the next piece's `head` (first measured at `gap.1`)
-/// miss each other at the gap's middle, in squared expected misses: a tip
-/// bends away from a straight line by half [`SEAM_ACC`] times the time
-/// squared, from the middle of each end's samples to the middle of the
-/// gap.
-fn miss(tail: &End, head: &End, gap: (i64, i64), one_second: i64) -> f64 {
+/// miss each other at the gap's middle, in squared expected misses: the
+/// lines miss by `floor` (m) where the path is straight, and a tip bends
+/// away from a straight line by half [`SEAM_ACC`] times the time squared,
+/// from the middle of each end's samples to the middle of the gap.
+fn miss(tail: &End, head: &End, gap: (i64, i64), one_second: i64, floor: f64) -> f64 {
     let sec = one_second.max(1) as f64;
     let mid = (gap.0 + gap.1) as f64 / 2.0;
     let h = (gap.1 - gap.0) as f64 / sec / 2.0 + (SEAM_K / 2) as f64 / sec;
-    let sigma = SPREAD_MIN + 0.5 * SEAM_ACC * h * h;
+    let sigma = floor + 0.5 * SEAM_ACC * h * h;
     tail.reach(mid).distance_squared(head.reach(mid)) / (sigma * sigma)
 }
 
@@ -3956,6 +3998,53 @@ mod tests {
         // misses the piece before by 24 mm and the piece after by 72 mm.
         let away = seams(&pieces, &around, 4, 240);
         assert!(away > fits + LOOSE, "moving away: {away}");
+    }
+
+    /// A seam across a gap of a few frames is judged against 3 mm where
+    /// both lines were fitted to 8 samples, a little over what they miss
+    /// by under 1 mm of noise: the tip's own marker fits, and a
+    /// neighbour's 12 mm off the tip's path speaks against the tip (it
+    /// fitted against 5 mm). A piece of 6 samples, whose line is less
+    /// sure, is judged against 5 mm.
+    #[test]
+    fn a_seam_across_a_few_frames_tells_a_marker_12_mm_off() {
+        // About 1 mm of noise per axis (uniform within ±1.7 mm), the same
+        // on every run.
+        let jitter =
+            |f: i64, axis: i64| ((f * 7_919 + axis * 104_729) % 2_001 - 1_000) as f64 * 1.7e-6;
+        // 240 Hz, 1 mm a frame along x, hidden from frame 41 to 44.
+        let run = |frames: std::ops::RangeInclusive<i64>, off_mm: f64| -> Vec<(i64, DVec3)> {
+            frames
+                .map(|f| {
+                    let noise = DVec3::new(jitter(f, 0), jitter(f, 1), jitter(f, 2));
+                    (f, DVec3::new(f as f64 * 1e-3, off_mm * 1e-3, 0.0) + noise)
+                })
+                .collect()
+        };
+        let pieces = vec![
+            piece(0, run(0..=40, 0.0)),
+            piece(1, run(45..=85, 0.0)),
+            piece(2, run(45..=85, 12.0)),
+            piece(3, run(45..=50, 12.0)),
+        ];
+        let held = [(0, 40, 0)];
+        let term = |i: usize| seam_terms(&pieces, &held, i, 240)[0].expect("a seam within 0.5 s");
+        let (own, off, short) = (term(1), term(2), term(3));
+        assert!(own < -SEAM_FIT / 2.0, "the tip's own marker: {own}");
+        assert!(off > 0.0, "a neighbour 12 mm off: {off}");
+        assert!(short < 0.0, "6 samples 12 mm off, judged looser: {short}");
+        // What each would have been judged against the other floor.
+        let against = |i: usize, floor: f64| {
+            miss(&pieces[0].tail, &pieces[i].head, (40, 45), 240, floor) - SEAM_FIT
+        };
+        assert!(
+            against(2, SPREAD_MIN) < 0.0,
+            "12 mm off fitted against 5 mm"
+        );
+        assert!(
+            against(3, SEAM_FLOOR) > 0.0,
+            "6 samples missed against 3 mm"
+        );
     }
 
     /// Of two tips a piece fits equally, the one whose offset spreads
