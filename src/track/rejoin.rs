@@ -2986,6 +2986,14 @@ mod tests {
         cut_among(frames, at, &[])
     }
 
+    /// A deterministic stand-in for noise at frame `f`, within
+    /// ±`amplitude` (m): a zigzag of period 13 frames, the same on every
+    /// run, which the cut tests' markers carry so that their lines are
+    /// fitted to samples that are not exactly on them.
+    fn zigzag(f: i64, amplitude: f64) -> f64 {
+        amplitude * (((f * 7919) % 13) as f64 - 6.0) / 6.0
+    }
+
     /// [`cut_at`] beside other traces' run ends `ends`.
     fn cut_among(
         mut frames: impl Iterator<Item = i64>,
@@ -3779,7 +3787,7 @@ mod tests {
     /// beginning where A would have gone cuts it too.
     #[test]
     fn a_trace_is_cut_where_it_goes_on_with_a_marker_whose_run_just_ended() {
-        let noise = |f: i64| 0.0015 * (((f * 7919) % 13) as f64 - 6.0) / 6.0;
+        let noise = |f: i64| zigzag(f, 0.0015);
         // A moves along x, B converges on it from 7 mm aside at frame 40.
         let a = |f: i64| DVec3::new(0.001 * f as f64 + noise(f), 0.0, 0.5 * noise(f));
         let b = |f: i64| {
@@ -3823,7 +3831,7 @@ mod tests {
     /// either (seeds 328 and 404).
     #[test]
     fn a_trace_is_cut_where_it_went_on_with_a_marker_it_passed() {
-        let noise = |f: i64| 0.0005 * (((f * 7919) % 13) as f64 - 6.0) / 6.0;
+        let noise = |f: i64| zigzag(f, 0.0005);
         // A along x at 1 mm a frame; B beside it, 4 mm away at frame 40,
         // closing and parting at 0.5 mm a frame.
         let a = |f: i64| DVec3::new(0.001 * f as f64 + noise(f), 0.0, 0.0);
@@ -3864,7 +3872,7 @@ mod tests {
     /// not (seed 143).
     #[test]
     fn an_exchange_at_a_crossing_is_cut_in_both_traces() {
-        let noise = |f: i64| 0.0005 * (((f * 7919) % 13) as f64 - 6.0) / 6.0;
+        let noise = |f: i64| zigzag(f, 0.0005);
         // A along x at 1 mm a frame; B beside it, closing at 0.8 mm a
         // frame to 2.8 mm at frame 40, then going on beside A.
         let a = |f: i64| DVec3::new(0.001 * f as f64 + noise(f), 0.0, 0.0);
@@ -3919,7 +3927,7 @@ mod tests {
         let path = |jump: f64| {
             move |f: i64| {
                 let swing = 0.1 * (std::f64::consts::TAU * 1.5 * f as f64 / 240.0).sin();
-                let noise = 0.0015 * (((f * 7919) % 13) as f64 - 6.0) / 6.0;
+                let noise = zigzag(f, 0.0015);
                 let side = if f > 60 { jump } else { 0.0 };
                 DVec3::new(swing + noise, side - noise, 0.5 * noise)
             }
