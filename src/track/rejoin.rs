@@ -165,8 +165,9 @@ const SEAM_FIT: f64 = 6.0;
 /// by under 1 mm of noise, carried to the middle of a gap of a few
 /// frames (about 2.3 mm). A line of fewer samples has a less sure
 /// velocity, and its seams keep [`SPREAD_MIN`], the least spread of a
-/// tip's offset, as do the cuts' tests ([`takeovers`], [`keep`]), which
-/// were tuned with it. Against 5 mm a seam told a tip's own marker from
+/// tip's offset, as do the takeovers' tests ([`takeovers`]), which were
+/// tuned with it, and [`keep`]'s across gaps longer than
+/// [`KEEP_TIGHT_S`]. Against 5 mm a seam told a tip's own marker from
 /// a neighbour's only past twice that, and in a gust, where the means
 /// fit both tips loosely, the seams are what tells them apart (`all`
 /// seed 225: tip 60's 126 samples in tip 40's identity, taken back by a
@@ -207,7 +208,8 @@ const JUMP: f64 = 0.010;
 const SPLIT_GAP: i64 = 2;
 /// ... when its path does not carry across it: the straight lines of the
 /// 8 samples on each side miss each other by more than √1.5 expected
-/// misses ([`miss`]). `all`, wrong samples on seeds 100–102 / 103–109 /
+/// misses ([`miss`]; against the seams' floor across gaps of up to
+/// [`KEEP_TIGHT_S`]). `all`, wrong samples on seeds 100–102 / 103–109 /
 /// 110–116 / 117–123: 3 / 251 / 361 / 894 without these cuts, 3 / 251 /
 /// 352 / 359 with them and a bound of 3 (`noise_mm` 1.5: 169 / 959 /
 /// 2 193 / 893 → 169 / 760 / 2 182 / 853); cutting at every gap over
@@ -217,6 +219,23 @@ const SPLIT_GAP: i64 = 2;
 /// §4a), 1.5 against 3 took seeds 117–123 from 238 to 121 with [`JUMP`]
 /// and from 157 to 40 without it, and changed nothing on 103–109.
 const SPLIT_MISS: f64 = 1.5;
+/// Across a gap of at most this long (s; 12 frames at 240 Hz), [`keep`]
+/// judges the path against the seams' floor ([`seam_floor`]: 3 mm where
+/// both lines were fitted to 8 samples) instead of [`SPREAD_MIN`], with
+/// which it was tuned. Across a few frames a tip bends little from its
+/// lines, and against 5 mm a neighbour's marker up to 6 mm off the path
+/// went on in the trace; over a longer gap a swaying tip's lines miss
+/// by more (100 mm at 1.5 Hz, hidden 20 frames across its fastest
+/// point: 10.6 mm, cut against 3 mm). Wrong samples, `all` / `noise_mm`
+/// 1.5, one seed per run, the 306 sweep seeds: 1 059 / 2 080 with 5 mm
+/// at every gap; 959 / 2 002 up to 8 frames, 908 / 1 990 up to 12 (no
+/// seed worse; 314: 40 → 0, 296: 29 → 1, 290: 28 → 4, 380: 24 → 0), 1 006
+/// / 1 982 up to 16 and 995 / 2 033 at every gap, where seeds 296 (29 →
+/// 99) and 164 under `noise_mm` 1.5 (0 → 22) were lost, and 317 under
+/// `noise_mm` 1.5 (0 → 51: tip 50's marker, cut at a gap of 24 frames
+/// in a gust, its first 51 samples 70 mm from either tip's mean offset,
+/// stayed in tip 13's identity).
+const KEEP_TIGHT_S: f64 = 0.05;
 /// A gap of at least this long (s) whose path carries across is cut all
 /// the same where another marker meets it ([`meets`]): two tips passing
 /// close move alike, so the path of one carries across to the other.
@@ -1198,13 +1217,18 @@ fn cut_trace(
 
 /// Adds piece `p`, just cut off, to its trace's pieces `mine`: joined
 /// back to the piece before when it begins after a short gap only and the
-/// path carries across the gap ([`SPLIT_MISS`]).
+/// path carries across the gap ([`SPLIT_MISS`]), judged against the
+/// seams' floor across a gap of [`KEEP_TIGHT_S`] or less.
 fn keep(mine: &mut Vec<Piece>, p: Piece, after_short_gap: bool, cuts: &Cuts<'_>) {
     if let Some(before) = mine.last_mut().filter(|_| after_short_gap) {
         let gap = (before.trace.last_frame(), p.trace.first_frame());
-        if gap.1 > gap.0
-            && miss(&before.tail, &p.head, gap, cuts.one_second, SPREAD_MIN) <= SPLIT_MISS
-        {
+        let tight = (gap.1 - gap.0) as f64 <= KEEP_TIGHT_S * cuts.one_second.max(1) as f64;
+        let floor = if tight {
+            seam_floor(&before.tail, &p.head)
+        } else {
+            SPREAD_MIN
+        };
+        if gap.1 > gap.0 && miss(&before.tail, &p.head, gap, cuts.one_second, floor) <= SPLIT_MISS {
             before.tail = p.tail;
             before.probes.extend(p.probes);
             // Appends whole: it begins after the piece before ends.
@@ -2734,9 +2758,7 @@ fn seam_terms(
         let (from, to) = (pieces[l].trace.last_frame(), pieces[r].trace.first_frame());
         ((to - from) as f64 / sec <= SEAM_S).then(|| {
             let (tail, head) = (&pieces[l].tail, &pieces[r].head);
-            let full = tail.samples >= SEAM_K && head.samples >= SEAM_K;
-            let floor = if full { SEAM_FLOOR } else { SPREAD_MIN };
-            miss(tail, head, (from, to), one_second, floor) - SEAM_FIT
+            miss(tail, head, (from, to), one_second, seam_floor(tail, head)) - SEAM_FIT
         })
     })
 }
@@ -2766,6 +2788,17 @@ fn miss(tail: &End, head: &End, gap: (i64, i64), one_second: i64, floor: f64) ->
     let h = (gap.1 - gap.0) as f64 / sec / 2.0 + (SEAM_K / 2) as f64 / sec;
     let sigma = floor + 0.5 * SEAM_ACC * h * h;
     tail.reach(mid).distance_squared(head.reach(mid)) / (sigma * sigma)
+}
+
+/// The floor of [`miss`] for a seam between `tail` and `head`:
+/// [`SEAM_FLOOR`] where both lines were fitted to [`SEAM_K`] samples,
+/// [`SPREAD_MIN`] where one has a less sure velocity.
+fn seam_floor(tail: &End, head: &End) -> f64 {
+    if tail.samples >= SEAM_K && head.samples >= SEAM_K {
+        SEAM_FLOOR
+    } else {
+        SPREAD_MIN
+    }
 }
 
 /// One trace per anchor (its pieces in time order) and one per group of
@@ -3678,6 +3711,38 @@ mod tests {
         assert_eq!(one[0].trace.measured(), 48);
         let two = cut_at(frames(), path(0.015));
         assert_eq!(spans(&two), [(1, 19), (31, 59)], "another marker after it");
+    }
+
+    /// Across a gap of a few frames the path is judged against the seams'
+    /// floor of 3 mm: a marker 5.5 mm off the path after 5 missing frames
+    /// is cut off (it went on against 5 mm). Across 20 missing frames it
+    /// is judged against 5 mm: a tip swaying 100 mm at 1.5 Hz, hidden
+    /// across its fastest point, bends 10.6 mm away from its lines there
+    /// and stays one piece (it was cut against 3 mm).
+    #[test]
+    fn a_path_across_a_few_frames_is_judged_tighter_than_across_twenty() {
+        let step = |off: f64| {
+            move |f: i64| DVec3::new(0.001 * f as f64, if f > 24 { off } else { 0.0 }, 0.0)
+        };
+        let few = || (1..20).chain(25..60);
+        assert_eq!(cut_at(few(), step(0.0)).len(), 1, "its own marker");
+        let off = cut_at(few(), step(0.0055));
+        assert_eq!(spans(&off), [(1, 19), (25, 59)], "a marker 5.5 mm off");
+        let loose = miss(&off[0].tail, &off[1].head, (19, 25), 240, SPREAD_MIN);
+        assert!(loose <= SPLIT_MISS, "went on against 5 mm: {loose}");
+
+        // Hidden in frames 40–59, its fastest at frame 49.5.
+        let sway = |f: i64| {
+            let t = (f as f64 - 49.5) / 240.0;
+            DVec3::new(0.0, 0.1 * (std::f64::consts::TAU * 1.5 * t).sin(), 0.0)
+        };
+        let twenty = || (1..40).chain(60..100);
+        assert_eq!(cut_at(twenty(), sway).len(), 1, "a swaying tip's own path");
+        let line = |frames: std::ops::Range<i64>| {
+            End::fit(&frames.map(|f| (f, sway(f))).collect::<Vec<_>>())
+        };
+        let tight = miss(&line(32..40), &line(60..68), (39, 60), 240, SEAM_FLOOR);
+        assert!(tight > SPLIT_MISS, "cut against 3 mm: {tight}");
     }
 
     /// Before the wind a trace is cut where the tracker joined a piece to
