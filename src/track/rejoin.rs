@@ -229,12 +229,13 @@ const SPLIT_MISS: f64 = 1.5;
 /// point: 10.6 mm, cut against 3 mm). Wrong samples, `all` / `noise_mm`
 /// 1.5, one seed per run, the 306 sweep seeds: 1 059 / 2 080 with 5 mm
 /// at every gap; 959 / 2 002 up to 8 frames, 908 / 1 990 up to 12 (no
-/// seed worse; 314: 40 → 0, 296: 29 → 1, 290: 28 → 4, 380: 24 → 0), 1 006
-/// / 1 982 up to 16 and 995 / 2 033 at every gap, where seeds 296 (29 →
-/// 99) and 164 under `noise_mm` 1.5 (0 → 22) were lost, and 317 under
-/// `noise_mm` 1.5 (0 → 51: tip 50's marker, cut at a gap of 24 frames
-/// in a gust, its first 51 samples 70 mm from either tip's mean offset,
-/// stayed in tip 13's identity).
+/// seed worse; 314: 40 → 0, 296: 29 → 1, 290: 28 → 4, 380: 24 → 0),
+/// 1 006 / 1 982 up to 16 frames, where seeds 296 (29 → 99) and 164
+/// under `noise_mm` 1.5 (0 → 22) were lost, and 995 / 2 033 at every
+/// gap, where 317 under `noise_mm` 1.5 was lost as well (0 → 51: tip
+/// 50's marker, cut at a gap of 24 frames in a gust, its first 51
+/// samples 70 mm from either tip's mean offset, stayed in tip 13's
+/// identity).
 const KEEP_TIGHT_S: f64 = 0.05;
 /// A gap of at least this long (s) whose path carries across is cut all
 /// the same where another marker meets it ([`meets`]): two tips passing
