@@ -353,7 +353,7 @@ struct End {
     v: DVec3,
     /// How many samples the line was fitted to: under [`SEAM_K`], its
     /// velocity is less sure and its seams are judged looser
-    /// ([`SEAM_FLOOR`]).
+    /// ([`seam_floor`]).
     samples: usize,
 }
 
@@ -1223,8 +1223,8 @@ fn cut_trace(
 fn keep(mine: &mut Vec<Piece>, p: Piece, after_short_gap: bool, cuts: &Cuts<'_>) {
     if let Some(before) = mine.last_mut().filter(|_| after_short_gap) {
         let gap = (before.trace.last_frame(), p.trace.first_frame());
-        let tight = (gap.1 - gap.0) as f64 <= KEEP_TIGHT_S * cuts.one_second.max(1) as f64;
-        let floor = if tight {
+        let sec = cuts.one_second.max(1) as f64;
+        let floor = if (gap.1 - gap.0) as f64 / sec <= KEEP_TIGHT_S {
             seam_floor(&before.tail, &p.head)
         } else {
             SPREAD_MIN
