@@ -220,6 +220,27 @@ const SEAM_FLOOR: f64 = 0.003;
 /// 1 124) with it, a [`SPLIT_MISS`] of 1.5 and the lead of `choose`
 /// that shrinks as the tracker's tip fits worse.
 const JUMP: f64 = 0.010;
+/// ... or, once the piece has [`SEAM_K`] samples, whose sample lies
+/// further than this (m) from the straight line of the `SEAM_K` before it
+/// carried one frame on ...
+///
+/// The step's difference carries the noise of three samples (σ √6 per
+/// axis, 2.4 mm under 1 mm of noise), so a neighbour's marker taken 11 mm
+/// off the path passed under [`JUMP`] about one time in four (`all` seed
+/// 148: 36 samples of tip 68 in tip 32's trace, taken in the frame tip
+/// 32's marker was hidden, 11.5 mm away). Against the line the noise is
+/// σ √(1 + 1/8 + 4.5²/42) = 1.27 σ per axis: 99.9 % of samples of one
+/// marker under 1 mm of noise lie within 5.1 mm of it, and a tip's bend
+/// adds ½ a t² over the 4.5 frames from the line's middle (0.4 mm at
+/// 2.5 m/s²; 8.8 mm for a tip swinging 150 mm at 3 Hz, whose cut `keep`
+/// joins back, its lines missing by nothing at the gap's middle). Wrong
+/// samples, `all` / `noise_mm` 1.5, one seed per run, the 306 sweep
+/// seeds, with [`STILL_MOTION`] at 0.6: 810 / 1 950 with [`JUMP`]
+/// alone, 774 / 1 946 with this (148: 36 / 36 → 0 / 0); one seed lost,
+/// 290 under `noise_mm` 1.5 (20 → 52: tips 43 and 65 passing 2–8 mm
+/// apart for 70 frames, cut more often there, and a run of 32 samples
+/// of tip 65 left in tip 43).
+const JUMP_LINE: f64 = 0.008;
 /// ... or where this many frames apart (one frame missing) or more ...
 const SPLIT_GAP: i64 = 2;
 /// ... when its path does not carry across it: the straight lines of the
@@ -1176,13 +1197,20 @@ fn cut_trace(
         // phase too.
         let joined = seam && gap > 1;
         let hard = gap > cuts.long || joined;
-        // A step from the frame before: a jump where it differs from the
-        // step before it by more than `JUMP`. Only a candidate, like a
-        // short gap: `keep` decides with the same test whether the path
-        // carries across (testing every step that way would cut and join
-        // a piece per frame).
+        // A step from the frame before: a jump where the sample is off the
+        // line of the piece's last samples by more than `JUMP_LINE` (by
+        // its step against the step before, `JUMP`, while the piece has
+        // fewer). Only a candidate, like a short gap: `keep` decides with
+        // the same test whether the path carries across (testing every
+        // step that way would cut and join a piece per frame).
         let step = (gap == 1).then(|| p - before);
-        let jumped = matches!((step, last_step), (Some(s), Some(l)) if (s - l).length() > JUMP);
+        let jumped = match (step, last_step) {
+            (Some(s), l) => match ends.off_line(f, p) {
+                Some(off) => off > JUMP_LINE,
+                None => l.is_some_and(|l| (s - l).length() > JUMP),
+            },
+            _ => false,
+        };
         let cuts_here = joined || ((hard || gap >= SPLIT_GAP || jumped) && f > cuts.after);
         // A gap another marker meets is cut like a long one (looked up
         // only where a piece is cut off).
@@ -1343,6 +1371,34 @@ impl EndSamples {
     }
 
     /// The piece's two [`End`]s; empty again for the next piece.
+    /// How far `p`, measured at frame `f`, lies from the straight line of
+    /// the last [`SEAM_K`] samples carried to `f`; `None` while there are
+    /// fewer. [`End::fit`]'s line, summed in one pass over the ring (it
+    /// runs at every step of every trace: fitting an [`End`] there cost
+    /// the clean stage on pine-35 about 8 %).
+    fn off_line(&self, f: i64, p: DVec3) -> Option<f64> {
+        if self.last.len() < SEAM_K {
+            return None;
+        }
+        let n = SEAM_K as f64;
+        let (mut st, mut stt, mut sp, mut stp) = (0.0, 0.0, DVec3::ZERO, DVec3::ZERO);
+        for &(g, q) in &self.last {
+            let t = (g - f) as f64;
+            st += t;
+            stt += t * t;
+            sp += q;
+            stp += q * t;
+        }
+        let (tm, pm) = (st / n, sp / n);
+        let stt = stt - st * tm;
+        let v = if stt > 0.0 {
+            (stp - sp * tm) / stt
+        } else {
+            DVec3::ZERO
+        };
+        Some((pm - v * tm).distance(p))
+    }
+
     fn take(&mut self) -> (End, End) {
         let ends = (End::fit(&self.first), End::fit(self.last.make_contiguous()));
         self.first.clear();
@@ -4009,26 +4065,33 @@ mod tests {
     }
 
     /// A marker swinging 100 mm at 1.5 Hz with 1.5 mm of noise stays one
-    /// piece; the same trace going on with a marker 38 mm away in the
-    /// next frame, no frame missing, is cut there (seed 104).
+    /// piece, as does one swinging 150 mm at 3 Hz, which turns at 50 m/s²;
+    /// the same trace going on with a marker 38 mm away in the next frame,
+    /// no frame missing, is cut there (seed 104), and so it is with a
+    /// marker 9 mm away, whose step differs from the step before by only
+    /// 9 mm, under `JUMP`, but which lies 9.4 mm off the line of the 8
+    /// samples before it (seed 148: 11.5 mm).
     #[test]
     fn a_trace_is_cut_where_it_jumps_to_another_marker_with_no_frame_missing() {
-        let path = |jump: f64| {
+        let path = |mm: f64, hz: f64, jump: f64| {
             move |f: i64| {
-                let swing = 0.1 * (std::f64::consts::TAU * 1.5 * f as f64 / 240.0).sin();
+                let swing = mm / 1000.0 * (std::f64::consts::TAU * hz * f as f64 / 240.0).sin();
                 let noise = zigzag(f, 0.0015);
                 let side = if f > 60 { jump } else { 0.0 };
                 DVec3::new(swing + noise, side - noise, 0.5 * noise)
             }
         };
-        let one = cut_at(1..120, path(0.0));
+        let one = cut_at(1..120, path(100.0, 1.5, 0.0));
         assert_eq!(one.len(), 1, "its own marker throughout");
-        let two = cut_at(1..120, path(0.038));
-        assert_eq!(
-            spans(&two),
-            [(1, 60), (61, 119)],
-            "another marker from frame 61"
-        );
+        let fast = cut_at(1..120, path(150.0, 3.0, 0.0));
+        assert_eq!(spans(&fast), [(1, 119)], "its own marker, swinging fast");
+        for jump in [0.038, 0.009] {
+            assert_eq!(
+                spans(&cut_at(1..120, path(100.0, 1.5, jump))),
+                [(1, 60), (61, 119)],
+                "another marker {jump} m away from frame 61"
+            );
+        }
     }
 
     /// In a gust that hides a tip's 8 nearest tips, the next 8 measured
