@@ -132,8 +132,8 @@ const STILL_NOISE: f64 = 1.3;
 /// That slope's standard error is the noise per axis over the root of
 /// the neighbours' summed squared motion: at 0.6 times the noise (RMS,
 /// all axes) over [`MOTION_POINTS`] samples, 0.17, so a marker following
-/// its neighbours reads under [`STILL_RATIO`] only three standard errors
-/// off, and a reflection over it as far. At 2 times, the bound it had, a
+/// its neighbours reads under [`STILL_RATIO`], and a reflection over it,
+/// only three standard errors off. At 2 times, the bound it had, a
 /// reflection sitting in a tip's long gap while the tree around it
 /// moved a few millimetres passed for the tip's marker (`all` seed 232:
 /// 42 samples of a reflection, 65 mm from tip 27's rest position, in
@@ -1370,12 +1370,14 @@ impl EndSamples {
         self.last.push_back((f, p));
     }
 
-    /// The piece's two [`End`]s; empty again for the next piece.
     /// How far `p`, measured at frame `f`, lies from the straight line of
     /// the last [`SEAM_K`] samples carried to `f`; `None` while there are
-    /// fewer. [`End::fit`]'s line, summed in one pass over the ring (it
-    /// runs at every step of every trace: fitting an [`End`] there cost
-    /// the clean stage on pine-35 about 8 %).
+    /// fewer. [`End::fit`]'s line, summed in one pass over the ring with
+    /// frames counted from `f`, where `End::fit` takes deviations from the
+    /// means: it runs at every step of every trace, and fitting an [`End`]
+    /// there cost the clean stage on pine-35 about 8 %. The two round
+    /// differently in the last bits; the seams keep `End::fit`, with
+    /// which they were tuned.
     fn off_line(&self, f: i64, p: DVec3) -> Option<f64> {
         if self.last.len() < SEAM_K {
             return None;
@@ -1399,6 +1401,7 @@ impl EndSamples {
         Some((pm - v * tm).distance(p))
     }
 
+    /// The piece's two [`End`]s; empty again for the next piece.
     fn take(&mut self) -> (End, End) {
         let ends = (End::fit(&self.first), End::fit(self.last.make_contiguous()));
         self.first.clear();
