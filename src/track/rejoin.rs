@@ -1202,16 +1202,19 @@ fn cut_trace(
         // its step against the step before, `JUMP`, while the piece has
         // fewer). Only a candidate, like a short gap: `keep` decides with
         // the same test whether the path carries across (testing every
-        // step that way would cut and join a piece per frame).
+        // step that way would cut and join a piece per frame). Looked for
+        // only where it may cut, after the still phase.
         let step = (gap == 1).then(|| p - before);
-        let jumped = match (step, last_step) {
-            (Some(s), l) => match ends.off_line(f, p) {
-                Some(off) => off > JUMP_LINE,
-                None => l.is_some_and(|l| (s - l).length() > JUMP),
-            },
-            _ => false,
-        };
-        let cuts_here = joined || ((hard || gap >= SPLIT_GAP || jumped) && f > cuts.after);
+        let in_wind = f > cuts.after;
+        let jumped = in_wind
+            && match (step, last_step) {
+                (Some(s), l) => match ends.off_line(f, p) {
+                    Some(off) => off > JUMP_LINE,
+                    None => l.is_some_and(|l| (s - l).length() > JUMP),
+                },
+                _ => false,
+            };
+        let cuts_here = joined || ((hard || gap >= SPLIT_GAP || jumped) && in_wind);
         // A gap another marker meets is cut like a long one (looked up
         // only where a piece is cut off).
         let meet = if cuts_here && !hard && gap >= SPLIT_GAP {
