@@ -7,7 +7,8 @@
 //!    assignment), and [`identity`] joins the pieces of each marker on line
 //!    from its neighbours' motion; traces never confirmed are ghosts;
 //! 2. `untangle`: where two markers passed close, the traces the tracker
-//!    swapped are swapped back (the vector between them turns round);
+//!    swapped, for good or for a frame or two, are swapped back (the
+//!    vector between them turns round);
 //!    [`rest`]: the still phase is found (or taken from the config);
 //! 3. [`adopt`]: ghosts that are pieces of a marker (a marker seen as two
 //!    blobs, a trace broken before it was confirmed) join it; `rejoin`:
@@ -86,8 +87,9 @@ pub struct Summary {
     /// or two (a marker seen as two blobs, a trace broken before it was
     /// confirmed); not counted in `ghosts`.
     pub adopted: usize,
-    /// Places where the tracker had swapped two markers passing close and
-    /// their traces were swapped back afterwards (`untangle`).
+    /// Places where the tracker had swapped two markers passing close, for
+    /// good or for a frame or two, and their traces were swapped back
+    /// afterwards (`untangle`).
     pub untangled: usize,
     /// Pieces joined afterwards by rest position.
     pub joined_by_rest: usize,
