@@ -238,7 +238,8 @@ fn decide(e: &Encounter, window: usize, debug: u8) -> Vec<Swap> {
         }
     }
     // A swap wherever the samples change from as they are to turned round
-    // or back; from the last on, the tails are swapped.
+    // or back; where the last change is to turned round, the tails stay
+    // swapped from there on.
     let mut swaps = Vec::new();
     let mut now = false;
     for (&(f, _), &t) in r.iter().zip(&turned) {
