@@ -1207,13 +1207,10 @@ fn cut_trace(
         let step = (gap == 1).then(|| p - before);
         let in_wind = f > cuts.after;
         let jumped = in_wind
-            && match (step, last_step) {
-                (Some(s), l) => match ends.off_line(f, p) {
-                    Some(off) => off > JUMP_LINE,
-                    None => l.is_some_and(|l| (s - l).length() > JUMP),
-                },
-                _ => false,
-            };
+            && step.is_some_and(|s| match ends.off_line(f, p) {
+                Some(off) => off > JUMP_LINE,
+                None => last_step.is_some_and(|l| (s - l).length() > JUMP),
+            });
         let cuts_here = joined || ((hard || gap >= SPLIT_GAP || jumped) && in_wind);
         // A gap another marker meets is cut like a long one (looked up
         // only where a piece is cut off).
@@ -1377,8 +1374,9 @@ impl EndSamples {
     /// the last [`SEAM_K`] samples carried to `f`; `None` while there are
     /// fewer. [`End::fit`]'s line, summed in one pass over the ring with
     /// frames counted from `f`, where `End::fit` takes deviations from the
-    /// means: it runs at every step of every trace, and fitting an [`End`]
-    /// there cost the clean stage on pine-35 about 8 %. The two round
+    /// means: it runs at every step of every trace after the still phase,
+    /// and fitting an [`End`] there cost the clean stage on pine-35 about
+    /// 8 %. The two round
     /// differently in the last bits; the seams keep `End::fit`, with
     /// which they were tuned.
     fn off_line(&self, f: i64, p: DVec3) -> Option<f64> {
