@@ -27,9 +27,9 @@ fn main() {
     let long = args.get(4).is_some_and(|s| s == "long");
     let cfg = TrackingSettings::default();
     println!(
-        "| stress | tips found/placed | wrong samples | fragments | rest error max (mm) | fills bridging two markers | fill error 1–10 f (mm, ours / PCHIP) | 11–50 f | 51 f–2 s | largest sway (mm) | closest tips (mm) |"
+        "| stress | tips found/placed | wrong samples | fragments | rest error max (mm) | fills bridging two markers | fill error 1–10 f (mm, ours / PCHIP) | 11–50 f | 51 f–2 s | own samples filled (mean error mm) | largest sway (mm) | closest tips (mm) |"
     );
-    println!("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |");
+    println!("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |");
     let names: Vec<&str> = stress::all(&stress::base(0, 70, 8.0, wind_s))
         .iter()
         .map(|s| s.name)
@@ -146,8 +146,9 @@ fn row(
             }
         }
     }
+    let (own, own_err) = total.own_filled_mean();
     println!(
-        "| {name} | {}/{} | {} | {} | {:.3} | {} | {} | {} | {} | {:.0} | {:.1} |",
+        "| {name} | {}/{} | {} | {} | {:.3} | {} | {} | {} | {} | {own} ({:.2}) | {:.0} | {:.1} |",
         total.tips_found,
         total.tips_placed,
         total.wrong_samples,
@@ -157,6 +158,7 @@ fn row(
         fill(bins[0]),
         fill(bins[1]),
         fill(bins[2]),
+        own_err * 1000.0,
         sway * 1000.0,
         spacing * 1000.0
     );

@@ -423,6 +423,25 @@ impl Trace {
         Some(out)
     }
 
+    /// This trace without its measurements in `frames` (sorted); `None`
+    /// when none would be left.
+    pub(crate) fn without(&self, frames: &[i64]) -> Option<Trace> {
+        let mut out: Option<Trace> = None;
+        for (frame, p, source) in self.measurements_with_source() {
+            if frames.binary_search(&frame).is_ok() {
+                continue;
+            }
+            match out.as_mut() {
+                None => out = Some(Trace::new(self.id, frame, p, source)),
+                Some(t) => t.push(frame, p, source),
+            }
+        }
+        let mut out = out?;
+        out.pieces = self.pieces.clone();
+        out.fills = self.fills.clone();
+        Some(out)
+    }
+
     /// Releases the spare capacity of the storage when the trace has ended
     /// (thousands of ended traces would otherwise each keep a half-empty
     /// chunk). Pushing later still works.

@@ -64,6 +64,12 @@ pub struct Score {
     pub fills: Vec<FillScore>,
     /// Fills whose two ends are samples of different markers.
     pub bridged: usize,
+    /// The error (m) of every sample a followed tip holds filled in a frame
+    /// its own marker was measured: a sample given up where two markers
+    /// passed within their noise of each other, or one left to another
+    /// tip. What giving up samples costs, which the wrong samples and the
+    /// fills of true gaps do not show.
+    pub own_filled: Vec<f64>,
 }
 
 impl Score {
@@ -124,6 +130,15 @@ impl Score {
         self.rest_errors.extend_from_slice(&o.rest_errors);
         self.fills.extend_from_slice(&o.fills);
         self.bridged += o.bridged;
+        self.own_filled.extend_from_slice(&o.own_filled);
+    }
+
+    /// (samples, mean error in m) of [`Score::own_filled`].
+    pub fn own_filled_mean(&self) -> (usize, f64) {
+        let n = self.own_filled.len();
+        // Summed from +0: an empty `sum` of floats is −0.
+        let total = self.own_filled.iter().fold(0.0, |a, b| a + b);
+        (n, total / n.max(1) as f64)
     }
 }
 
@@ -187,6 +202,17 @@ pub fn score(tips: &Tips, syn: &Synthetic) -> Score {
                     .collect()
             })
             .unwrap_or_default();
+        let hidden: std::collections::HashSet<i64> = (truth.gaps.iter())
+            .filter(|g| g.tip == k)
+            .flat_map(|g| g.first_frame..=g.last_frame)
+            .collect();
+        let mut own: Vec<(i64, f64)> = filled
+            .iter()
+            .filter(|(f, _)| **f >= 0 && !hidden.contains(f))
+            .map(|(&f, p)| (f, p.distance(truth.position(k, truth.time_of(f)))))
+            .collect();
+        own.sort_by_key(|x| x.0);
+        s.own_filled.extend(own.into_iter().map(|x| x.1));
         for g in truth.gaps.iter().filter(|g| g.tip == k) {
             if let Some(mut fill) = score_gap(truth, g, &filled, &baseline[k]) {
                 let (a, b) = (g.first_frame - 1, g.last_frame + 1);

@@ -8,7 +8,8 @@
 //!    from its neighbours' motion; traces never confirmed are ghosts;
 //! 2. `untangle`: where two markers passed close, the traces the tracker
 //!    swapped, for good or for a frame or two, are swapped back (the
-//!    vector between them turns round);
+//!    vector between them turns round), and the frames where they were
+//!    too close to tell apart are named;
 //!    [`rest`]: the still phase is found (or taken from the config);
 //! 3. [`adopt`]: ghosts that are pieces of a marker (a marker seen as two
 //!    blobs, a trace broken before it was confirmed) join it; `rejoin`:
@@ -17,6 +18,7 @@
 //!    positions); [`noise`]:
 //!    pieces of one marker still apart are joined by rest position;
 //! 4. [`noise`]: traces measured in fewer than 1/4 of the frames are dropped;
+//!    the samples `untangle` named go, from the tips and from the rest;
 //!    `reclaim`: samples no tip holds (ghosts, loose pieces, the dropped
 //!    traces) that continue a tip from a gap's edge go back into its gap;
 //! 5. [`gaps`]: gaps are filled from the neighbours' motion, or by PCHIP,
@@ -91,6 +93,11 @@ pub struct Summary {
     /// good or for a frame or two, and their traces were swapped back
     /// afterwards (`untangle`).
     pub untangled: usize,
+    /// Samples of two markers that passed within their noise of each
+    /// other, in the frames where which was which could not be told: taken
+    /// out of both tips (and their gaps there filled) rather than risk
+    /// each holding the other's (`untangle`).
+    pub given_up: usize,
     /// Pieces joined afterwards by rest position.
     pub joined_by_rest: usize,
     /// Long fragments without a rest position put into a gap of the marker
@@ -131,8 +138,8 @@ impl fmt::Display for Summary {
         )?;
         writeln!(
             f,
-            "markers found: {} tips, from {} traces ({} ghosts never confirmed; pieces joined: {} from the neighbours' motion, {} handing over to their marker, {} by rest position, {} into a gap of their neighbourhood; {} given to another tip after the session; {} swaps undone where two markers passed close)",
-            self.tips, self.traces, self.ghosts, self.joined_on_line, self.adopted, self.joined_by_rest, self.joined_into_gaps, self.rejoined, self.untangled
+            "markers found: {} tips, from {} traces ({} ghosts never confirmed; pieces joined: {} from the neighbours' motion, {} handing over to their marker, {} by rest position, {} into a gap of their neighbourhood; {} given to another tip after the session; {} swaps undone where two markers passed close, {} samples given up where they could not be told apart)",
+            self.tips, self.traces, self.ghosts, self.joined_on_line, self.adopted, self.joined_by_rest, self.joined_into_gaps, self.rejoined, self.untangled, self.given_up
         )?;
         let longest = self.dropped.first().map_or(String::new(), |d| {
             format!(
@@ -284,7 +291,12 @@ pub fn clean(
         max_pchip_s: cfg.max_pchip_s,
         neighbours: true,
     };
-    let pool: Vec<Trace> = loose.into_iter().chain(noise).collect();
+    let mut pool: Vec<Trace> = loose.into_iter().chain(noise).collect();
+    // Once every piece has its tip, the samples of two markers in frames
+    // where which was which cannot be told go: the tips' gaps there are
+    // filled, and `reclaim` does not take them back.
+    let given_up = untangle::give_up(&mut kept, &untangled.unsure)
+        + untangle::give_up(&mut pool, &untangled.unsure);
     let (reclaimed, gap_stats) =
         reclaim::reclaim(&mut kept, &pool, &timeline, settings, cfg.noise_mm / 1000.0);
     drop(pool);
@@ -303,7 +315,8 @@ pub fn clean(
         ghosts: n_ghosts,
         joined_on_line,
         adopted,
-        untangled,
+        untangled: untangled.places,
+        given_up,
         joined_by_rest,
         joined_into_gaps,
         rejoined,
