@@ -67,8 +67,8 @@ pub struct Score {
     /// The error (m) of every sample a followed tip holds filled in a frame
     /// its own marker was measured: a sample given up where two markers
     /// passed within their noise of each other, or one left to another
-    /// tip. What giving up samples costs, which the wrong samples and the
-    /// fills of true gaps do not show.
+    /// tip or to none. What giving up samples costs, which the wrong
+    /// samples and the fills of true gaps do not show.
     pub own_filled: Vec<f64>,
 }
 
@@ -211,6 +211,8 @@ pub fn score(tips: &Tips, syn: &Synthetic) -> Score {
             .filter(|(f, _)| **f >= 0 && !hidden.contains(f))
             .map(|(&f, p)| (f, p.distance(truth.position(k, truth.time_of(f)))))
             .collect();
+        // In frame order: the map's order would change the sum's last bits
+        // from run to run.
         own.sort_by_key(|x| x.0);
         s.own_filled.extend(own.into_iter().map(|x| x.1));
         for g in truth.gaps.iter().filter(|g| g.tip == k) {
