@@ -384,34 +384,48 @@ impl Trace {
         })
     }
 
+    /// A trace numbered `id` holding `samples` (frame, position, source
+    /// id; in frame order, as [`Trace::push`] takes them); `None` when
+    /// there are none.
+    pub(crate) fn collected(
+        id: usize,
+        samples: impl IntoIterator<Item = (i64, DVec3, Option<i64>)>,
+    ) -> Option<Trace> {
+        let mut samples = samples.into_iter();
+        let (frame, p, source) = samples.next()?;
+        let mut out = Trace::new(id, frame, p, source);
+        for (frame, p, source) in samples {
+            out.push(frame, p, source);
+        }
+        Some(out)
+    }
+
     /// One trace from two pieces that may interleave in time (one fills a
     /// gap of the other); `None` if both are measured in the same frame.
     /// Keeps this trace's id.
     pub fn merged(&self, other: &Trace) -> Option<Trace> {
         let mut a = self.measurements_with_source().peekable();
         let mut b = other.measurements_with_source().peekable();
-        let mut out: Option<Trace> = None;
-        loop {
-            let next = match (a.peek(), b.peek()) {
-                (Some(x), Some(y)) if x.0 == y.0 => return None,
-                (Some(x), Some(y)) => {
-                    if x.0 < y.0 {
-                        a.next()
-                    } else {
-                        b.next()
-                    }
-                }
-                (Some(_), None) => a.next(),
-                (None, Some(_)) => b.next(),
-                (None, None) => break,
-            };
-            let Some((frame, p, source)) = next else {
-                break;
-            };
-            match out.as_mut() {
-                None => out = Some(Trace::new(self.id, frame, p, source)),
-                Some(t) => t.push(frame, p, source),
+        let mut clash = false;
+        let both = std::iter::from_fn(|| match (a.peek(), b.peek()) {
+            (Some(x), Some(y)) if x.0 == y.0 => {
+                clash = true;
+                None
             }
+            (Some(x), Some(y)) => {
+                if x.0 < y.0 {
+                    a.next()
+                } else {
+                    b.next()
+                }
+            }
+            (Some(_), None) => a.next(),
+            (None, Some(_)) => b.next(),
+            (None, None) => None,
+        });
+        let out = Trace::collected(self.id, both);
+        if clash {
+            return None;
         }
         let mut out = out?;
         out.pieces = self.pieces.clone();
@@ -426,17 +440,10 @@ impl Trace {
     /// This trace without its measurements in `frames` (sorted); `None`
     /// when none would be left.
     pub(crate) fn without(&self, frames: &[i64]) -> Option<Trace> {
-        let mut out: Option<Trace> = None;
-        for (frame, p, source) in self.measurements_with_source() {
-            if frames.binary_search(&frame).is_ok() {
-                continue;
-            }
-            match out.as_mut() {
-                None => out = Some(Trace::new(self.id, frame, p, source)),
-                Some(t) => t.push(frame, p, source),
-            }
-        }
-        let mut out = out?;
+        let rest = self
+            .measurements_with_source()
+            .filter(|(frame, _, _)| frames.binary_search(frame).is_err());
+        let mut out = Trace::collected(self.id, rest)?;
         out.pieces = self.pieces.clone();
         out.fills = self.fills.clone();
         Some(out)

@@ -295,8 +295,7 @@ pub fn clean(
     // Once every piece has its tip, the samples of two markers in frames
     // where which was which cannot be told go: the tips' gaps there are
     // filled, and `reclaim` does not take them back.
-    let given_up = untangle::give_up(&mut kept, &untangled.unsure)
-        + untangle::give_up(&mut pool, &untangled.unsure);
+    let given_up = untangle::give_up([&mut kept, &mut pool], &untangled.unsure);
     let (reclaimed, gap_stats) =
         reclaim::reclaim(&mut kept, &pool, &timeline, settings, cfg.noise_mm / 1000.0);
     drop(pool);

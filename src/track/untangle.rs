@@ -221,35 +221,65 @@ pub(crate) fn untangle(traces: &mut [Trace], one_second: i64) -> Untangled {
     }
 }
 
-/// Takes the `samples` ([`Untangled::unsure`]) out of whichever of
-/// `traces` holds them, and drops a trace left with none; returns how many
-/// were taken out.
-pub(crate) fn give_up(traces: &mut Vec<Trace>, samples: &[(i64, DVec3)]) -> usize {
+/// Takes the `samples` ([`Untangled::unsure`]) out of whichever trace of
+/// the `lists` holds them, and drops a trace left with none; returns how
+/// many were taken out.
+pub(crate) fn give_up<'a>(
+    lists: impl IntoIterator<Item = &'a mut Vec<Trace>>,
+    samples: &[(i64, DVec3)],
+) -> usize {
     if samples.is_empty() {
         return 0;
     }
-    let key = |f: i64, p: DVec3| (f, [p.x.to_bits(), p.y.to_bits(), p.z.to_bits()]);
-    let set: HashSet<(i64, [u64; 3])> = samples.iter().map(|&(f, p)| key(f, p)).collect();
+    let set: HashSet<SampleKey> = samples.iter().map(|&(f, p)| key(f, p)).collect();
+    let mut frames: Vec<i64> = samples.iter().map(|s| s.0).collect();
+    frames.sort_unstable();
+    frames.dedup();
     let mut taken = 0;
-    traces.retain_mut(|t| {
-        let frames: Vec<i64> = t
-            .measurements()
-            .filter(|&(f, p)| set.contains(&key(f, p)))
-            .map(|(f, _)| f)
-            .collect();
-        if frames.is_empty() {
-            return true;
-        }
-        taken += frames.len();
-        match t.without(&frames) {
-            Some(rest) => {
-                *t = rest;
-                true
-            }
-            None => false,
-        }
-    });
+    for traces in lists {
+        traces.retain_mut(|t| {
+            let (n, left) = take_out(t, &set, &frames);
+            taken += n;
+            left
+        });
+    }
     taken
+}
+
+/// A sample by its frame and the exact bits of its position: the store
+/// rounds positions once, so a sample read back after a trace is rebuilt
+/// has the same bits.
+type SampleKey = (i64, [u64; 3]);
+
+fn key(f: i64, p: DVec3) -> SampleKey {
+    (f, [p.x.to_bits(), p.y.to_bits(), p.z.to_bits()])
+}
+
+/// [`give_up`] on one trace: how many of its samples are in `set`
+/// (whose frames are `frames`, sorted), taken out, and whether anything
+/// of it is left. Only a trace measured in one of those frames is decoded
+/// (an hour's take holds millions of samples and gives up a few).
+fn take_out(t: &mut Trace, set: &HashSet<SampleKey>, frames: &[i64]) -> (usize, bool) {
+    let from = frames.partition_point(|&f| f < t.first_frame());
+    let to = frames.partition_point(|&f| f <= t.last_frame());
+    if !frames[from..to].iter().any(|&f| t.is_measured(f)) {
+        return (0, true);
+    }
+    let mine: Vec<i64> = t
+        .measurements()
+        .filter(|&(f, p)| set.contains(&key(f, p)))
+        .map(|(f, _)| f)
+        .collect();
+    if mine.is_empty() {
+        return (0, true);
+    }
+    match t.without(&mine) {
+        Some(rest) => {
+            *t = rest;
+            (mine.len(), true)
+        }
+        None => (mine.len(), false),
+    }
 }
 
 /// The vector's curves on each side of a possible swap, and how they meet.
@@ -714,24 +744,22 @@ fn apply(traces: &mut [Trace], swaps: &mut Vec<Swap>) {
         }
     }
     for &k in cuts.keys() {
-        let id = traces[k].id;
-        let mut out: Option<Trace> = None;
+        let mut keys = Vec::new();
         let mut at = Some((k, 0));
         while let Some(key) = at {
-            for &(f, p, src) in pieces.get(&key).map_or(&[][..], Vec::as_slice) {
-                match out.as_mut() {
-                    Some(t) => t.push(f, p, src),
-                    None => out = Some(Trace::new(id, f, p, src)),
-                }
-            }
+            keys.push(key);
             at = next
                 .get(&key)
                 .copied()
                 .or_else(|| (key.1 < cuts[&key.0].len()).then_some((key.0, key.1 + 1)));
         }
+        let samples = keys
+            .iter()
+            .flat_map(|key| pieces.get(key).map_or(&[][..], Vec::as_slice))
+            .copied();
         // Every piece keeps samples: a swap needs both traces measured on
         // each side of it.
-        if let Some(mut t) = out {
+        if let Some(mut t) = Trace::collected(traces[k].id, samples) {
             t.seal();
             traces[k] = t;
         }
@@ -883,7 +911,7 @@ mod tests {
                 assert_eq!(frames.iter().filter(|&&g| g == f).count(), 2);
             }
             let mut traces = traces.to_vec();
-            assert_eq!(give_up(&mut traces, &found.unsure), frames.len());
+            assert_eq!(give_up([&mut traces], &found.unsure), frames.len());
             for t in &traces {
                 assert_eq!(t.measured(), 120 - frames.len() / 2, "seed {seed}");
                 assert!(frames.iter().all(|&f| !t.is_measured(f)));
