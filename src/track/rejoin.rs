@@ -276,7 +276,9 @@ const SPLIT_MISS: f64 = 1.5;
 const KEEP_TIGHT_S: f64 = 0.05;
 /// A gap of at least this long (s) whose path carries across is cut all
 /// the same where another marker meets it ([`meets`]): two tips passing
-/// close move alike, so the path of one carries across to the other.
+/// close move alike, so the path of one carries across to the other. A
+/// shorter gap, only where the meeting run's line reaches the trace
+/// ([`MEET_SHORT_LINE`]).
 /// On `all` seed 216 one trace held tip 9's marker, was not measured for
 /// 18 frames while tip 69's marker passed 10 mm from it, and went on with
 /// tip 69's marker, whose own trace had ended 3 frames before the gap
@@ -290,6 +292,25 @@ const KEEP_TIGHT_S: f64 = 0.05;
 /// 1 776 (6 frames); 360–419 816 / 1 331 → 811 / 1 135 (6 frames), no
 /// seed lost. Cutting every gap over 0.05 s, met or not: 2 089 / 4 500.
 const MEET_GAP_S: f64 = 0.025;
+/// A gap shorter than [`MEET_GAP_S`] is cut where another marker meets
+/// it only when that marker's run, its straight line carried across the
+/// gap, reaches where the trace went on (or left off) within this (m):
+/// the [`JUMP_LINE`] a step may lie off a piece's own line. Across so
+/// few frames two close markers' paths both carry, and a run merely near
+/// in place (within [`MEET`]) was no evidence: on `all` seed 279 a cut
+/// across 2 frames, where a run had begun 13 mm from the trace, put 14
+/// samples of tip 38 in tip 67 (0 before). A run whose line reaches the
+/// trace is: on `all` seed 140 tip 61's trace went on with tip 52's
+/// marker across 4 frames, 1 mm from it, while its own marker came back
+/// 7 frames later as a trace whose line reached 7.5 mm from where it had
+/// left off (43 samples of tip 52 in tip 61, and 135 of tip 61 in no
+/// tip); on held-out seed 301 a run that began 16 frames after a gap of
+/// 2, its line 5.5 mm from the trace (31 / 87 → 1 / 26). Such a run
+/// meets the gap as a near one does (a hard cut), however far in time up
+/// to [`CUT_S`]: as a [`Meet::Far`], the piece cut off stayed with the
+/// tip the tracker gave the longer (held-out seed 338 under `noise_mm`
+/// 1.5: 22 samples of tip 29 in tip 67, none cut hard).
+const MEET_SHORT_LINE: f64 = JUMP_LINE;
 /// How near (m) another trace's last sample before a gap is to where the
 /// trace resumed, or its first after one to where the trace left off
 /// (the positions of [`RunEnd`]s): wide enough for
@@ -798,7 +819,8 @@ enum Meet {
     /// Only a run ending or beginning farther from the gap in time, up to
     /// [`CUT_S`], whose straight line, carried to the other side of the
     /// gap, reaches within `MEET` of the trace there: a marker hidden
-    /// near the gap for longer than the trace was.
+    /// near the gap for longer than the trace was. Never across a gap
+    /// shorter than [`MEET_GAP_S`] ([`MEET_SHORT_LINE`]).
     ///
     /// On `all` seed 389 tip 9's marker, hidden for 14 frames, went on as
     /// tip 68's, hidden for 30 frames 6 mm from it; tip 68's run had
@@ -815,11 +837,11 @@ enum Meet {
 /// `(f1, p1)`, and how ([`Meet`]): another trace's run ends near `p1`
 /// before `f1` (the trace may have gone on with that marker), or one
 /// begins near `p0` after `f0` (its own marker may have gone on there).
+/// Across a gap shorter than [`MEET_GAP_S`], only a run whose line
+/// reaches the trace within [`MEET_SHORT_LINE`] meets it.
 fn meets(cuts: &Cuts<'_>, k: usize, (f0, p0): (i64, DVec3), (f1, p1): (i64, DVec3)) -> Meet {
-    if f1 - f0 < cuts.meet_gap {
-        return Meet::No;
-    }
     let (w, far) = (cuts.meet_window, cuts.long.max(cuts.meet_window));
+    let short = f1 - f0 < cuts.meet_gap;
     let first = cuts.ends.partition_point(|e| e.frame < f0 - far);
     let mut meet = Meet::No;
     for e in cuts.ends[first..]
@@ -830,16 +852,23 @@ fn meets(cuts: &Cuts<'_>, k: usize, (f0, p0): (i64, DVec3), (f1, p1): (i64, DVec
         let Some(at) = handover(e, (f0, p0), (f1, p1)) else {
             continue;
         };
+        let line = e.line.reach(at.0 as f64).distance(at.1);
         // Whether it ended or began near the gap in time.
         let near = if e.begins {
             e.frame <= f1 + w
         } else {
             e.frame >= f0 - w
         };
+        if short {
+            if line <= MEET_SHORT_LINE && (!near || e.at.distance(at.1) <= MEET) {
+                return Meet::Near;
+            }
+            continue;
+        }
         if near && e.at.distance(at.1) <= MEET {
             return Meet::Near;
         }
-        if !near && e.line.reach(at.0 as f64).distance(at.1) <= MEET {
+        if !near && line <= MEET {
             meet = Meet::Far;
         }
     }
@@ -3860,12 +3889,14 @@ mod tests {
     /// within 20 mm of where it resumed shortly before (it may have gone
     /// on with that marker: seed 216), or another began near where it
     /// left off shortly after; it stays whole when the other marker was
-    /// farther, when the trace meets only itself, and across a gap of 4
-    /// frames. A run that ended or began farther from the gap in time, up
-    /// to the 24 frames of a long gap, meets it where its line carried
-    /// across reaches the trace ([`Meet::Far`]), and the piece cut off is
-    /// marked soft; not where its line goes elsewhere, nor beyond the 24
-    /// frames.
+    /// farther, and when the trace meets only itself. A run that ended or
+    /// began farther from the gap in time, up to the 24 frames of a long
+    /// gap, meets it where its line carried across reaches the trace
+    /// ([`Meet::Far`]), and the piece cut off is marked soft; not where
+    /// its line goes elsewhere, nor beyond the 24 frames. Across a gap of
+    /// 4 frames only a run whose line reaches the trace meets it, near in
+    /// time or not, and it cuts hard ([`MEET_SHORT_LINE`]: seeds 140, 279
+    /// and 338).
     #[test]
     fn a_trace_is_cut_where_another_marker_meets_its_gap() {
         let path = |f: i64| DVec3::new(0.001 * f as f64, 0.0, 0.0);
@@ -3891,13 +3922,13 @@ mod tests {
         // Far from the gap: a marker that ended at frame 5, 16 frames
         // before the gap, moving along beside the path 10 mm from it (its
         // last 8 samples' line), and one standing still there.
-        let moving = |frame: i64, begins: bool| {
+        let moving_at = |frame: i64, begins: bool, mm: f64| {
             let frames = if begins {
                 frame..=frame + 7
             } else {
                 frame - 7..=frame
             };
-            let run: Vec<(i64, DVec3)> = frames.map(|f| (f, path(f) + aside(10.0))).collect();
+            let run: Vec<(i64, DVec3)> = frames.map(|f| (f, path(f) + aside(mm))).collect();
             let line = End::fit(&run);
             RunEnd {
                 frame,
@@ -3907,6 +3938,7 @@ mod tests {
                 line,
             }
         };
+        let moving = |frame: i64, begins: bool| moving_at(frame, begins, 10.0);
         let far = cut_among(hidden(22, 40), path, &[moving(5, false)]);
         assert_eq!(spans(&far), [(1, 21), (40, 79)]);
         assert_eq!((far[0].soft, far[1].soft), (false, true));
@@ -3921,8 +3953,28 @@ mod tests {
             with(&[end(37, path(40) + aside(10.0), 0, false)]),
             [(1, 79)]
         );
-        let short = cut_among(hidden(22, 26), path, &[end(24, path(26), 1, false)]);
-        assert_eq!(spans(&short), [(1, 79)], "a gap of 4 frames carries");
+        // Across a gap of 4 frames both paths carry: only a run whose
+        // line reaches the trace within 8 mm meets it, not one 10 mm
+        // aside however near, nor one ended there that stood still
+        // elsewhere.
+        let short = |ends: &[RunEnd]| spans(&cut_among(hidden(22, 26), path, ends));
+        assert_eq!(short(&[moving_at(24, false, 10.0)]), [(1, 79)]);
+        assert_eq!(
+            short(&[end(24, path(14) + aside(3.0), 1, false)]),
+            [(1, 79)]
+        );
+        assert_eq!(short(&[moving_at(24, false, 5.0)]), [(1, 21), (26, 79)]);
+        assert_eq!(short(&[moving_at(23, true, 5.0)]), [(1, 21), (26, 79)]);
+        // A run that began 16 frames after the gap, its line reaching
+        // back 5 mm from where the trace left off, meets it as a near
+        // one does.
+        let later = cut_among(hidden(22, 26), path, &[moving_at(42, true, 5.0)]);
+        assert_eq!(spans(&later), [(1, 21), (26, 79)]);
+        assert!(
+            !later[1].soft,
+            "across a short gap a line that reaches cuts hard"
+        );
+        assert_eq!(short(&[moving_at(42, true, 10.0)]), [(1, 79)]);
     }
 
     /// Two markers converging, 7 mm apart: one trace held marker A and,
