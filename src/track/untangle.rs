@@ -776,11 +776,7 @@ mod tests {
     /// (+30, `miss`, 0) mm, both under 1 mm of noise. The tracker's traces
     /// swap the markers from frame `swap` on (none: they follow them).
     fn passing(miss: f64, swap: Option<i64>, seed: u64) -> (Vec<Trace>, Vec<[DVec3; 2]>) {
-        let mut rng = Rng::new(seed);
-        let mut noise = || DVec3::new(rng.normal(), rng.normal(), rng.normal()) * 0.001;
-        let mut truth = Vec::new();
-        let mut traces: Vec<Trace> = Vec::new();
-        for f in 0..120i64 {
+        let place = |f: i64| {
             let t = f as f64 / 240.0;
             let sway = DVec3::new(
                 0.08 * (std::f64::consts::TAU * 1.5 * t).sin(),
@@ -788,22 +784,38 @@ mod tests {
                 0.02 * t,
             );
             let rel = DVec3::new(-0.03 + 0.06 * f as f64 / 119.0, miss, 0.0);
-            let pa = DVec3::new(1.0, 0.5, 2.0) + sway + rel / 2.0 + noise();
-            let pb = DVec3::new(1.0, 0.5, 2.0) + sway - rel / 2.0 + noise();
-            truth.push([pa, pb]);
-            let (x, y) = if swap.is_some_and(|s| f >= s) {
-                (pb, pa)
-            } else {
-                (pa, pb)
-            };
-            if traces.is_empty() {
-                traces.push(Trace::new(0, f, x, Some(0)));
-                traces.push(Trace::new(1, f, y, Some(1)));
-            } else {
-                traces[0].push(f, x, Some(0));
-                traces[1].push(f, y, Some(1));
-            }
-        }
+            let at = DVec3::new(1.0, 0.5, 2.0) + sway;
+            (at + rel / 2.0, at - rel / 2.0)
+        };
+        two_markers(seed, place, |f| swap.is_some_and(|s| f >= s))
+    }
+
+    /// Two markers over 120 frames at 240 Hz, at `place(f)` plus 1 mm of
+    /// noise per axis drawn from `seed`, and the two traces the tracker
+    /// followed them by, each holding the other's marker in the frames
+    /// where `swapped(f)`; with the true positions.
+    fn two_markers(
+        seed: u64,
+        place: impl Fn(i64) -> (DVec3, DVec3),
+        swapped: impl Fn(i64) -> bool,
+    ) -> (Vec<Trace>, Vec<[DVec3; 2]>) {
+        let mut rng = Rng::new(seed);
+        let mut noise = || DVec3::new(rng.normal(), rng.normal(), rng.normal()) * 0.001;
+        let truth: Vec<[DVec3; 2]> = (0..120i64)
+            .map(|f| {
+                let (a, b) = place(f);
+                [a + noise(), b + noise()]
+            })
+            .collect();
+        let traces = (0..2)
+            .map(|k| {
+                let held = truth.iter().zip(0i64..).map(|(pair, f)| {
+                    let other = usize::from(swapped(f));
+                    (f, pair[k ^ other], Some(k as i64))
+                });
+                Trace::collected(k, held).expect("120 frames")
+            })
+            .collect();
         (traces, truth)
     }
 
@@ -927,33 +939,13 @@ mod tests {
         // Two markers 5 mm apart on one twig for the whole 0.5 s, longer
         // than any passing: the tracker exchanges them at frames 40 and
         // 80–81.
-        let mut rng = Rng::new(16);
-        let mut noise = || DVec3::new(rng.normal(), rng.normal(), rng.normal()) * 0.001;
-        let mut truth = Vec::new();
-        let (mut x, mut y): (Option<Trace>, Option<Trace>) = (None, None);
-        for f in 0..120i64 {
+        let place = |f: i64| {
             let t = f as f64 / 240.0;
             let sway = DVec3::new(0.08 * (std::f64::consts::TAU * 1.5 * t).sin(), 0.0, 0.0);
-            let base = DVec3::new(1.0, 0.5, 2.0) + sway;
-            let (pa, pb) = (base + noise(), base + DVec3::new(0.0, 0.005, 0.0) + noise());
-            truth.push([pa, pb]);
-            let (p, q) = if [40, 80, 81].contains(&f) {
-                (pb, pa)
-            } else {
-                (pa, pb)
-            };
-            match (x.as_mut(), y.as_mut()) {
-                (Some(x), Some(y)) => {
-                    x.push(f, p, Some(0));
-                    y.push(f, q, Some(1));
-                }
-                _ => {
-                    x = Some(Trace::new(0, f, p, Some(0)));
-                    y = Some(Trace::new(1, f, q, Some(1)));
-                }
-            }
-        }
-        let mut traces: Vec<Trace> = x.into_iter().chain(y).collect();
+            let at = DVec3::new(1.0, 0.5, 2.0) + sway;
+            (at, at + DVec3::new(0.0, 0.005, 0.0))
+        };
+        let (mut traces, truth) = two_markers(16, place, |f| [40, 80, 81].contains(&f));
         assert_eq!(wrong(&traces, &truth), 6);
         assert_eq!(untangle(&mut traces, 240).places, 1);
         assert_eq!(wrong(&traces, &truth), 0);

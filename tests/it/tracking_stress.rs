@@ -22,13 +22,28 @@ fn sweep_stress(name: &str, seed: u64) -> stress::Stress {
 /// truth.
 fn scored(opts: &sim::SynthOptions) -> score::Score {
     let syn = sim::generate(opts).unwrap();
-    let cfg = TrackingSettings::default();
-    let mut tracker = Tracker::new(&cfg, Some(opts.frame_rate));
+    let noise_mm = TrackingSettings::default().noise_mm;
+    scored_under(&syn, opts.frame_rate, noise_mm).0
+}
+
+/// Session `syn` (at `frame_rate`) tracked and cleaned as `replay` does
+/// with `tracking.noise_mm` set to `noise_mm`, scored against its truth,
+/// with the cleaning's summary.
+fn scored_under(
+    syn: &sim::Synthetic,
+    frame_rate: f64,
+    noise_mm: f64,
+) -> (score::Score, track::Summary) {
+    let cfg = TrackingSettings {
+        noise_mm,
+        ..TrackingSettings::default()
+    };
+    let mut tracker = Tracker::new(&cfg, Some(frame_rate));
     for f in &syn.frames {
         tracker.push(f);
     }
-    let (tips, _) = track::clean(tracker.finish(), &cfg, "sim", opts.frame_rate);
-    score::score(&tips, &syn)
+    let (tips, summary) = track::clean(tracker.finish(), &cfg, "sim", frame_rate);
+    (score::score(&tips, syn), summary)
 }
 
 /// Prints session `name`'s score and asserts the exact tip count and one
@@ -335,16 +350,7 @@ fn samples_too_close_to_tell_apart_are_given_up_not_exchanged() {
     let st = sweep_stress("all", 101);
     let syn = sim::generate(&st.options).unwrap();
     for noise_mm in [TrackingSettings::default().noise_mm, 1.5] {
-        let cfg = TrackingSettings {
-            noise_mm,
-            ..TrackingSettings::default()
-        };
-        let mut tracker = Tracker::new(&cfg, Some(st.options.frame_rate));
-        for f in &syn.frames {
-            tracker.push(f);
-        }
-        let (tips, summary) = track::clean(tracker.finish(), &cfg, "sim", st.options.frame_rate);
-        let s = score::score(&tips, &syn);
+        let (s, summary) = scored_under(&syn, st.options.frame_rate, noise_mm);
         let name = format!("all, seed 101, noise_mm {noise_mm}");
         one_tip_per_tip(&name, &s);
         assert_eq!(s.wrong_samples, 0, "{name}: samples of another marker");
@@ -373,16 +379,7 @@ fn a_trace_going_on_with_a_passing_marker_across_a_short_gap_is_cut_there() {
     for (seed, noise_mm) in [(140, TrackingSettings::default().noise_mm), (338, 1.5)] {
         let st = sweep_stress("all", seed);
         let syn = sim::generate(&st.options).unwrap();
-        let cfg = TrackingSettings {
-            noise_mm,
-            ..TrackingSettings::default()
-        };
-        let mut tracker = Tracker::new(&cfg, Some(st.options.frame_rate));
-        for f in &syn.frames {
-            tracker.push(f);
-        }
-        let (tips, _) = track::clean(tracker.finish(), &cfg, "sim", st.options.frame_rate);
-        let s = score::score(&tips, &syn);
+        let (s, _) = scored_under(&syn, st.options.frame_rate, noise_mm);
         let name = format!("all, seed {seed}, noise_mm {noise_mm}");
         one_tip_per_tip(&name, &s);
         assert_eq!(s.wrong_samples, 0, "{name}: samples of another marker");
