@@ -2212,9 +2212,9 @@ const EXTEND: usize = 3;
 /// marker, 57 samples, mean 4.6 in tip 69's identity and 13.1 at its own
 /// tip; tip 69's, 12 samples, 16.0 in tip 33's and 4.7 at its own; traded
 /// back, the means sum to less and the cost with the seams is 38.2 lower:
-/// 75 → 0 wrong samples). Wrong samples,
-/// `all` / `noise_mm` 1.5, the 306 sweep seeds: 609 / 1 701 → 534 / 1 686,
-/// no seed lost (316: 75 → 0; 399 under `noise_mm` 1.5: 15 → 0).
+/// 75 → 0 wrong samples). Wrong samples, `all` / `noise_mm` 1.5, the 306
+/// sweep seeds, this alone: 609 / 1 701 → 534 / 1 686, no seed lost (316:
+/// 75 → 0; 399 under `noise_mm` 1.5: 15 → 0).
 ///
 /// A swap need not begin and end with the stretch that overlaps across
 /// the two tips: a piece of one identity just before or after it, which
@@ -2545,9 +2545,9 @@ fn choose(
         // has no piece to seam to on one side and fits on the other (seed
         // 126: a piece of 63 samples moved on a lead of 2.4 that way cost
         // 240 wrong samples). Wrong samples, `all` / `noise_mm` 1.5, the
-        // 306 sweep seeds: 609 / 1 701 → 488 / 1 451, no seed lost (178:
-        // 38 / 15 → 7 / 0; 316: 75 / 57 → 0 / 0; 266 under `noise_mm`
-        // 1.5: 54 → 0).
+        // 306 sweep seeds, this alone: 609 / 1 701 → 488 / 1 451, no seed
+        // lost (178: 38 / 15 → 7 / 0; 316: 75 / 57 → 0 / 0; 266 under
+        // `noise_mm` 1.5: 54 → 0).
         let spliced_elsewhere = best.is_some_and(|(tb, mb, b)| {
             b != w
                 && mb <= REJECT
@@ -4949,8 +4949,9 @@ mod tests {
             (traded(&pieces, &anchors, &tips)[3..5].to_vec(), means)
         };
         // Tip 0's marker drifted 35 mm towards tip 1: it fits there
-        // (where it is), loosely at its own tip. Tip 1's marker sits on
-        // its offset. Means where they are 1.0 and 19.8, after 12.0 and 0.
+        // (where it is) and only loosely at its own tip. Tip 1's marker
+        // sits on its offset, and fits tip 0 not at all: the means summed
+        // fall with the trade.
         let (owner, [[x_is, x_own], [y_is, y_own]]) = run(DVec3::new(0.035, 0.0, 0.0));
         assert!(
             x_is <= FIT && FIT < x_own && x_own <= LOOSE,
