@@ -2492,6 +2492,8 @@ fn choose(
     // of 27–50 samples).
     // Nor does it go to another tip it sits still at.
     let was = was.filter(|&w| !still(w));
+    // The tracker's tip's seams, which several of the judgements below ask.
+    let was_seams = was.map(seams).unwrap_or([None, None]);
     let moving: Vec<(f64, f64, usize)> = costs.iter().copied().filter(|c| !still(c.2)).collect();
     let costs = &moving[..];
     let mut sorted = costs.to_vec();
@@ -2533,7 +2535,7 @@ fn choose(
         // (152: 14 / 34 → 2 / 22; 235: 8 → 0; 373: 7 → 0).
         let lead = CLEAR * (1.0 - mean / FIT);
         let seams_fit = total - mean <= REJECT;
-        let held = total - mean <= LOOSE || !torn(&seams(w));
+        let held = total - mean <= LOOSE || !torn(&was_seams);
         // Nor does a fitting mean keep a piece another tip continues on
         // both sides ([`spliced`]) while one of its seams at the tracker's
         // tip misses, where the other tip's whole cost is lower and its
@@ -2553,7 +2555,7 @@ fn choose(
                 && mb <= REJECT
                 && tb < total
                 && spliced(&seams(b))
-                && seams(w).iter().flatten().any(|&v| v > 0.0)
+                && was_seams.iter().flatten().any(|&v| v > 0.0)
         });
         if spliced_elsewhere {
             return best.map(|b| b.2);
@@ -2613,7 +2615,7 @@ fn choose(
         // lost (396: 45 → 0; under `noise_mm` 1.5, 360: 41 → 6 and 301:
         // 104 → 91).
         let blind = mine.is_some_and(|(total, mean, w)| {
-            w != b && mean > FIT && tb < total && seamless(&seams(w))
+            w != b && mean > FIT && tb < total && seamless(&was_seams)
         });
         if lined && blind && mb <= LOOSE && tb <= FIT && tb < mb {
             return Some(b);
@@ -2679,7 +2681,7 @@ fn choose(
             // 59's identity, mean 25.9, 138.0 with the seams, both
             // missing). Wrong samples, `all` / `noise_mm` 1.5, over the
             // 306 seeds: 1 916 / 3 123 → 1 820 / 2 961, no seed lost.
-            let kept_alone = alone && mean <= LOOSE && (total - mean <= LOOSE || !torn(&seams(w)));
+            let kept_alone = alone && mean <= LOOSE && (total - mean <= LOOSE || !torn(&was_seams));
             let near = (total <= LOOSE || kept_alone) && fits(mean);
             let unseen = mean > FIT && hidden_nearer(w);
             (near && !unseen && !others.any(|c| beaten(total, mean, c))).then_some(w)

@@ -362,6 +362,21 @@ fn samples_too_close_to_tell_apart_are_given_up_not_exchanged() {
     }
 }
 
+/// Runs the `all` stress of each (seed, `noise_mm`) and asserts what a
+/// mended case must show: one output tip per true tip, no sample of
+/// another marker in any tip, and no fill bridging two markers.
+fn held_under_all(cases: &[(u64, f64)]) {
+    for &(seed, noise_mm) in cases {
+        let st = sweep_stress("all", seed);
+        let syn = sim::generate(&st.options).unwrap();
+        let (s, _) = scored_under(&syn, st.options.frame_rate, noise_mm);
+        let name = format!("all, seed {seed}, noise_mm {noise_mm}");
+        one_tip_per_tip(&name, &s);
+        assert_eq!(s.wrong_samples, 0, "{name}: samples of another marker");
+        assert_eq!(s.bridged, 0, "{name}: fills bridging two markers");
+    }
+}
+
 /// Two tips passing 1 mm apart under every stress at once (`all`, seed
 /// 140): tip 61's marker was hidden for 3 frames as tip 52's came back
 /// beside it, and the tracker went on with tip 52's marker in tip 61's
@@ -376,15 +391,7 @@ fn samples_too_close_to_tell_apart_are_given_up_not_exchanged() {
 /// one (22 samples of tip 29 in tip 67 otherwise).
 #[test]
 fn a_trace_going_on_with_a_passing_marker_across_a_short_gap_is_cut_there() {
-    for (seed, noise_mm) in [(140, TrackingSettings::default().noise_mm), (338, 1.5)] {
-        let st = sweep_stress("all", seed);
-        let syn = sim::generate(&st.options).unwrap();
-        let (s, _) = scored_under(&syn, st.options.frame_rate, noise_mm);
-        let name = format!("all, seed {seed}, noise_mm {noise_mm}");
-        one_tip_per_tip(&name, &s);
-        assert_eq!(s.wrong_samples, 0, "{name}: samples of another marker");
-        assert_eq!(s.bridged, 0, "{name}: fills bridging two markers");
-    }
+    held_under_all(&[(140, TrackingSettings::default().noise_mm), (338, 1.5)]);
 }
 
 /// In a gust a tip's offset from its neighbours drifts away from the one
@@ -398,13 +405,5 @@ fn a_trace_going_on_with_a_passing_marker_across_a_short_gap_is_cut_there() {
 /// 15 samples of tip 10 in tip 63's identity, its seams there missing.
 #[test]
 fn a_tip_whose_offset_drifted_gets_its_marker_back_by_its_seams() {
-    for (seed, noise_mm) in [(316, TrackingSettings::default().noise_mm), (178, 1.5)] {
-        let st = sweep_stress("all", seed);
-        let syn = sim::generate(&st.options).unwrap();
-        let (s, _) = scored_under(&syn, st.options.frame_rate, noise_mm);
-        let name = format!("all, seed {seed}, noise_mm {noise_mm}");
-        one_tip_per_tip(&name, &s);
-        assert_eq!(s.wrong_samples, 0, "{name}: samples of another marker");
-        assert_eq!(s.bridged, 0, "{name}: fills bridging two markers");
-    }
+    held_under_all(&[(316, TrackingSettings::default().noise_mm), (178, 1.5)]);
 }
