@@ -2048,6 +2048,9 @@ struct Swap {
     tip: usize,
     /// Each piece in its way and the tip it goes to.
     moves: Vec<(usize, usize)>,
+    /// Set where only the pieces in the way move and the piece stays:
+    /// at the tip it would cost more than where it is.
+    evict: bool,
 }
 
 /// Pieces one at a time cannot undo a swap at a tip alone on its limb:
@@ -2073,6 +2076,18 @@ struct Swap {
 /// [`FIT`] on the mean there, `all` seeds 103–109 / 124–130 / 138–144 kept
 /// 143 / 566 / 539 wrong samples, with this one 50 / 191 / 183, and no set
 /// got worse). The tip with the largest gain wins.
+///
+/// The piece itself goes only where it costs no more with its seams than
+/// where it was: what the pieces in its way gain by leaving does not buy
+/// it a worse place. Where it would lose, they go alone (gaining
+/// [`CLEAR`], none to the piece's own tip) and it stays (`all` seed 274,
+/// `noise_mm` 1.5: tip 67's marker, 239 samples over 1.3 s, in the
+/// identity of tip 59, alone on its limb, offset spreading 45 mm; moving
+/// it out brought pieces of tips 16 and 44, 35 and 46 samples, into tip
+/// 59's gap at costs with the seams of 1.2 and 243, against −0.4 and −5.8
+/// where they were). Wrong samples, `all` / `noise_mm` 1.5, the
+/// 306 sweep seeds: 414 / 1 383 → 414 / 1 302 (274: 228 → 147), no other
+/// seed changed.
 fn swaps(
     pieces: &[Piece],
     anchors: &[Anchor],
@@ -2127,11 +2142,13 @@ fn swaps(
             {
                 continue;
             }
-            let mut gain = before - CLEAR - (mq + seams(pieces, &others, q, one_second));
+            let at_a = mq + seams(pieces, &others, q, one_second);
+            // What the pieces in the way gain by going where they fit.
+            let mut out = 0.0;
             let mut moves = Vec::new();
             for &j in &blockers {
                 let Some(mj) = cost(pieces, anchors, field, j, a, one_second) else {
-                    gain = f64::NEG_INFINITY;
+                    out = f64::NEG_INFINITY;
                     break;
                 };
                 let here = mj + seams(pieces, &others, j, one_second);
@@ -2141,17 +2158,27 @@ fn swaps(
                     .filter(|c| c.0 <= LOOSE)
                     .min_by(|x, y| x.0.total_cmp(&y.0).then(x.2.cmp(&y.2)));
                 let Some((tb, _, b)) = there else {
-                    gain = f64::NEG_INFINITY;
+                    out = f64::NEG_INFINITY;
                     break;
                 };
-                gain += here - tb;
+                out += here - tb;
                 moves.push((j, b));
             }
+            // The piece goes only where it costs no more than where it
+            // was: what the pieces in its way gain does not buy it a worse
+            // place. Where it would lose, they go alone and it stays
+            // (not where one of them would go to its tip, in its span).
+            let evict = at_a > before;
+            if evict && moves.iter().any(|m| Some(m.1) == held) {
+                continue;
+            }
+            let gain = out - CLEAR + if evict { 0.0 } else { before - at_a };
             if gain >= 0.0 && best.as_ref().is_none_or(|x| gain > x.gain) {
                 best = Some(Swap {
                     gain,
                     tip: a,
                     moves,
+                    evict,
                 });
             }
         }
@@ -2159,13 +2186,15 @@ fn swaps(
             gain,
             tip: a,
             moves,
+            evict,
         }) = best
         {
             if debug {
                 eprintln!(
-                    "swap: piece of trace {} {:?} from {held:?} to a{a}, gain {gain:.1}, moving {:?}",
+                    "swap: piece of trace {} {:?} from {held:?} {} a{a}, gain {gain:.1}, moving {:?}",
                     pieces[q].trace.id,
                     sq,
+                    if evict { "stays, out of" } else { "to" },
                     moves
                         .iter()
                         .map(|&(j, b)| (pieces[j].span(), b))
@@ -2178,8 +2207,14 @@ fn swaps(
                 taken[b].push((sj.0, sj.1, j));
                 owner[j] = Some(b);
             }
-            taken[a].push((sq.0, sq.1, q));
-            owner[q] = Some(a);
+            if evict {
+                if let Some(c) = held {
+                    taken[c].push((sq.0, sq.1, q));
+                }
+            } else {
+                taken[a].push((sq.0, sq.1, q));
+                owner[q] = Some(a);
+            }
         } else if let Some(c) = held {
             taken[c].push((sq.0, sq.1, q));
         }
@@ -4827,6 +4862,76 @@ mod tests {
         let field = Field::joined(pieces, anchors, 12);
         trades(pieces, anchors, &field, &order, &mut owner, &mut taken, 240);
         owner
+    }
+
+    /// [`swaps`] from where `tips` put each piece (`None`: no tip), each
+    /// piece from `from` on weighed in turn.
+    fn swapped(
+        pieces: &[Piece],
+        anchors: &[Anchor],
+        tips: &[Option<usize>],
+        from: usize,
+    ) -> Vec<Option<usize>> {
+        let mut owner = tips.to_vec();
+        let mut taken = vec![Vec::new(); anchors.len()];
+        for (i, t) in tips.iter().enumerate() {
+            if let Some(t) = *t {
+                let (s, e) = pieces[i].span();
+                taken[t].push((s, e, i));
+            }
+        }
+        let order: Vec<usize> = (from..pieces.len()).collect();
+        let field = Field::joined(pieces, anchors, 12);
+        swaps(pieces, anchors, &field, &order, &mut owner, &mut taken, 240);
+        owner
+    }
+
+    /// A swap moves a piece to a tip only where it costs no more there
+    /// than where it was: the pieces in its way that belong elsewhere go
+    /// there all the same, and the piece stays. Tip 0 (alone on its limb,
+    /// its offset spreading 80 mm) holds tip 1's marker for 1 s between
+    /// pieces of its own; tip 3's marker, 45 mm on its other side, fits
+    /// tip 0's mean as loosely, and stays with tip 3, whose pieces it
+    /// continues (`all` seed 274, `noise_mm` 1.5: 35 and 46
+    /// samples of tips 16 and 44 moved into tip 59's gap that way, with
+    /// seams of 1.2 and 243 there).
+    #[test]
+    fn a_swap_moves_what_stands_in_its_way_without_a_piece_that_loses() {
+        let ([a, b, n], mut anchors) = limb_pair();
+        let c = DVec3::new(-0.045, 0.0, 0.0);
+        anchors.push(anchor(3, c, vec![(2, 1.0)]));
+        anchors[0].spread = 0.08;
+        let mut pieces = vec![
+            resting(0, a, 96),
+            resting(1, b, 96),
+            resting(2, n, 1200),
+            resting(3, c, 96),
+        ];
+        // Measured in every frame, for the seams' lines.
+        let every = |frames: std::ops::RangeInclusive<i64>, at: DVec3| {
+            piece(0, frames.map(|f| (f, at + sway(f))).collect())
+        };
+        // Each tip's own marker before and after the second from 480 to
+        // 720, tip 3's close round it.
+        for (at, until, after) in [(a, 456, 744), (b, 456, 744), (c, 500, 700)] {
+            pieces.push(every(108..=until, at));
+            pieces.push(every(after..=1200, at));
+        }
+        // Tip 3's marker in its own identity, and tip 1's in tip 0's.
+        pieces.push(every(504..=696, c));
+        pieces.push(every(480..=720, b));
+        let mut tips: Vec<Option<usize>> = [0, 1, 2, 3, 0, 0, 1, 1, 3, 3, 3, 0]
+            .into_iter()
+            .map(Some)
+            .collect();
+        let owner = swapped(&pieces, &anchors, &tips, 10);
+        assert_eq!(owner[11], Some(1), "tip 1's marker back at tip 1");
+        assert_eq!(owner[10], Some(3), "tip 3's marker stays");
+        // Left with no tip, tip 0's own marker goes back in its gap.
+        tips[10] = None;
+        pieces[10] = every(504..=696, a);
+        let owner = swapped(&pieces, &anchors, &tips, 10);
+        assert_eq!((owner[10], owner[11]), (Some(0), Some(1)));
     }
 
     /// Where the tracker swapped two tips' markers over a stretch of
