@@ -124,21 +124,6 @@ const STILL_RATIO: f64 = 0.5;
 /// × on held-out `all` seeds, some up to 1.9), a marker that moves as
 /// much as its noise doubles it.
 const STILL_NOISE: f64 = 1.3;
-/// ... or, for a piece of few samples, up to 1 + this over the root of
-/// their number, whichever is more: their noise is measured from as few
-/// samples as their spread, and a reflection's spread over its noise
-/// scatters about 1 by the more, the fewer they are. Of reflections
-/// drawn with white noise, 1 % spread more than 1.96 times their noise
-/// at 10 samples, 1.55 at 21, 1.35 at 41 and 1.28 at 60 (1 + 2.5/√n:
-/// 1.79, 1.55, 1.39, 1.32); against 1.3, 12 %, 6 % and 2 % of them at 10,
-/// 21 and 41 samples read as moving markers (`all` seeds 227 and 332:
-/// reflections of 21 samples, 1.33 and 1.37 times their noise, kept in
-/// tips swaying wide, mean costs 32.4 and 12.6 there). [`sits_still`]
-/// keeps [`STILL_NOISE`]: with this bound it read a tip's own marker of
-/// 11 samples, turning while its neighbours moved on, as a reflection
-/// (seed 185, 1.64 times its noise), and under `noise_mm` 1.5 pieces of
-/// 27–32 samples fitting their tips' means at 0.8–3.5 (seed 142).
-const STILL_NOISE_FEW: f64 = 2.5;
 /// ... while the tip's neighbours say it moved (RMS about the mean over
 /// the piece) at least this many times the noise: below, a tip at the
 /// turn of its swing sits as still as a reflection, and the slope of the
@@ -159,6 +144,23 @@ const STILL_NOISE_FEW: f64 = 2.5;
 /// under `noise_mm` 1.5 (0 → 16, a reflection of 16 samples that `all`
 /// at 2 had kept in tip 3, and 0.6 no longer keeps there).
 const STILL_MOTION: f64 = 0.6;
+/// How far a piece of few samples may spread and still read as quiet
+/// ([`quiet`]): up to 1 + this over the root of their number times its
+/// noise, where that is more than [`STILL_NOISE`]. Its noise is measured
+/// from as few samples as its spread, and a reflection's spread over its
+/// noise scatters about 1 the more, the fewer they are. Of reflections
+/// drawn with white noise, 1 % spread more than 1.96 times their noise
+/// at 10 samples, 1.55 at 21, 1.35 at 41 and 1.28 at 60 (1 + 2.5/√n:
+/// 1.79, 1.55, 1.39 and 1.32, over which 1.9, 1.1 and 0.6 % of them
+/// spread at 10, 21 and 41); against 1.3, 12, 6 and 2 % of them read as
+/// moving markers (`all` seeds 227 and 332: reflections of 21 samples,
+/// 1.33 and 1.37 times their noise, kept in tips swaying wide, mean costs
+/// 32.4 and 12.6 there). [`sits_still`] keeps [`STILL_NOISE`]: with this
+/// bound it read a tip's own marker of 11 samples, turning while its
+/// neighbours moved on, as a reflection (seed 185, 1.64 times its
+/// noise), and under `noise_mm` 1.5 pieces of 27–32 samples fitting their
+/// tips' means at 0.8–3.5 (seed 142).
+const STILL_NOISE_FEW: f64 = 2.5;
 /// Samples of a piece [`sits_still`] looks at, at most (evenly spread).
 const MOTION_POINTS: usize = 32;
 /// How many times every piece is judged: once against the pieces placed
@@ -2164,10 +2166,8 @@ fn swaps(
                 out += here - tb;
                 moves.push((j, b));
             }
-            // The piece goes only where it costs no more than where it
-            // was: what the pieces in its way gain does not buy it a worse
-            // place. Where it would lose, they go alone and it stays
-            // (not where one of them would go to its tip, in its span).
+            // Where the piece would lose at `a`, the pieces in its way go
+            // alone (none to its own tip, which holds it in their span).
             let evict = at_a > before;
             if evict && moves.iter().any(|m| Some(m.1) == held) {
                 continue;

@@ -410,9 +410,9 @@ fn a_tip_whose_offset_drifted_gets_its_marker_back_by_its_seams() {
 
 /// A reflection of a few dozen samples sits still but for its noise, and
 /// its noise is measured from as few samples: `all` seed 227, 21 samples
-/// spreading 1.33 times their noise, in tip 24's gap of 3 s, 32.4 mean
+/// spreading 1.33 times their noise, in tip 24's gap of 2.9 s, 32.4 mean
 /// cost there (tip 24's offset spreads 49 mm); seed 242, 8 samples in tip
-/// 22's gap of 20 frames, both seams missing. Seed 185: tip 65's own
+/// 22's gap of 27 frames, both seams missing. Seed 185: tip 65's own
 /// marker, 11 samples turning while its neighbours moved on, quiet by the
 /// bound for few samples, stays with tip 65.
 #[test]
