@@ -4892,8 +4892,8 @@ mod tests {
     /// its offset spreading 80 mm) holds tip 1's marker for 1 s between
     /// pieces of its own; tip 3's marker, 45 mm on its other side, fits
     /// tip 0's mean as loosely, and stays with tip 3, whose pieces it
-    /// continues (`all` seed 274, `noise_mm` 1.5: 35 and 46
-    /// samples of tips 16 and 44 moved into tip 59's gap that way, with
+    /// continues (`all` seed 274, `noise_mm` 1.5: 35 and 46 samples of
+    /// tips 16 and 44 moved into tip 59's gap that way, at costs with the
     /// seams of 1.2 and 243 there).
     #[test]
     fn a_swap_moves_what_stands_in_its_way_without_a_piece_that_loses() {
@@ -4907,19 +4907,20 @@ mod tests {
             resting(2, n, 1200),
             resting(3, c, 96),
         ];
-        // Measured in every frame, for the seams' lines.
-        let every = |frames: std::ops::RangeInclusive<i64>, at: DVec3| {
-            piece(0, frames.map(|f| (f, at + sway(f))).collect())
+        // Trace `from`'s piece measured in every frame, for the seams'
+        // lines.
+        let every = |from: usize, frames: std::ops::RangeInclusive<i64>, at: DVec3| {
+            piece(from, frames.map(|f| (f, at + sway(f))).collect())
         };
         // Each tip's own marker before and after the second from 480 to
         // 720, tip 3's close round it.
-        for (at, until, after) in [(a, 456, 744), (b, 456, 744), (c, 500, 700)] {
-            pieces.push(every(108..=until, at));
-            pieces.push(every(after..=1200, at));
+        for (tip, at, until, after) in [(0, a, 456, 744), (1, b, 456, 744), (3, c, 500, 700)] {
+            pieces.push(every(tip, 108..=until, at));
+            pieces.push(every(tip, after..=1200, at));
         }
         // Tip 3's marker in its own identity, and tip 1's in tip 0's.
-        pieces.push(every(504..=696, c));
-        pieces.push(every(480..=720, b));
+        pieces.push(every(3, 504..=696, c));
+        pieces.push(every(0, 480..=720, b));
         let mut tips: Vec<Option<usize>> = [0, 1, 2, 3, 0, 0, 1, 1, 3, 3, 3, 0]
             .into_iter()
             .map(Some)
@@ -4929,7 +4930,7 @@ mod tests {
         assert_eq!(owner[10], Some(3), "tip 3's marker stays");
         // Left with no tip, tip 0's own marker goes back in its gap.
         tips[10] = None;
-        pieces[10] = every(504..=696, a);
+        pieces[10] = every(4, 504..=696, a);
         let owner = swapped(&pieces, &anchors, &tips, 10);
         assert_eq!((owner[10], owner[11]), (Some(0), Some(1)));
     }
