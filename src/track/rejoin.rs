@@ -2357,7 +2357,7 @@ fn trades(
                 let mut before = 0.0;
                 let mut now = 0.0;
                 let mut ok = true;
-                let mut means = Vec::with_capacity(sa.len() + sb.len());
+                let mut moved = Vec::with_capacity(sa.len() + sb.len());
                 for (set, from, to, held) in [(&sa, x, y, &hy), (&sb, y, x, &hx)] {
                     for &i in set {
                         // Where a piece's neighbours are hidden at one of
@@ -2378,14 +2378,14 @@ fn trades(
                             ok = false;
                             break;
                         }
-                        means.push((m0, m));
+                        moved.push((m0, m));
                         before += b;
                         now += t;
                     }
                 }
                 let gain = before - now;
                 if ok
-                    && means_allow(&means)
+                    && means_allow(&moved)
                     && gain >= CLEAR
                     && best.as_ref().is_none_or(|b| gain > b.0)
                 {
@@ -2616,8 +2616,8 @@ fn choose(
             b != w
                 && mb <= REJECT
                 && tb < total
-                && spliced(&seams(b))
                 && was_seams.iter().flatten().any(|&v| v > 0.0)
+                && spliced(&seams(b))
         });
         if spliced_elsewhere {
             return best.map(|b| b.2);
@@ -2652,8 +2652,7 @@ fn choose(
         // because the gaps are short (`all` seed 242: 8 samples, 59 mm
         // from tip 22's rest position, mean 7.2 there, 39.8 with the
         // seams).
-        let torn_here = torn(&seams(b));
-        if mb <= FIT && second - tb >= CLEAR && (!torn_here || (tb - mb <= LOOSE && !quiet)) {
+        if mb <= FIT && second - tb >= CLEAR && ((tb - mb <= LOOSE && !quiet) || !torn(&seams(b))) {
             return Some(b);
         }
         // A piece the tracker's tip rejects by its seams (over REJECT in
@@ -3710,6 +3709,21 @@ mod tests {
         assert_eq!(place(&[(6.6, 40.0, 0), (98.0, 12.7, 1)], LINED), None);
     }
 
+    /// `n` samples at 240 Hz of a marker drifting `drift_mm` along x over
+    /// them (a reflection where 0), with `all`'s 1 mm of noise per axis.
+    fn drifting(n: i64, drift_mm: f64, rng: &mut crate::rng::Rng) -> Vec<(i64, DVec3)> {
+        let span = (n - 1).max(1) as f64;
+        (0..n)
+            .map(|f| {
+                let at = DVec3::new(0.3 + drift_mm / 1000.0 * f as f64 / span, 0.5, 1.2);
+                (
+                    f,
+                    at + DVec3::new(rng.normal(), rng.normal(), rng.normal()) * 0.001,
+                )
+            })
+            .collect()
+    }
+
     /// A reflection sits still but for its noise: `quiet` says so of
     /// nearly every one, however few its samples, and of no marker
     /// moving a few times its noise.
@@ -3718,13 +3732,8 @@ mod tests {
         let mut rng = crate::rng::Rng::new(185);
         let (draws, mut still, mut moving) = (400, 0, 0);
         for _ in 0..draws {
-            // 41 samples at 240 Hz, 1 mm of noise per axis (`all`'s).
-            let at = |f: i64, drift_mm: f64, rng: &mut crate::rng::Rng| {
-                DVec3::new(0.3 + drift_mm / 1000.0 * f as f64 / 40.0, 0.5, 1.2)
-                    + DVec3::new(rng.normal(), rng.normal(), rng.normal()) * 0.001
-            };
-            let ghost: Vec<(i64, DVec3)> = (0..41).map(|f| (f, at(f, 0.0, &mut rng))).collect();
-            let swaying: Vec<(i64, DVec3)> = (0..41).map(|f| (f, at(f, 8.0, &mut rng))).collect();
+            let ghost = drifting(41, 0.0, &mut rng);
+            let swaying = drifting(41, 8.0, &mut rng);
             still += usize::from(quiet(&piece(0, ghost).trace).is_some());
             moving += usize::from(quiet(&piece(1, swaying).trace).is_some());
         }
@@ -3749,14 +3758,8 @@ mod tests {
         for n in [10, 21] {
             let (mut still, mut tight, mut moving) = (0, 0, 0);
             for _ in 0..draws {
-                // `all`'s 1 mm of noise per axis, at 240 Hz.
-                let at = |f: i64, drift_mm: f64, rng: &mut crate::rng::Rng| {
-                    DVec3::new(0.3 + drift_mm / 1000.0 * f as f64 / n as f64, 0.5, 1.2)
-                        + DVec3::new(rng.normal(), rng.normal(), rng.normal()) * 0.001
-                };
-                let ghost: Vec<(i64, DVec3)> = (0..n).map(|f| (f, at(f, 0.0, &mut rng))).collect();
-                let swaying: Vec<(i64, DVec3)> =
-                    (0..n).map(|f| (f, at(f, 12.0, &mut rng))).collect();
+                let ghost = drifting(n, 0.0, &mut rng);
+                let swaying = drifting(n, 12.0, &mut rng);
                 if let Some(q) = quiet(&piece(0, ghost).trace) {
                     still += 1;
                     tight += usize::from(q.tight);
@@ -4848,16 +4851,28 @@ mod tests {
         assert_eq!((owner[3], owner[4]), (Some(0), Some(1)), "kept");
     }
 
+    /// Each tip's spans with piece `i` held by `tips[i]`.
+    fn holding(
+        pieces: &[Piece],
+        anchors: &[Anchor],
+        tips: &[Option<usize>],
+    ) -> Vec<Vec<(i64, i64, usize)>> {
+        let mut taken = vec![Vec::new(); anchors.len()];
+        for (i, t) in tips.iter().enumerate() {
+            if let Some(t) = *t {
+                let (s, e) = pieces[i].span();
+                taken[t].push((s, e, i));
+            }
+        }
+        taken
+    }
+
     /// The tips `trades` leaves the pieces at (after the still phase,
     /// from piece 3 on) when the tracker and the steps before left piece
     /// `i` at tip `tips[i]`.
     fn traded(pieces: &[Piece], anchors: &[Anchor], tips: &[usize]) -> Vec<Option<usize>> {
-        let mut owner: Vec<Option<usize>> = tips.iter().map(|&t| Some(t)).collect();
-        let mut taken = vec![Vec::new(); anchors.len()];
-        for (i, &t) in tips.iter().enumerate() {
-            let (s, e) = pieces[i].span();
-            taken[t].push((s, e, i));
-        }
+        let mut owner: Vec<Option<usize>> = tips.iter().copied().map(Some).collect();
+        let mut taken = holding(pieces, anchors, &owner);
         let order: Vec<usize> = (3..pieces.len()).collect();
         let field = Field::joined(pieces, anchors, 12);
         trades(pieces, anchors, &field, &order, &mut owner, &mut taken, 240);
@@ -4872,14 +4887,7 @@ mod tests {
         tips: &[Option<usize>],
         from: usize,
     ) -> Vec<Option<usize>> {
-        let mut owner = tips.to_vec();
-        let mut taken = vec![Vec::new(); anchors.len()];
-        for (i, t) in tips.iter().enumerate() {
-            if let Some(t) = *t {
-                let (s, e) = pieces[i].span();
-                taken[t].push((s, e, i));
-            }
-        }
+        let (mut owner, mut taken) = (tips.to_vec(), holding(pieces, anchors, tips));
         let order: Vec<usize> = (from..pieces.len()).collect();
         let field = Field::joined(pieces, anchors, 12);
         swaps(pieces, anchors, &field, &order, &mut owner, &mut taken, 240);
