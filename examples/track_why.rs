@@ -1,8 +1,11 @@
 //! Why a stress session fails issue 14's targets: for one stress and seed,
 //! every output tip made of more than one true tip (or of a ghost), as the
 //! runs of whose samples it holds, with how far apart the two true tips
-//! were where it changes from one to the other. What to look at before
-//! changing the tracker.
+//! were where it changes from one to the other, after how many frames
+//! of the output tip's gap, and whether the two are partners of one of
+//! the stress's close pairs (swung towards each other: most of what is
+//! left under `all`, docs/tracking.md §4a, session 49). What to look at
+//! before changing the tracker.
 //!
 //! `cargo run --release --example track_why STRESS SEED [WIND_S] [NOISE_MM]`
 //!
@@ -93,6 +96,9 @@ fn main() {
             println!("map t{} = {who}", tip.trace.id);
         }
     }
+    // The stress's close pairs (`close`, `all`): the tips swung towards
+    // each other, each against the other.
+    let pairs = truth.close_pairs();
     println!(
         "{} tips found, {} placed",
         tips.tips.len(),
@@ -120,10 +126,16 @@ fn main() {
         let mut previous: Option<&(Option<usize>, i64, i64, usize)> = None;
         for r in &runs {
             let apart = match (previous, r) {
-                (Some(&(Some(a), _, _, _)), &(Some(b), f, _, _)) => {
+                (Some(&(Some(a), _, last, _)), &(Some(b), f, _, _)) => {
                     let pa = truth_position(truth, a, f);
                     let pb = truth_position(truth, b, f);
-                    format!("{:.1} mm from the previous tip", pa.distance(pb) * 1000.0)
+                    let partners = pairs.contains(&(a.min(b), a.max(b)));
+                    format!(
+                        "{:.1} mm from the previous tip, after {} frames{}",
+                        pa.distance(pb) * 1000.0,
+                        f - last - 1,
+                        if partners { ", its close partner" } else { "" }
+                    )
                 }
                 _ => String::new(),
             };

@@ -262,7 +262,7 @@ const TRUNK_PARTIALS: usize = 3;
 /// the wind's `strongest` strength (1 without gusts; the swing scales with
 /// the wind like every mode), so that the two come within about `close` of
 /// each other twice a period and never swing through each other.
-/// Pairs are taken closest first, each tip in at most one pair.
+/// The pairs are [`pair_tips`]'s.
 pub(crate) fn close_pairs(
     tips: &mut [TipTruth],
     pairs: usize,
@@ -271,8 +271,26 @@ pub(crate) fn close_pairs(
     tree: &TreeTruth,
     base: &Rng,
 ) {
+    for (i, j) in pair_tips(tips, pairs, close) {
+        let d = tips[i].rest.distance(tips[j].rest);
+        let mut rng = stream(base, (tree.nodes.len() * i + j) as u64);
+        let u = (tips[j].rest - tips[i].rest) / d;
+        let amp = (d - close) / 2.0 / strongest.max(1.0);
+        let f = rng.range(0.4, 1.2);
+        let ph = rng.range(0.0, TAU);
+        tips[i].sway.push(sinusoid(u, amp, f, ph));
+        tips[j].sway.push(sinusoid(-u, amp, f, ph));
+    }
+}
+
+/// The `pairs` close pairs of [`close_pairs`], `(i, j)` with `i < j`:
+/// nearest neighbours by rest position, closest first, each tip in at
+/// most one pair, none already within `close` (m) at rest. Also what
+/// [`super::Truth::close_pairs`] names, so that a tracking failure can be
+/// told to lie between the partners of a pair.
+pub(crate) fn pair_tips(tips: &[TipTruth], pairs: usize, close: f64) -> Vec<(usize, usize)> {
     if pairs == 0 {
-        return;
+        return Vec::new();
     }
     let mut candidates = Vec::new();
     for i in 0..tips.len() {
@@ -282,9 +300,9 @@ pub(crate) fn close_pairs(
     }
     candidates.sort_by(|a, b| a.0.total_cmp(&b.0).then((a.1, a.2).cmp(&(b.1, b.2))));
     let mut used = vec![false; tips.len()];
-    let mut made = 0;
+    let mut out = Vec::new();
     for (d, i, j) in candidates {
-        if made == pairs {
+        if out.len() == pairs {
             break;
         }
         if used[i] || used[j] || d <= close {
@@ -292,15 +310,9 @@ pub(crate) fn close_pairs(
         }
         used[i] = true;
         used[j] = true;
-        let mut rng = stream(base, (tree.nodes.len() * i + j) as u64);
-        let u = (tips[j].rest - tips[i].rest) / d;
-        let amp = (d - close) / 2.0 / strongest.max(1.0);
-        let f = rng.range(0.4, 1.2);
-        let ph = rng.range(0.0, TAU);
-        tips[i].sway.push(sinusoid(u, amp, f, ph));
-        tips[j].sway.push(sinusoid(-u, amp, f, ph));
-        made += 1;
+        out.push((i, j));
     }
+    out
 }
 
 /// Gusts as a Poisson process at `per_min` over `span` (s on the take's

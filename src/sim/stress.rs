@@ -190,4 +190,50 @@ mod tests {
             }
         }
     }
+
+    #[test]
+    fn the_close_pairs_named_are_the_tips_that_swing_into_each_other() {
+        let b = base(3, 30, 2.0, 6.0);
+        let st = all(&b).into_iter().find(|s| s.name == "close").unwrap();
+        let t = super::super::truth(&st.options).unwrap();
+        let pairs = t.close_pairs();
+        assert_eq!(pairs.len(), 10);
+        let mut tips: Vec<usize> = pairs.iter().flat_map(|&(i, j)| [i, j]).collect();
+        tips.sort_unstable();
+        tips.dedup();
+        assert_eq!(tips.len(), 20, "a tip in two pairs: {pairs:?}");
+        // How close two tips come in the wind, as a share of their
+        // distance at rest.
+        let closest = |i: usize, j: usize| {
+            let rest = t.tips[i].rest.distance(t.tips[j].rest);
+            (0..t.frames)
+                .map(|f| {
+                    let s = t.time_of(f as i64);
+                    t.position(i, s).distance(t.position(j, s))
+                })
+                .fold(f64::INFINITY, f64::min)
+                / rest
+        };
+        for &(i, j) in &pairs {
+            let c = closest(i, j);
+            assert!(
+                c < 0.25,
+                "tips {i} and {j} come only within {c:.2} of their distance"
+            );
+        }
+        // Each paired tip's nearest tip outside its pair keeps its distance.
+        for &(i, j) in &pairs {
+            for a in [i, j] {
+                let other = (0..t.tips.len())
+                    .filter(|&k| k != i && k != j)
+                    .min_by(|&x, &y| {
+                        let d = |k: usize| t.tips[a].rest.distance(t.tips[k].rest);
+                        d(x).total_cmp(&d(y))
+                    })
+                    .unwrap();
+                let c = closest(a, other);
+                assert!(c > 0.4, "tips {a} and {other} come within {c:.2}");
+            }
+        }
+    }
 }

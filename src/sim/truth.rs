@@ -191,6 +191,17 @@ impl Truth {
         ramp * (1.0 + self.gusts.iter().map(|g| g.at(time_s)).sum::<f64>())
     }
 
+    /// The close pairs the stress option `close_pairs` swings towards each
+    /// other (tip indices, `i < j`); empty without the option. Taken from
+    /// the rest positions as the simulator took them.
+    pub fn close_pairs(&self) -> Vec<(usize, usize)> {
+        super::motion::pair_tips(
+            &self.tips,
+            self.options.close_pairs,
+            self.options.close_mm / 1000.0,
+        )
+    }
+
     /// The noiseless true position of `tip` at `time_s` (m, Y up).
     ///
     /// # Panics
