@@ -36,7 +36,7 @@ use std::f64::consts::TAU;
 use glam::DVec3;
 
 use super::tree::{q9, TreeTruth};
-use super::truth::{GustTruth, Sinusoid, TipTruth};
+use super::truth::{pair_tips, GustTruth, Sinusoid, TipTruth};
 use crate::rng::Rng;
 
 /// A random stream that depends only on `base`'s state and `label`, not on
@@ -281,38 +281,6 @@ pub(crate) fn close_pairs(
         tips[i].sway.push(sinusoid(u, amp, f, ph));
         tips[j].sway.push(sinusoid(-u, amp, f, ph));
     }
-}
-
-/// The `pairs` close pairs of [`close_pairs`], `(i, j)` with `i < j`:
-/// nearest neighbours by rest position, closest first, each tip in at
-/// most one pair, none already within `close` (m) at rest. Also what
-/// [`super::Truth::close_pairs`] names, so that a tracking failure can be
-/// told to lie between the partners of a pair.
-pub(crate) fn pair_tips(tips: &[TipTruth], pairs: usize, close: f64) -> Vec<(usize, usize)> {
-    if pairs == 0 {
-        return Vec::new();
-    }
-    let mut candidates = Vec::new();
-    for i in 0..tips.len() {
-        for j in i + 1..tips.len() {
-            candidates.push((tips[i].rest.distance(tips[j].rest), i, j));
-        }
-    }
-    candidates.sort_by(|a, b| a.0.total_cmp(&b.0).then((a.1, a.2).cmp(&(b.1, b.2))));
-    let mut used = vec![false; tips.len()];
-    let mut out = Vec::new();
-    for (d, i, j) in candidates {
-        if out.len() == pairs {
-            break;
-        }
-        if used[i] || used[j] || d <= close {
-            continue;
-        }
-        used[i] = true;
-        used[j] = true;
-        out.push((i, j));
-    }
-    out
 }
 
 /// Gusts as a Poisson process at `per_min` over `span` (s on the take's

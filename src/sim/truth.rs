@@ -195,7 +195,7 @@ impl Truth {
     /// other (tip indices, `i < j`); empty without the option. Taken from
     /// the rest positions as the simulator took them.
     pub fn close_pairs(&self) -> Vec<(usize, usize)> {
-        super::motion::pair_tips(
+        pair_tips(
             &self.tips,
             self.options.close_pairs,
             self.options.close_mm / 1000.0,
@@ -269,4 +269,38 @@ impl Truth {
             .iter()
             .any(|g| g.tip == tip && g.first_frame <= frame && frame <= g.last_frame)
     }
+}
+
+/// The `pairs` close pairs the simulator swings into each other
+/// (`motion::close_pairs`), `(i, j)` with `i < j`:
+/// nearest neighbours by rest position, closest first, each tip in at
+/// most one pair, none already within `close` (m) at rest. Also what
+/// [`Truth::close_pairs`] names, so that a tracking failure can be told
+/// to lie between the partners of a pair. Here, beside the tips' truth,
+/// so that the truth does not import the motion that reads it.
+pub(crate) fn pair_tips(tips: &[TipTruth], pairs: usize, close: f64) -> Vec<(usize, usize)> {
+    if pairs == 0 {
+        return Vec::new();
+    }
+    let mut candidates = Vec::new();
+    for i in 0..tips.len() {
+        for j in i + 1..tips.len() {
+            candidates.push((tips[i].rest.distance(tips[j].rest), i, j));
+        }
+    }
+    candidates.sort_by(|a, b| a.0.total_cmp(&b.0).then((a.1, a.2).cmp(&(b.1, b.2))));
+    let mut used = vec![false; tips.len()];
+    let mut out = Vec::new();
+    for (d, i, j) in candidates {
+        if out.len() == pairs {
+            break;
+        }
+        if used[i] || used[j] || d <= close {
+            continue;
+        }
+        used[i] = true;
+        used[j] = true;
+        out.push((i, j));
+    }
+    out
 }
