@@ -14,6 +14,7 @@
 //! tree, the motion and the noise of the remaining samples as they were.
 
 pub mod capture;
+pub mod floor;
 pub mod forest;
 pub mod motion;
 pub mod motive_writer;
