@@ -101,8 +101,9 @@ const EXCHANGE_ODDS: f64 = 2.0;
 /// between them and counts against the tip's identity. Two markers 3 mm
 /// apart under 1 mm of noise (the vector's variance 2 mm² per axis) stand
 /// at log odds about −9; the odds reach −6 as they come within about
-/// 2.4 mm, −2 within about 1.4 mm. Wrong samples, `all` / `noise_mm` 1.5, the 306 sweep seeds,
-/// with the exchanges of long encounters weighed too: 756 / 1 837 with
+/// 2.4 mm, −2 within about 1.4 mm. Wrong samples, `all` / `noise_mm`
+/// 1.5, the 306 sweep seeds, with the exchanges of long encounters
+/// weighed too, at 2 (the bound until session 50): 756 / 1 837 with
 /// nothing given up, 682 / 1 767 at 2, no seed worse (331: 23 / 40 → 5 /
 /// 18; 290: 4 / 7 → 0 / 5), about 165 frames given up in all. Given up
 /// once every piece has its tip: given up before, the gaps they left
@@ -113,9 +114,11 @@ const EXCHANGE_ODDS: f64 = 2.0;
 ///
 /// Down to −6 (odds of 400 to 1 that the sample is the trace's own):
 /// where two markers pass within a few millimetres under 1 mm of noise,
-/// the curve about a sample misses by about as much as the two are
-/// apart, and a sample it reads as right at odds of 7–400 to 1 is still
-/// often the other tip's, where a fill misses by about the noise. Wrong
+/// the curve about a sample is as short as the samples' scatter about it
+/// (`all` seed 121, tips 0 and 69 2.3–3 mm apart: the curve 2.9–3.2 mm
+/// long, the samples 1.8–5.9 mm), and a sample it reads as right at odds
+/// of 7–400 to 1 is still often the other tip's, where a fill misses by
+/// about the noise. Wrong
 /// samples, `all` / `noise_mm` 1.5, the 306 sweep seeds: 414 / 1 302 at
 /// 2, 408 / 1 296 at 6 (121: 4 / 2 → 2 / 0; 166 and 291: 2 → 0; 290
 /// under `noise_mm` 1.5: 5 → 3; 331: 7 → 5), no seed worse; fills
