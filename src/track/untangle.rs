@@ -48,7 +48,9 @@
 //! is likelier, and whichever sample a trace holds there may be the other
 //! tip's: those samples, both markers' in each such frame, are given up
 //! ([`Untangled::unsure`], [`give_up`]) and the tips' gaps there filled
-//! like any other, flagged as filled. A pair close for longer than
+//! like any other, flagged as filled; so are those of two markers
+//! within [`BARE_CLOSE`] whose samples cannot be weighed, too few of the
+//! pair's on a side. A pair close for longer than
 //! [`LONGEST_S`] is weighed this way too (its exchanges are local), but
 //! no swap of its tails is looked for.
 
@@ -127,6 +129,22 @@ const EXCHANGE_ODDS: f64 = 2.0;
 /// 14.21 / 18.58 → 14.01 / 18.32 mm. At 12, on the 18 seeds with such
 /// exchanges, the same wrong samples as at 6 and more given up.
 const UNSURE_ODDS: f64 = 6.0;
+
+/// Two markers measured closer than this (m) in a frame whose sample of
+/// the vector between them cannot be weighed (fewer than [`MIN_SAMPLES`]
+/// of the pair's samples on a side, as where one trace ends a frame or
+/// two after they are closest) are given up there, both samples, like
+/// those at near-even odds ([`UNSURE_ODDS`]): under 1 mm of noise per
+/// axis the vector's own noise is 1.4 mm per axis, and nothing says which
+/// way round it is. Wrong samples, `all` / `noise_mm` 1.5, the 306 sweep
+/// seeds, after [`UNSURE_ODDS`] at 6: 408 / 1 296 → 383 / 1 262
+/// (410: 42 / 53 → 36 / 49, the exchange in the take's last 3 frames;
+/// 331: 5 / 5 → 1 / 1; 269: 8 / 4 → 4 / 0), seeds with any under `all`
+/// 33 → 28, one seed worse (335 under `noise_mm` 1.5: 0 → 1); fills
+/// bridging two markers 54 / 90 → 53 / 104, where a sample read the
+/// wrong way stays beside a frame given up (375 under `noise_mm` 1.5:
+/// 0 → 4, 6 → 2 wrong samples).
+const BARE_CLOSE: f64 = 0.004;
 
 /// A pair of traces close in some frames, with the vector between them.
 #[derive(Debug)]
@@ -445,12 +463,24 @@ fn exchanged(e: &Encounter, r: &[(i64, DVec3)], side: usize, debug: u8) -> (Vec<
     let mut unsure = Vec::new();
     let mut around: Vec<(i64, DVec3)> = Vec::with_capacity(2 * side);
     for (i, &(f, v)) in r.iter().enumerate() {
-        if f < e.from || f > e.to || i < g + MIN_SAMPLES {
+        if f < e.from || f > e.to {
+            continue;
+        }
+        // Too few samples of the pair on a side to weigh this one: given
+        // up where the two markers are within BARE_CLOSE.
+        let bare = v.length() < BARE_CLOSE;
+        if i < g + MIN_SAMPLES {
+            if bare {
+                unsure.push(f);
+            }
             continue;
         }
         let before = &r[(i - g).saturating_sub(side)..i - g];
         let after = &r[(i + g + 1).min(n)..(i + g + 1 + side).min(n)];
         if before.len() < MIN_SAMPLES || after.len() < MIN_SAMPLES {
+            if bare {
+                unsure.push(f);
+            }
             continue;
         }
         around.clear();

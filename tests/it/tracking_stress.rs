@@ -345,8 +345,9 @@ fn a_marker_seen_between_two_gaps_keeps_its_short_gap() {
 /// (2 wrong samples). Both samples are given up, and the tips' one-frame
 /// gaps filled: no tip holds another's sample, and little else is given
 /// up (since session 50, the samples of two close markers at log odds
-/// down to −6: 8 and 8 samples, 4 frames of two markers within a few
-/// millimetres, where 2 each were given up at −2).
+/// down to −6, and those within 4 mm that cannot be weighed: 12 and 12
+/// samples, 6 frames of two markers within a few millimetres, where 2
+/// each were given up at −2 alone).
 #[test]
 fn samples_too_close_to_tell_apart_are_given_up_not_exchanged() {
     let st = sweep_stress("all", 101);
@@ -357,7 +358,7 @@ fn samples_too_close_to_tell_apart_are_given_up_not_exchanged() {
         one_tip_per_tip(&name, &s);
         assert_eq!(s.wrong_samples, 0, "{name}: samples of another marker");
         assert!(
-            (1..=10).contains(&summary.given_up),
+            (1..=16).contains(&summary.given_up),
             "{name}: {} samples given up",
             summary.given_up
         );
