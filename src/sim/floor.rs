@@ -40,8 +40,7 @@ pub const CLOSE_BINS_M: [f64; 4] = [0.003, 0.0064, 0.0095, 0.0127];
 /// The oracle's expected wrong samples in `truth`'s session, and how often
 /// two measured tips come close.
 pub fn floor(truth: &Truth) -> Floor {
-    let sigma = truth.options.noise_mm / 1000.0;
-    let reach = (REACH_SIGMA * sigma).max(CLOSE_BINS_M[3]);
+    let (sigma, reach) = noise_and_reach(truth);
     let seen = measured(truth);
     let n = truth.tips.len();
     let mut out = Floor::default();
@@ -76,8 +75,7 @@ pub fn floor(truth: &Truth) -> Floor {
 /// sessions is [`floor`]'s `expected`.
 pub fn oracle_wrong_samples(syn: &Synthetic) -> usize {
     let truth = &syn.truth;
-    let sigma = truth.options.noise_mm / 1000.0;
-    let reach = (REACH_SIGMA * sigma).max(CLOSE_BINS_M[3]);
+    let (_, reach) = noise_and_reach(truth);
     let n = truth.tips.len();
     let mut wrong = 0;
     let mut sample: Vec<Option<DVec3>> = vec![None; n];
@@ -92,11 +90,12 @@ pub fn oracle_wrong_samples(syn: &Synthetic) -> usize {
             }
         }
         let t = truth.time_of(frame.frame);
-        let seen: Vec<(usize, DVec3, DVec3)> = (0..n)
-            .filter_map(|k| sample[k].map(|s| (k, s, truth.position(k, t))))
+        // Each measured tip's sample and true position.
+        let seen: Vec<(DVec3, DVec3)> = (0..n)
+            .filter_map(|k| sample[k].map(|s| (s, truth.position(k, t))))
             .collect();
-        for (a, &(_, xa, pa)) in seen.iter().enumerate() {
-            for &(_, xb, pb) in &seen[a + 1..] {
+        for (a, &(xa, pa)) in seen.iter().enumerate() {
+            for &(xb, pb) in &seen[a + 1..] {
                 if pa.distance(pb) >= reach {
                     continue;
                 }
@@ -111,8 +110,16 @@ pub fn oracle_wrong_samples(syn: &Synthetic) -> usize {
     wrong
 }
 
+/// The session's noise σ per axis (m) and how near two tips must be to be
+/// looked at (m): [`REACH_SIGMA`] σ, and at least the last close bin.
+fn noise_and_reach(truth: &Truth) -> (f64, f64) {
+    let sigma = truth.options.noise_mm / 1000.0;
+    (sigma, (REACH_SIGMA * sigma).max(CLOSE_BINS_M[3]))
+}
+
 /// Per frame and tip, whether the tip's marker is measured (no occlusion
-/// of the truth covers it).
+/// of the truth covers it): [`Truth::is_gap`] as a table, which scans
+/// every gap on each call, once per frame and tip here.
 fn measured(truth: &Truth) -> Vec<Vec<bool>> {
     let mut seen = vec![vec![true; truth.tips.len()]; truth.frames];
     for g in &truth.gaps {

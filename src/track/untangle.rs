@@ -120,8 +120,8 @@ const EXCHANGE_ODDS: f64 = 2.0;
 /// (`all` seed 121, tips 0 and 69 2.3–3 mm apart: the curve 2.9–3.2 mm
 /// long, the samples 1.8–5.9 mm), and a sample it reads as right at odds
 /// of 7–400 to 1 is still often the other tip's, where a fill misses by
-/// about the noise. Wrong
-/// samples, `all` / `noise_mm` 1.5, the 306 sweep seeds: 414 / 1 302 at
+/// about the noise. Wrong samples, `all` / `noise_mm` 1.5, the 306
+/// sweep seeds: 414 / 1 302 at
 /// 2, 408 / 1 296 at 6 (121: 4 / 2 → 2 / 0; 166 and 291: 2 → 0; 290
 /// under `noise_mm` 1.5: 5 → 3; 331: 7 → 5), no seed worse; fills
 /// bridging two markers 56 / 90 → 54 / 90; samples of a tip's own
@@ -455,7 +455,9 @@ fn tail(r: &[(i64, DVec3)], at: &Split, g: usize) -> Vec<bool> {
 /// is likelier turned round by the log odds `(|v − p|² − |v + p|²) / 2σ²`,
 /// that is `−2 v·p / σ²`; where that exceeds [`EXCHANGE_ODDS`] the sample
 /// is turned, and where it lies within [`UNSURE_ODDS`] below, its frame
-/// is among those returned as unsure.
+/// is among those returned as unsure, as is the frame of a sample too
+/// few others flank to be weighed where the markers are within
+/// [`BARE_CLOSE`].
 fn exchanged(e: &Encounter, r: &[(i64, DVec3)], side: usize, debug: u8) -> (Vec<bool>, Vec<i64>) {
     let n = r.len();
     let g = GUARD;
@@ -466,23 +468,21 @@ fn exchanged(e: &Encounter, r: &[(i64, DVec3)], side: usize, debug: u8) -> (Vec<
         if f < e.from || f > e.to {
             continue;
         }
-        // Too few samples of the pair on a side to weigh this one: given
-        // up where the two markers are within BARE_CLOSE.
-        let bare = v.length() < BARE_CLOSE;
-        if i < g + MIN_SAMPLES {
-            if bare {
+        let sides = (i >= g + MIN_SAMPLES)
+            .then(|| {
+                (
+                    &r[(i - g).saturating_sub(side)..i - g],
+                    &r[(i + g + 1).min(n)..(i + g + 1 + side).min(n)],
+                )
+            })
+            .filter(|(b, a)| b.len() >= MIN_SAMPLES && a.len() >= MIN_SAMPLES);
+        let Some((before, after)) = sides else {
+            // Too few samples of the pair on a side to weigh this one.
+            if v.length() < BARE_CLOSE {
                 unsure.push(f);
             }
             continue;
-        }
-        let before = &r[(i - g).saturating_sub(side)..i - g];
-        let after = &r[(i + g + 1).min(n)..(i + g + 1 + side).min(n)];
-        if before.len() < MIN_SAMPLES || after.len() < MIN_SAMPLES {
-            if bare {
-                unsure.push(f);
-            }
-            continue;
-        }
+        };
         around.clear();
         around.extend_from_slice(before);
         around.extend_from_slice(after);
