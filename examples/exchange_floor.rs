@@ -21,10 +21,7 @@ fn main() {
     let (mut expected, mut oracle, mut sessions, mut skipped) = (0.0, 0usize, 0usize, 0usize);
     let mut close = [0usize; 4];
     for seed in seeds.clone() {
-        let Some(st) = stress::all(&stress::base(seed, 70, 8.0, 20.0))
-            .into_iter()
-            .find(|s| s.name == name)
-        else {
+        let Some(st) = stress::named(&stress::base(seed, 70, 8.0, 20.0), name) else {
             eprintln!("no stress named {name}");
             std::process::exit(2);
         };

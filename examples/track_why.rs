@@ -44,10 +44,7 @@ fn main() {
     if let Some(n) = args.get(4).and_then(|s| s.parse().ok()) {
         cfg.noise_mm = n;
     }
-    let Some(st) = stress::all(&stress::base(seed, 70, 8.0, wind_s))
-        .into_iter()
-        .find(|s| s.name == name)
-    else {
+    let Some(st) = stress::named(&stress::base(seed, 70, 8.0, wind_s), name) else {
         eprintln!("no stress named {name}");
         return;
     };

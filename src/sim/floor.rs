@@ -185,9 +185,7 @@ mod tests {
     fn the_oracle_exchanges_about_as_many_samples_as_the_floor_expects() {
         let (mut expected, mut counted, mut close) = (0.0, 0usize, 0usize);
         for seed in 1..=6 {
-            let close_stress = stress::all(&stress::base(seed, 30, 2.0, 15.0))
-                .into_iter()
-                .find(|s| s.name == "close")
+            let close_stress = stress::named(&stress::base(seed, 30, 2.0, 15.0), "close")
                 .expect("the close stress");
             let opts = crate::sim::SynthOptions {
                 noise_mm: 4.0,
@@ -214,9 +212,7 @@ mod tests {
 
     #[test]
     fn without_noise_there_is_no_floor() {
-        let mut opts = stress::all(&stress::base(2, 30, 2.0, 6.0))
-            .into_iter()
-            .find(|s| s.name == "close")
+        let mut opts = stress::named(&stress::base(2, 30, 2.0, 6.0), "close")
             .expect("the close stress")
             .options;
         opts.noise_mm = 0.0;

@@ -117,6 +117,12 @@ pub fn all(base: &SynthOptions) -> Vec<Stress> {
     ]
 }
 
+/// The stress of [`all`] called `name` on `base`, if there is one: the
+/// examples and tests pick one stress by its table name.
+pub fn named(base: &SynthOptions, name: &str) -> Option<Stress> {
+    all(base).into_iter().find(|s| s.name == name)
+}
+
 /// Long occlusions placed by [`long_gaps`]: one per this many tips.
 const LONG_GAP_EVERY: usize = 3;
 
@@ -194,7 +200,7 @@ mod tests {
     #[test]
     fn the_close_pairs_named_are_the_tips_that_swing_into_each_other() {
         let b = base(3, 30, 2.0, 6.0);
-        let st = all(&b).into_iter().find(|s| s.name == "close").unwrap();
+        let st = named(&b, "close").unwrap();
         let t = super::super::truth(&st.options).unwrap();
         let pairs = t.close_pairs();
         assert_eq!(pairs.len(), 10);

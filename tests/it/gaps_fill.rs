@@ -92,10 +92,7 @@ fn under_noise_of_a_millimetre_fills_beat_pchip_on_every_gap_length() {
 fn under_all_stresses_combined_fills_beside_the_true_marker_meet_the_target() {
     let mut total = score::Score::default();
     for seed in [14, 15] {
-        let st = stress::all(&stress::base(seed, 30, 4.0, 10.0))
-            .into_iter()
-            .find(|s| s.name == "all")
-            .unwrap();
+        let st = stress::named(&stress::base(seed, 30, 4.0, 10.0), "all").unwrap();
         let syn = sim::generate(&st.options).unwrap();
         let cfg = TrackingSettings::default();
         let mut tracker = Tracker::new(&cfg, Some(240.0));

@@ -12,10 +12,7 @@ use treemocap::track::{self, Tracker, TrackingSettings};
 /// The stress named `name` on the sweep's session of `seed` (70 tips at
 /// 240 Hz, 8 s still, 20 s of wind: `examples/track_stress.rs`).
 fn sweep_stress(name: &str, seed: u64) -> stress::Stress {
-    stress::all(&stress::base(seed, 70, 8.0, 20.0))
-        .into_iter()
-        .find(|s| s.name == name)
-        .unwrap()
+    stress::named(&stress::base(seed, 70, 8.0, 20.0), name).unwrap()
 }
 
 /// The session tracked and cleaned as `replay` does, scored against its
