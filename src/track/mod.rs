@@ -98,6 +98,11 @@ pub struct Summary {
     /// out of both tips (and their gaps there filled) rather than risk
     /// each holding the other's (`untangle`).
     pub given_up: usize,
+    /// Samples of pieces another tip would have taken about as well as
+    /// the one they fitted best, after the session: given up with their
+    /// tips' gaps there filled, rather than risk a piece of one marker in
+    /// another's tip (`rejoin`).
+    pub in_doubt: usize,
     /// Pieces joined afterwards by rest position.
     pub joined_by_rest: usize,
     /// Long fragments without a rest position put into a gap of the marker
@@ -138,8 +143,8 @@ impl fmt::Display for Summary {
         )?;
         writeln!(
             f,
-            "markers found: {} tips, from {} traces ({} ghosts never confirmed; pieces joined: {} from the neighbours' motion, {} handing over to their marker, {} by rest position, {} into a gap of their neighbourhood; {} given to another tip after the session; {} swaps undone where two markers passed close, {} samples given up where they could not be told apart)",
-            self.tips, self.traces, self.ghosts, self.joined_on_line, self.adopted, self.joined_by_rest, self.joined_into_gaps, self.rejoined, self.untangled, self.given_up
+            "markers found: {} tips, from {} traces ({} ghosts never confirmed; pieces joined: {} from the neighbours' motion, {} handing over to their marker, {} by rest position, {} into a gap of their neighbourhood; {} given to another tip after the session; {} swaps undone where two markers passed close; samples given up: {} where two markers could not be told apart, {} of pieces two tips fit alike)",
+            self.tips, self.traces, self.ghosts, self.joined_on_line, self.adopted, self.joined_by_rest, self.joined_into_gaps, self.rejoined, self.untangled, self.given_up, self.in_doubt
         )?;
         let longest = self.dropped.first().map_or(String::new(), |d| {
             format!(
@@ -279,8 +284,12 @@ pub fn clean(
     // 2.15 / 3.01), wrong samples 3 → 3 (389 → 395).
     loose.extend(ghosts);
     loose.sort_by_key(|t| t.id);
-    let (traces, rejoined, loose) =
-        rejoin::rejoin(traces, loose, &seams, window, one_second(&timeline));
+    let rejoin::Rejoined {
+        traces,
+        moved: rejoined,
+        loose,
+        in_doubt: doubtful,
+    } = rejoin::rejoin(traces, loose, &seams, window, one_second(&timeline));
     let n_ghosts = loose.len();
     let (traces, joined_by_rest, joined_into_gaps) = join_pieces(traces, window, &timeline, cfg);
     let (mut kept, mut dropped, noise) = noise::drop_noise(traces, frames, cfg.noise_fraction);
@@ -296,6 +305,8 @@ pub fn clean(
     // where which was which cannot be told go: the tips' gaps there are
     // filled, and `reclaim` does not take them back.
     let given_up = untangle::give_up([&mut kept, &mut pool], &untangled.unsure);
+    // So do the pieces two tips would take alike (rejoin.rs, `in_doubt`).
+    let in_doubt = untangle::give_up([&mut kept, &mut pool], &doubtful);
     let (reclaimed, gap_stats) =
         reclaim::reclaim(&mut kept, &pool, &timeline, settings, cfg.noise_mm / 1000.0);
     drop(pool);
@@ -316,6 +327,7 @@ pub fn clean(
         adopted,
         untangled: untangled.places,
         given_up,
+        in_doubt,
         joined_by_rest,
         joined_into_gaps,
         rejoined,
