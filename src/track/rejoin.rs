@@ -612,11 +612,7 @@ pub(crate) fn rejoin(
         }
     }
     let (owner, doubt) = assign(
-        &pieces,
-        &anchors,
-        &joined,
-        (one_second, window.end),
-        DOUBT_MAX,
+        &pieces, &anchors, &joined, one_second, window.end, DOUBT_MAX,
     );
     let in_doubt: Vec<(i64, DVec3)> = pieces
         .iter()
@@ -1793,7 +1789,8 @@ fn assign(
     pieces: &[Piece],
     anchors: &[Anchor],
     joined: &Field,
-    (one_second, wind_from): (i64, i64),
+    one_second: i64,
+    wind_from: i64,
     doubt_max: usize,
 ) -> (Vec<Option<usize>>, Vec<bool>) {
     let mut owner: Vec<Option<usize>> = vec![None; pieces.len()];
@@ -3462,7 +3459,8 @@ mod tests {
             pieces,
             anchors,
             &Field::joined(pieces, anchors, 12),
-            (240, 97),
+            240,
+            97,
             DOUBT_MAX / 12,
         )
         .0
