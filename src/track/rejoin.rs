@@ -614,14 +614,15 @@ pub(crate) fn rejoin(
     let (owner, doubt) = assign(
         &pieces, &anchors, &joined, one_second, window.end, DOUBT_MAX,
     );
-    let in_doubt: Vec<(i64, DVec3)> = pieces
-        .iter()
-        .zip(&doubt)
-        .filter(|(_, &d)| d)
-        .flat_map(|(p, _)| p.trace.measurements())
-        .collect();
+    let doubted = || {
+        pieces
+            .iter()
+            .zip(&doubt)
+            .filter(|(_, &d)| d)
+            .map(|(p, _)| p)
+    };
     if std::env::var_os("REJOIN_DEBUG").is_some() {
-        for (p, _) in pieces.iter().zip(&doubt).filter(|(_, &d)| d) {
+        for p in doubted() {
             eprintln!(
                 "in doubt: trace {} {:?} n {}",
                 p.from,
@@ -630,6 +631,7 @@ pub(crate) fn rejoin(
             );
         }
     }
+    let in_doubt: Vec<(i64, DVec3)> = doubted().flat_map(|p| p.trace.measurements()).collect();
     let moved = pieces
         .iter()
         .enumerate()
@@ -1961,9 +1963,9 @@ fn assign(
     trades(
         pieces, &wide, joined, &order, &mut owner, &mut taken, one_second,
     );
-    for (d, o) in doubt.iter_mut().zip(&owner) {
-        *d &= o.is_none();
-    }
+    // Neither step places a piece in doubt: `swaps` is not offered one,
+    // and `trades` moves only pieces a tip holds.
+    debug_assert!(doubt.iter().zip(&owner).all(|(&d, o)| !d || o.is_none()));
     (owner, doubt)
 }
 

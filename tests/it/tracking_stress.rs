@@ -373,22 +373,16 @@ fn samples_too_close_to_tell_apart_are_given_up_not_exchanged() {
 /// filled (seed 203): no sample of another marker, and little given up.
 #[test]
 fn a_piece_two_tips_fit_alike_is_given_up_not_placed() {
-    for (seed, given_up) in [(203, 1..=100), (410, 0..=100)] {
-        let st = sweep_stress("all", seed);
-        let syn = sim::generate(&st.options).unwrap();
-        let noise_mm = TrackingSettings::default().noise_mm;
-        let (s, summary) = scored_under(&syn, st.options.frame_rate, noise_mm);
-        let name = format!("all, seed {seed}");
+    let noise_mm = TrackingSettings::default().noise_mm;
+    let summaries = held_under_all(&[(203, noise_mm), (410, noise_mm)]);
+    for (summary, (seed, given_up)) in summaries.iter().zip([(203, 1..=100), (410, 0..=100)]) {
         println!(
-            "{name}: {} samples of pieces in doubt given up",
+            "all, seed {seed}: {} samples of pieces in doubt given up",
             summary.in_doubt
         );
-        one_tip_per_tip(&name, &s);
-        assert_eq!(s.wrong_samples, 0, "{name}: samples of another marker");
-        assert_eq!(s.bridged, 0, "{name}: fills bridging two markers");
         assert!(
             given_up.contains(&summary.in_doubt),
-            "{name}: {} samples in doubt given up",
+            "all, seed {seed}: {} samples in doubt given up",
             summary.in_doubt
         );
     }
@@ -396,17 +390,22 @@ fn a_piece_two_tips_fit_alike_is_given_up_not_placed() {
 
 /// Runs the `all` stress of each (seed, `noise_mm`) and asserts what a
 /// mended case must show: one output tip per true tip, no sample of
-/// another marker in any tip, and no fill bridging two markers.
-fn held_under_all(cases: &[(u64, f64)]) {
-    for &(seed, noise_mm) in cases {
-        let st = sweep_stress("all", seed);
-        let syn = sim::generate(&st.options).unwrap();
-        let (s, _) = scored_under(&syn, st.options.frame_rate, noise_mm);
-        let name = format!("all, seed {seed}, noise_mm {noise_mm}");
-        one_tip_per_tip(&name, &s);
-        assert_eq!(s.wrong_samples, 0, "{name}: samples of another marker");
-        assert_eq!(s.bridged, 0, "{name}: fills bridging two markers");
-    }
+/// another marker in any tip, and no fill bridging two markers. Returns
+/// each case's cleaning summary, for what a test asks besides.
+fn held_under_all(cases: &[(u64, f64)]) -> Vec<track::Summary> {
+    cases
+        .iter()
+        .map(|&(seed, noise_mm)| {
+            let st = sweep_stress("all", seed);
+            let syn = sim::generate(&st.options).unwrap();
+            let (s, summary) = scored_under(&syn, st.options.frame_rate, noise_mm);
+            let name = format!("all, seed {seed}, noise_mm {noise_mm}");
+            one_tip_per_tip(&name, &s);
+            assert_eq!(s.wrong_samples, 0, "{name}: samples of another marker");
+            assert_eq!(s.bridged, 0, "{name}: fills bridging two markers");
+            summary
+        })
+        .collect()
 }
 
 /// Two tips passing 1 mm apart under every stress at once (`all`, seed
