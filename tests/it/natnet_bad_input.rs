@@ -303,9 +303,15 @@ fn untimed_frames_held_at_shutdown_are_delivered_with_arrival_times() {
             got.iter().map(|f| f.frame).collect::<Vec<_>>(),
             vec![10, 11]
         );
+        // Frames stamped when they were released would come out
+        // milliseconds apart. The stamp is the instant the client read the
+        // datagram, and on a loaded 2-core machine that read was once 77 ms
+        // late for the first frame, so the lower bound leaves the scheduler
+        // 150 ms; the gap cannot be longer than 0.5 s (two frames that far
+        // apart measure the rate and are no longer held).
         let dt = got[1].time_s - got[0].time_s;
         assert!(
-            (0.25..0.4).contains(&dt),
+            (0.15..0.45).contains(&dt),
             "{dt} s between frames sent 0.3 s apart"
         );
     });
