@@ -99,9 +99,10 @@ pub struct Summary {
     /// each holding the other's (`untangle`).
     pub given_up: usize,
     /// Samples of pieces another tip would have taken about as well as
-    /// the one they fitted best, after the session: given up with their
-    /// tips' gaps there filled, rather than risk a piece of one marker in
-    /// another's tip (`rejoin`).
+    /// the one they fitted best, or that no tip took though one fitted
+    /// them loosely, after the session: given up with their tips' gaps
+    /// there filled, rather than risk a piece of one marker in another's
+    /// tip (`rejoin`).
     pub in_doubt: usize,
     /// Pieces joined afterwards by rest position.
     pub joined_by_rest: usize,
@@ -143,7 +144,7 @@ impl fmt::Display for Summary {
         )?;
         writeln!(
             f,
-            "markers found: {} tips, from {} traces ({} ghosts never confirmed; pieces joined: {} from the neighbours' motion, {} handing over to their marker, {} by rest position, {} into a gap of their neighbourhood; {} given to another tip after the session; {} swaps undone where two markers passed close; samples given up: {} where two markers could not be told apart, {} of pieces two tips fit alike)",
+            "markers found: {} tips, from {} traces ({} ghosts never confirmed; pieces joined: {} from the neighbours' motion, {} handing over to their marker, {} by rest position, {} into a gap of their neighbourhood; {} given to another tip after the session; {} swaps undone where two markers passed close; samples given up: {} where two markers could not be told apart, {} of pieces whose tip was in doubt)",
             self.tips, self.traces, self.ghosts, self.joined_on_line, self.adopted, self.joined_by_rest, self.joined_into_gaps, self.rejoined, self.untangled, self.given_up, self.in_doubt
         )?;
         let longest = self.dropped.first().map_or(String::new(), |d| {

@@ -370,18 +370,45 @@ fn samples_too_close_to_tell_apart_are_given_up_not_exchanged() {
 /// at tip 45). A piece another tip takes about as well is left to no tip
 /// in its round; once the other pieces are placed it may have one tip
 /// left to go to (seed 410), else it is given up and its tip's gap
-/// filled (seed 203): no sample of another marker, and little given up.
+/// filled (seed 203): no sample of another marker, and little given up
+/// (the count includes the pieces no tip takes, given up as well: 795
+/// and 1 290 samples here, of some 360 000 in a session).
 #[test]
 fn a_piece_two_tips_fit_alike_is_given_up_not_placed() {
     let noise_mm = TrackingSettings::default().noise_mm;
     let summaries = held_under_all(&[(203, noise_mm), (410, noise_mm)]);
-    for (summary, (seed, given_up)) in summaries.iter().zip([(203, 1..=100), (410, 0..=100)]) {
+    for (summary, (seed, given_up)) in summaries.iter().zip([(203, 1..=3_000), (410, 1..=3_000)]) {
         println!(
             "all, seed {seed}: {} samples of pieces in doubt given up",
             summary.in_doubt
         );
         assert!(
             given_up.contains(&summary.in_doubt),
+            "all, seed {seed}: {} samples in doubt given up",
+            summary.in_doubt
+        );
+    }
+}
+
+/// A piece of a close pair's partner that no tip takes, though a tip fits
+/// it loosely, was left among the loose samples, and the walk that takes
+/// such samples back into a tip's gap (`reclaim`) carried it into the
+/// gap of whichever tip's last sample it continued: `all` seed 390, 35
+/// samples of tip 62 in tip 39's gap (40 under `noise_mm` 1.5); seed 115,
+/// 30 samples of another marker. Given up instead, the tips' gaps there
+/// are filled from the neighbours: no sample of another marker, and
+/// about a thousand samples given up in a session of some 360 000.
+#[test]
+fn a_piece_no_tip_takes_is_given_up_not_walked_into_a_gap() {
+    let noise_mm = TrackingSettings::default().noise_mm;
+    let summaries = held_under_all(&[(390, noise_mm), (390, 1.5), (115, noise_mm)]);
+    for (summary, seed) in summaries.iter().zip([390, 390, 115]) {
+        println!(
+            "all, seed {seed}: {} samples of pieces in doubt given up",
+            summary.in_doubt
+        );
+        assert!(
+            (1..=3_000).contains(&summary.in_doubt),
             "all, seed {seed}: {} samples in doubt given up",
             summary.in_doubt
         );
