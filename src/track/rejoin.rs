@@ -2655,9 +2655,9 @@ fn in_doubt(costs: &[(f64, f64, usize)], chosen: usize) -> bool {
 }
 
 /// Pieces of more than this many times [`DOUBT_MAX`] samples are never
-/// [`claimable`] and left unclaimed (400 samples, 1.7 s at 240 Hz): the pieces it gives up
-/// that were placed wrong before were of 15–101 samples, and a tip's
-/// longer piece left to no tip is a long hole to fill.
+/// given up as [`claimable`] (400 samples, 1.7 s at 240 Hz): the pieces
+/// seen walked into another tip's gap were of 56 and 101 samples, and a
+/// longer piece given up is a long hole to fill.
 const UNCLAIMED_TIMES: usize = 4;
 
 /// Whether a piece [`choose`] gave to no tip is one tip's marker whose tip
@@ -2665,9 +2665,9 @@ const UNCLAIMED_TIMES: usize = 4;
 /// [`LOOSE`]), so it is no reflection, yet no tip's fit was firm enough.
 /// Such a piece, left to no tip, had its samples walked into the gap of
 /// whichever tip's last sample they continued by `reclaim`, judged by
-/// the step alone: `all` seed 331, 101 samples of tip 26, costs 1.2 at
-/// its own tip and 7.4 at its close partner 65, hidden there for 37
-/// frames: 15 of them went into tip 65's gap; seed 390, 56 samples of
+/// the step alone: `all` seed 331, 101 samples of tip 26, costs 1.2 and
+/// 7.4 at the tips of the close pair it belongs to, tip 65 hidden there
+/// for 37 frames: 15 of them went into tip 65's gap; seed 390, 56 samples of
 /// tip 62 left by tip 94's identity (8.5 there, mean 19.8), 35 of them in
 /// tip 39's gap. `swaps` may still give it a tip, weighing it with the
 /// pieces it would trade places with (seed 126: kept from the swaps as
@@ -3553,6 +3553,25 @@ mod tests {
         assert!(!in_doubt(&[(1.6, 1.6, 0), (177.6, 177.6, 1)], 0));
         // A tip chosen that has no cost (the tracker's, out of reach).
         assert!(!in_doubt(&[(4.5, 6.9, 1)], 0));
+    }
+
+    /// Pieces `choose` gave to no tip on the stress sweep's `all`
+    /// sessions (`REJOIN_DEBUG`), as (cost with seams, cost of the mean,
+    /// anchor): where a free tip fits the mean loosely, the piece is some
+    /// tip's marker and is given up rather than left to `reclaim`.
+    #[test]
+    fn a_piece_no_tip_takes_is_claimable_where_a_tip_fits_it_loosely() {
+        // Seed 331: 101 samples of tip 26, at the two tips of its close
+        // pair (26 and 65).
+        let tip_26 = [(1.2, 1.9, 0), (7.4, 8.4, 1), (100.9, 60.5, 2)];
+        assert!(claimable(&tip_26));
+        // Seed 390: 56 samples of tip 62, the tracker's tip first (mean
+        // 19.8), tip 39 second (mean 6.6, its seams far off).
+        assert!(claimable(&[(8.5, 19.8, 0), (156.6, 6.6, 1)]));
+        // A reflection: no tip's mean fits, or no tip free near it.
+        assert!(!claimable(&[(3510.6, 306.3, 0)]));
+        assert!(!claimable(&[(56.9, 40.1, 0), (1387.1, 1387.1, 1)]));
+        assert!(!claimable(&[]));
     }
 
     /// Costs measured on the stress sweep's `all` sessions (`REJOIN_DEBUG`

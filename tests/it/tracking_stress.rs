@@ -376,18 +376,7 @@ fn samples_too_close_to_tell_apart_are_given_up_not_exchanged() {
 #[test]
 fn a_piece_two_tips_fit_alike_is_given_up_not_placed() {
     let noise_mm = TrackingSettings::default().noise_mm;
-    let summaries = held_under_all(&[(203, noise_mm), (410, noise_mm)]);
-    for (summary, (seed, given_up)) in summaries.iter().zip([(203, 1..=3_000), (410, 1..=3_000)]) {
-        println!(
-            "all, seed {seed}: {} samples of pieces in doubt given up",
-            summary.in_doubt
-        );
-        assert!(
-            given_up.contains(&summary.in_doubt),
-            "all, seed {seed}: {} samples in doubt given up",
-            summary.in_doubt
-        );
-    }
+    held_giving_up_little(&[(203, noise_mm), (410, noise_mm)]);
 }
 
 /// A piece of a close pair's partner that no tip takes, though a tip fits
@@ -401,15 +390,20 @@ fn a_piece_two_tips_fit_alike_is_given_up_not_placed() {
 #[test]
 fn a_piece_no_tip_takes_is_given_up_not_walked_into_a_gap() {
     let noise_mm = TrackingSettings::default().noise_mm;
-    let summaries = held_under_all(&[(390, noise_mm), (390, 1.5), (115, noise_mm)]);
-    for (summary, seed) in summaries.iter().zip([390, 390, 115]) {
+    held_giving_up_little(&[(390, noise_mm), (390, 1.5), (115, noise_mm)]);
+}
+
+/// [`held_under_all`], and each case gives up some samples of pieces in
+/// doubt, but no more than 3 000 (under 1 % of a session's).
+fn held_giving_up_little(cases: &[(u64, f64)]) {
+    for (summary, (seed, noise_mm)) in held_under_all(cases).iter().zip(cases) {
         println!(
-            "all, seed {seed}: {} samples of pieces in doubt given up",
+            "all, seed {seed}, noise_mm {noise_mm}: {} samples of pieces in doubt given up",
             summary.in_doubt
         );
         assert!(
             (1..=3_000).contains(&summary.in_doubt),
-            "all, seed {seed}: {} samples in doubt given up",
+            "all, seed {seed}, noise_mm {noise_mm}: {} samples in doubt given up",
             summary.in_doubt
         );
     }
