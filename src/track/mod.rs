@@ -306,7 +306,8 @@ pub fn clean(
     // where which was which cannot be told go: the tips' gaps there are
     // filled, and `reclaim` does not take them back.
     let given_up = untangle::give_up([&mut kept, &mut pool], &untangled.unsure);
-    // So do the pieces two tips would take alike (rejoin.rs, `in_doubt`).
+    // So do the pieces two tips would take alike, and those no tip took
+    // though one fitted them loosely (rejoin.rs, `in_doubt`, `claimable`).
     let in_doubt = untangle::give_up([&mut kept, &mut pool], &doubtful);
     let (reclaimed, gap_stats) =
         reclaim::reclaim(&mut kept, &pool, &timeline, settings, cfg.noise_mm / 1000.0);

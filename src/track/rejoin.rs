@@ -514,9 +514,9 @@ pub(crate) struct Rejoined {
     pub moved: usize,
     /// The `loose` traces and pieces given to no tip.
     pub loose: Vec<Trace>,
-    /// Samples of the pieces left in doubt ([`in_doubt`]), among `loose`
-    /// until the caller gives them up: after `rejoin`, where `reclaim`
-    /// would otherwise take them back.
+    /// Samples of the pieces left in doubt ([`in_doubt`]) or unclaimed
+    /// ([`claimable`]), among `loose` until the caller gives them up:
+    /// after `rejoin`, where `reclaim` would otherwise take them back.
     pub in_doubt: Vec<(i64, DVec3)>,
 }
 
@@ -1783,8 +1783,10 @@ impl Field {
 }
 
 /// The anchor each piece goes to (`None`: a piece of its own), and
-/// whether it was left in doubt ([`in_doubt`], pieces of at most
-/// `doubt_max` samples; then `None` too), the first round judged on
+/// whether its samples are to be given up (then `None` too): left in
+/// doubt ([`in_doubt`], pieces of at most `doubt_max` samples) or given
+/// to no tip though one fits it loosely ([`claimable`], at most
+/// [`UNCLAIMED_TIMES`] × `doubt_max`). The first round is judged on
 /// `joined` ([`Field::joined`]); the wind starts at frame `wind_from`
 /// ([`widened`]).
 fn assign(
@@ -1796,10 +1798,8 @@ fn assign(
     doubt_max: usize,
 ) -> (Vec<Option<usize>>, Vec<bool>) {
     let mut owner: Vec<Option<usize>> = vec![None; pieces.len()];
-    let mut doubt = vec![false; pieces.len()];
-    // Pieces no tip took in the last round though a free tip fits them
-    // loosely (`claimable`).
-    let mut unclaimed = vec![false; pieces.len()];
+    // What the last round said of each piece besides its tip.
+    let mut doubt = vec![Doubt::No; pieces.len()];
     // Spans taken, per anchor.
     let mut taken: Vec<Vec<(i64, i64, usize)>> = vec![Vec::new(); anchors.len()];
     let anchor_of_trace = |from: usize| anchors.iter().position(|a| pieces[a.piece].from == from);
@@ -1840,8 +1840,7 @@ fn assign(
                  i: usize,
                  owner: &mut [Option<usize>],
                  taken: &mut [Vec<(i64, i64, usize)>],
-                 doubt: &mut [bool],
-                 unclaimed: &mut [bool]| {
+                 doubt: &mut [Doubt]| {
         let p = &pieces[i];
         let span = p.span();
         // A tip holding a piece during this one, or the pieces of one
@@ -1883,18 +1882,18 @@ fn assign(
         }
         // A piece another free tip takes nearly as well is left in
         // doubt (`in_doubt`) until a later round places it; `swaps`
-        // does not.
-        doubt[i] = p.movable
-            && p.trace.measured() <= doubt_max
-            && choice.is_some_and(|a| in_doubt(&costs, a));
-        // A piece no tip takes, though one fits it loosely, may still
-        // go to a tip by `swaps`; else its samples are given up too.
-        unclaimed[i] = p.movable
-            && choice.is_none()
-            && p.trace.measured() <= UNCLAIMED_TIMES * doubt_max
-            && claimable(&costs);
-        let choice = choice.filter(|_| !doubt[i]);
-        if debug && doubt[i] {
+        // does not. A piece no tip takes, though one fits it loosely,
+        // may still go to a tip by `swaps`; else its samples are given
+        // up too.
+        let n = p.trace.measured();
+        doubt[i] = match choice {
+            _ if !p.movable => Doubt::No,
+            Some(a) if n <= doubt_max && in_doubt(&costs, a) => Doubt::Alike,
+            None if n <= UNCLAIMED_TIMES * doubt_max && claimable(&costs) => Doubt::Unclaimed,
+            _ => Doubt::No,
+        };
+        let choice = choice.filter(|_| doubt[i] != Doubt::Alike);
+        if debug && doubt[i] == Doubt::Alike {
             eprintln!("piece {i} in doubt");
         }
         if let Some(a) = choice {
@@ -1941,23 +1940,15 @@ fn assign(
                  field: &Field,
                  owner: &mut [Option<usize>],
                  taken: &mut [Vec<(i64, i64, usize)>],
-                 doubt: &mut [bool],
-                 unclaimed: &mut [bool]| {
+                 doubt: &mut [Doubt]| {
         for &i in &order {
             if let Some(a) = owner[i].take() {
                 taken[a].retain(|t| t.2 != i);
             }
-            place(anchors, field, i, owner, taken, doubt, unclaimed);
+            place(anchors, field, i, owner, taken, doubt);
         }
     };
-    round(
-        anchors,
-        joined,
-        &mut owner,
-        &mut taken,
-        &mut doubt,
-        &mut unclaimed,
-    );
+    round(anchors, joined, &mut owner, &mut taken, &mut doubt);
     let placed = Field::placed(pieces, anchors, &owner, joined.step);
     let wide = widened(pieces, anchors, &placed, &owner, wind_from);
     if debug {
@@ -1972,16 +1963,13 @@ fn assign(
         }
     }
     for _ in 1..ROUNDS {
-        round(
-            &wide,
-            &placed,
-            &mut owner,
-            &mut taken,
-            &mut doubt,
-            &mut unclaimed,
-        );
+        round(&wide, &placed, &mut owner, &mut taken, &mut doubt);
     }
-    let swappable: Vec<usize> = order.iter().copied().filter(|&i| !doubt[i]).collect();
+    let swappable: Vec<usize> = order
+        .iter()
+        .copied()
+        .filter(|&i| doubt[i] != Doubt::Alike)
+        .collect();
     swaps(
         pieces, &wide, &placed, &swappable, &mut owner, &mut taken, one_second,
     );
@@ -1990,11 +1978,16 @@ fn assign(
     );
     // Neither step places a piece in doubt: `swaps` is not offered one,
     // and `trades` moves only pieces a tip holds.
-    debug_assert!(doubt.iter().zip(&owner).all(|(&d, o)| !d || o.is_none()));
-    for ((d, &u), o) in doubt.iter_mut().zip(&unclaimed).zip(&owner) {
-        *d |= u && o.is_none();
-    }
-    (owner, doubt)
+    debug_assert!(doubt
+        .iter()
+        .zip(&owner)
+        .all(|(&d, o)| d != Doubt::Alike || o.is_none()));
+    let given_up = doubt
+        .iter()
+        .zip(&owner)
+        .map(|(&d, o)| d != Doubt::No && o.is_none())
+        .collect();
+    (owner, given_up)
 }
 
 /// The tip given to the longer piece of the same trace that piece `i`
@@ -2605,6 +2598,19 @@ fn stretches(
         out.extend(after);
     }
     out
+}
+
+/// What [`assign`]'s last round said of a piece besides its tip.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Doubt {
+    /// Nothing to give up: placed, or fitting no tip, or too long to ask.
+    No,
+    /// Another free tip takes it nearly as well ([`in_doubt`]): given to
+    /// no tip, kept from `swaps`.
+    Alike,
+    /// Given to no tip though one fits it loosely ([`claimable`]): still
+    /// offered to `swaps`.
+    Unclaimed,
 }
 
 /// How far (in whole cost, [`cost_at`]: the mean and the seams) another
