@@ -32,7 +32,10 @@
 //! few frames, or swaps while one marker was hidden, which this does not
 //! see. Held out: nothing swapped on seeds 209–229; on 230–236 one
 //! crossing through 2.2 mm in a gust, just after a one-frame swap by the
-//! tracker, scored 10.9 and was swapped (seed 200's true swap scores 9.7).
+//! tracker, scored 10.9 and was swapped (seed 200's true swap scores 9.7);
+//! it was judged on 4 samples before it, a straight line, and since
+//! session 53 a swap of the tails needs a parabola on each side
+//! ([`TAIL_SAMPLES`]).
 //!
 //! The tracker also exchanges two markers for a frame or two and goes
 //! back, where they are closest: over the 306 seeds `track_stress` is
@@ -80,6 +83,19 @@ const APART_S: f64 = 0.02;
 const LONGEST_S: f64 = 0.25;
 /// Fewer samples on either side than this and the pair is left alone.
 const MIN_SAMPLES: usize = 4;
+/// Fewer samples on either side of a possible swap of the tails than
+/// this and it is not looked for there: a parabola needs one more than
+/// [`DEGREE`] + 1 samples ([`Curve::fit`]), and a side of fewer is fitted
+/// by a straight line, the curve that swapped right crossings (above).
+/// `all` seed 230: two traces began 3 frames before the markers passed
+/// 4.2 mm apart, the tracker exchanged them for one frame there, and the
+/// line through those 4 samples, bent by it, called the crossing a swap
+/// (score 10.9): 16 wrong samples under both `noise_mm`. Wrong samples,
+/// `all` / `noise_mm` 1.5, the 306 sweep seeds: 45 / 271 → 39 / 247
+/// (230: 16 / 16 → 0 / 0; 353 under `noise_mm` 1.5: 21 → 3); lost 243
+/// (0 / 0 → 10 / 10: a true swap 4 frames after both traces began, the
+/// 4 samples before it clean).
+const TAIL_SAMPLES: usize = DEGREE + 2;
 /// How much better the vector turned round must fit, in variances of
 /// the two parabolas where they meet (per axis); it must also miss by
 /// less than half as much.
@@ -389,11 +405,11 @@ fn decide(e: &Encounter, window: usize, debug: u8, tails: bool) -> (Vec<Swap>, V
         .collect();
     let g = GUARD;
     let last = if tails {
-        r.len().saturating_sub(MIN_SAMPLES + g)
+        r.len().saturating_sub(TAIL_SAMPLES + g)
     } else {
         0
     };
-    let best = (MIN_SAMPLES + g..=last)
+    let best = (TAIL_SAMPLES + g..=last)
         .filter(|&i| r[i].0 >= e.from && r[i - 1].0 <= e.to)
         .map(|i| Split::at(&mended, i, g, window))
         .max_by(|x, y| x.score().total_cmp(&y.score()).then(y.i.cmp(&x.i)));
