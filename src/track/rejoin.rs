@@ -1787,8 +1787,9 @@ impl Field {
 /// doubt ([`in_doubt`], pieces of at most `doubt_max` samples) or given
 /// to no tip though one fits it loosely ([`claimable`], at most
 /// [`UNCLAIMED_TIMES`] × `doubt_max`). The first round is judged on
-/// `joined` ([`Field::joined`]); the wind starts at frame `wind_from`
-/// ([`widened`]).
+/// `joined` ([`Field::joined`]), the later ones, and a last look at the
+/// pieces they left to no tip, on where the first put the pieces; the
+/// wind starts at frame `wind_from` ([`widened`]).
 fn assign(
     pieces: &[Piece],
     anchors: &[Anchor],
@@ -2639,7 +2640,10 @@ const DOUBT: f64 = 25.0;
 /// Counted in samples, not in time: bounded at 100 frames at 240 Hz
 /// instead, pieces of fewer samples with gaps inside them went to a tip
 /// (`all, noise_mm` 1.5, the first 187 sweep seeds: 294 → 459 wrong
-/// samples; 248 0 → 74, 301 8 → 202, 274 105 → 2).
+/// samples; 248 0 → 74, 301 8 → 202, 274 105 → 2). At 128 samples
+/// (session 53, to take seed 274's piece of 103), over the 306 sweep
+/// seeds 39 / 247 → 84 / 233 wrong samples (274 under `noise_mm` 1.5
+/// 105 → 2; 290 0 → 24, 318 0 → 57, 406 0 / 0 → 14 / 14).
 const DOUBT_MAX: usize = 100;
 
 /// Whether a piece [`choose`] gave to anchor `chosen` fits another free
