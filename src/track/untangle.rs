@@ -838,7 +838,12 @@ mod tests {
     /// (+30, `miss`, 0) mm, both under 1 mm of noise. The tracker's traces
     /// swap the markers from frame `swap` on (none: they follow them).
     fn passing(miss: f64, swap: Option<i64>, seed: u64) -> (Vec<Trace>, Vec<[DVec3; 2]>) {
-        let place = |f: i64| {
+        two_markers(seed, passing_at(miss), |f| swap.is_some_and(|s| f >= s))
+    }
+
+    /// Where [`passing`]'s two markers are in frame `f`, before noise.
+    fn passing_at(miss: f64) -> impl Fn(i64) -> (DVec3, DVec3) {
+        move |f: i64| {
             let t = f as f64 / 240.0;
             let sway = DVec3::new(
                 0.08 * (std::f64::consts::TAU * 1.5 * t).sin(),
@@ -848,8 +853,7 @@ mod tests {
             let rel = DVec3::new(-0.03 + 0.06 * f as f64 / 119.0, miss, 0.0);
             let at = DVec3::new(1.0, 0.5, 2.0) + sway;
             (at + rel / 2.0, at - rel / 2.0)
-        };
-        two_markers(seed, place, |f| swap.is_some_and(|s| f >= s))
+        }
     }
 
     /// Two markers over 120 frames at 240 Hz, at `place(f)` plus 1 mm of
@@ -951,16 +955,12 @@ mod tests {
     /// (seeds 38, 41, 55: 122 samples of the other marker each).
     #[test]
     fn a_crossing_with_four_samples_before_it_keeps_its_tails() {
+        let before: Vec<i64> = (0..56).collect();
         for seed in 20..60 {
-            let (_, truth) = passing(0.004, None, seed);
-            let mut traces: Vec<Trace> = (0..2)
-                .map(|k| {
-                    let held = (56..120i64).map(|f| {
-                        let other = usize::from(f == 59);
-                        (f, truth[f as usize][k ^ other], Some(k as i64))
-                    });
-                    Trace::collected(k, held).expect("64 frames")
-                })
+            let (traces, truth) = two_markers(seed, passing_at(0.004), |f| f == 59);
+            let mut traces: Vec<Trace> = traces
+                .iter()
+                .map(|t| t.without(&before).expect("64 frames"))
                 .collect();
             untangle(&mut traces, 240);
             assert!(
