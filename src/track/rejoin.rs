@@ -336,10 +336,19 @@ const MEET_SHORT_LINE: f64 = JUMP_LINE;
 /// `all` / `noise_mm` 1.5: 1 293 / 3 468 at 20 mm, 1 262 / 3 479 at 25 mm
 /// (248: 95 → 48, 100: 0 → 14); within the sweep's noise, so the nearer.
 const MEET: f64 = 0.020;
-/// Another trace's run meets a gap when it ends, or begins, between
-/// this long (s) before the gap began and as long after it ended (8
-/// frames at 240 Hz, [`SEAM_K`]): the tracker may let a trace coast a
-/// few frames past its marker's end.
+/// A run that ends, or begins, between this long (s) before the gap
+/// began and as long after it ended (8 frames at 240 Hz, [`SEAM_K`]) is
+/// near the gap in time: the tracker may let a trace coast a few frames
+/// past its marker's end. A run farther off, up to [`CUT_S`], meets the
+/// gap all the same where it is as near in place ([`MEET`]); where it is
+/// not, only by its line ([`Meet::Far`]). Until session 54 a run farther
+/// off in time met the gap by its line only: on `all` seed 353 tip 67's
+/// trace, hidden for 15 frames, went on with tip 25's marker 3.9 mm from
+/// where it had left off; tip 25's own run had ended 18 frames before
+/// the gap, 16.7 mm from where the trace went on, its line 34.9 mm off
+/// (7 samples of tip 25 in tip 67). Wrong samples, `all` / `noise_mm`
+/// 1.5, the 306 sweep seeds: 39 / 247 → 32 / 247 (353: 7 → 0), no seed
+/// else changed; fills bridging two markers 22 / 46 → 20 / 46.
 const MEET_WINDOW_S: f64 = 0.033;
 /// A trace going on, with no frame missing, from its marker to another
 /// that another trace held until the frame before is cut there when the
@@ -882,14 +891,15 @@ enum Meet {
     /// No other run ends or begins near the gap.
     No,
     /// Another trace's run ends within [`MEET`] of where the trace went
-    /// on, or begins within `MEET` of where it left off, from
-    /// [`MEET_WINDOW_S`] before the gap to as long after it.
+    /// on, or begins within `MEET` of where it left off, from [`CUT_S`]
+    /// before the gap to as long after it.
     Near,
-    /// Only a run ending or beginning farther from the gap in time, up to
-    /// [`CUT_S`], whose straight line, carried to the other side of the
-    /// gap, reaches within `MEET` of the trace there: a marker hidden
-    /// near the gap for longer than the trace was. Never across a gap
-    /// shorter than [`MEET_GAP_S`] ([`MEET_SHORT_LINE`]).
+    /// Only a run ending or beginning farther from the gap in time than
+    /// [`MEET_WINDOW_S`], up to [`CUT_S`], farther than `MEET` from the
+    /// trace, whose straight line, carried to the other side of the gap,
+    /// reaches within `MEET` of the trace there: a marker hidden near the
+    /// gap for longer than the trace was. Never across a gap shorter than
+    /// [`MEET_GAP_S`] ([`MEET_SHORT_LINE`]).
     ///
     /// On `all` seed 389 tip 9's marker, hidden for 14 frames, went on as
     /// tip 68's, hidden for 30 frames 6 mm from it; tip 68's run had
@@ -934,7 +944,7 @@ fn meets(cuts: &Cuts<'_>, k: usize, (f0, p0): (i64, DVec3), (f1, p1): (i64, DVec
             }
             continue;
         }
-        if near && e.at.distance(at.1) <= MEET {
+        if e.at.distance(at.1) <= MEET {
             return Meet::Near;
         }
         if !near && line <= MEET {

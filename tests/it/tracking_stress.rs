@@ -416,6 +416,18 @@ fn a_crossing_judged_on_four_samples_is_not_swapped() {
     held_under_all(&[(230, TrackingSettings::default().noise_mm), (230, 1.5)]);
 }
 
+/// A marker hidden for longer than the trace beside it still meets the
+/// trace's gap where it was last seen near where the trace went on, however
+/// long before the gap (up to 0.1 s): on `all` seed 353 tip 67's trace,
+/// hidden for 15 frames, went on with tip 25's marker 3.9 mm from where it
+/// had left off, and tip 25's own run had ended 18 frames before the gap,
+/// 16.7 mm from there. Only a run ending 8 frames or less before the gap
+/// met it by place: 7 samples of tip 25 stayed in tip 67.
+#[test]
+fn a_marker_hidden_before_a_gap_and_near_where_the_trace_went_on_meets_it() {
+    held_under_all(&[(353, TrackingSettings::default().noise_mm)]);
+}
+
 /// [`held_under_all`], and each case gives up some samples of pieces in
 /// doubt, but no more than 3 000 (under 1 % of a session's).
 fn held_giving_up_little(cases: &[(u64, f64)]) {
