@@ -36,6 +36,7 @@ mod identity;
 mod inline_vec;
 mod jitter;
 pub mod live;
+mod lone;
 mod motion;
 pub mod noise;
 mod radix;
@@ -104,6 +105,10 @@ pub struct Summary {
     /// there filled, rather than risk a piece of one marker in another's
     /// tip (`rejoin`).
     pub in_doubt: usize,
+    /// Samples of runs of one to three a tip held alone between two gaps,
+    /// most often a hidden tip's close partner or a reflection: given up
+    /// with their tips' gaps there filled (`lone`).
+    pub lone: usize,
     /// Pieces joined afterwards by rest position.
     pub joined_by_rest: usize,
     /// Long fragments without a rest position put into a gap of the marker
@@ -144,8 +149,8 @@ impl fmt::Display for Summary {
         )?;
         writeln!(
             f,
-            "markers found: {} tips, from {} traces ({} ghosts never confirmed; pieces joined: {} from the neighbours' motion, {} handing over to their marker, {} by rest position, {} into a gap of their neighbourhood; {} given to another tip after the session; {} swaps undone where two markers passed close; samples given up: {} where two markers could not be told apart, {} of pieces whose tip was in doubt)",
-            self.tips, self.traces, self.ghosts, self.joined_on_line, self.adopted, self.joined_by_rest, self.joined_into_gaps, self.rejoined, self.untangled, self.given_up, self.in_doubt
+            "markers found: {} tips, from {} traces ({} ghosts never confirmed; pieces joined: {} from the neighbours' motion, {} handing over to their marker, {} by rest position, {} into a gap of their neighbourhood; {} given to another tip after the session; {} swaps undone where two markers passed close; samples given up: {} where two markers could not be told apart, {} of pieces whose tip was in doubt, {} held alone between gaps)",
+            self.tips, self.traces, self.ghosts, self.joined_on_line, self.adopted, self.joined_by_rest, self.joined_into_gaps, self.rejoined, self.untangled, self.given_up, self.in_doubt, self.lone
         )?;
         let longest = self.dropped.first().map_or(String::new(), |d| {
             format!(
@@ -309,6 +314,10 @@ pub fn clean(
     // So do the pieces two tips would take alike, and those no tip took
     // though one fitted them loosely (rejoin.rs, `in_doubt`, `claimable`).
     let in_doubt = untangle::give_up([&mut kept, &mut pool], &doubtful);
+    // Then the runs of one to three samples a tip holds alone between
+    // two gaps (lone.rs), on the tips as the steps above left them.
+    let alone = lone::lone_runs(&kept, one_second(&timeline));
+    let lone = untangle::give_up([&mut kept], &alone);
     let (reclaimed, gap_stats) =
         reclaim::reclaim(&mut kept, &pool, &timeline, settings, cfg.noise_mm / 1000.0);
     drop(pool);
@@ -330,6 +339,7 @@ pub fn clean(
         untangled: untangled.places,
         given_up,
         in_doubt,
+        lone,
         joined_by_rest,
         joined_into_gaps,
         rejoined,

@@ -55,8 +55,9 @@ const DRIFT_PER_FRAME_M: f64 = 0.0002;
 const MAX_DRIFT_M: f64 = 0.03;
 
 /// Samples in a row a run needs when it starts after frames where the
-/// walk found nothing.
-const MIN_RUN: usize = 4;
+/// walk found nothing; a tip's run of fewer between two gaps is given up
+/// (`lone`).
+pub(crate) const MIN_RUN: usize = 4;
 
 /// Passes at most: each fills every gap (the last one's fills are kept).
 /// Held out, `all`, 11–50 frame fills against PCHIP's: 0.79 × after one

@@ -335,7 +335,7 @@ const MEET_SHORT_LINE: f64 = JUMP_LINE;
 /// Seed 216: 15 mm gave 1 wrong sample, 25 mm none. Seeds 100–249,
 /// `all` / `noise_mm` 1.5: 1 293 / 3 468 at 20 mm, 1 262 / 3 479 at 25 mm
 /// (248: 95 → 48, 100: 0 → 14); within the sweep's noise, so the nearer.
-const MEET: f64 = 0.020;
+pub(crate) const MEET: f64 = 0.020;
 /// A run that ends, or begins, between this long (s) before the gap
 /// began and as long after it ended (8 frames at 240 Hz, [`SEAM_K`]) is
 /// near the gap in time: the tracker may let a trace coast a few frames
