@@ -438,7 +438,10 @@ fn a_marker_hidden_before_a_gap_and_near_where_the_trace_went_on_meets_it() {
 fn a_run_held_alone_between_two_gaps_beside_another_marker_is_given_up() {
     let noise = TrackingSettings::default().noise_mm;
     let summary = &held_under_all(&[(335, noise)])[0];
-    println!("all, seed 335: {} samples held alone given up", summary.lone);
+    println!(
+        "all, seed 335: {} samples held alone given up",
+        summary.lone
+    );
     assert!(
         (2..=100).contains(&summary.lone),
         "all, seed 335: {} samples held alone given up",
