@@ -1,20 +1,23 @@
-//! Samples a tip holds alone between two gaps, given up.
+//! Samples a tip holds alone between two gaps, beside another marker,
+//! given up.
 //!
 //! Where a tip's marker is hidden on both sides of a run of one to three
 //! samples, the run carries no motion of its own to judge it by: no line
 //! through it, no seam to either side, nothing for the neighbours' model
-//! to weigh but where it sits. Under strong sway with occlusion those
-//! runs are most often the close partner's marker, which flickered into
-//! view beside the hidden tip (or was hidden with it and came back a
-//! frame early), or a reflection: `all` seed 335, one sample of each of
-//! two partner tips exchanged 3.6 mm apart between gaps of 2 and 7
-//! frames; seeds 331 and 216, a trace begun on the partner's marker for
-//! a frame, 7 frames before it found its own; seed 248, a 3-sample trace
-//! of tip 63's marker inside tip 18's gap of 28 frames. A fill across the
-//! gap misses by about the fill's error; a sample of the other marker
-//! misses by the distance between the two and counts against the tip's
-//! identity. `reclaim` asks the same of a run it finds after frames
-//! without one ([`MIN_RUN`] samples).
+//! to weigh but where it sits. With another tip's marker measured beside
+//! it, the run may as well be that marker's: `all` seed 335, one sample
+//! of each of two partner tips exchanged 3.6 mm apart between gaps of 2
+//! and 7 frames. A fill across the gap misses by about the fill's error;
+//! a sample of the other marker misses by the distance between the two
+//! and counts against the tip's identity. `reclaim` asks as much of a
+//! run it finds after frames without one ([`MIN_RUN`] samples).
+//!
+//! Runs with no other marker near stay, though some are a hidden
+//! partner's (`all` seeds 216 and 331: a trace begun on the partner's
+//! marker a frame before it found its own, 7 frames later; seed 248:
+//! 3 samples of tip 63's marker inside tip 18's gap): giving up every
+//! lone run cost the fills more than it saved (below, and
+//! docs/tracking.md §4a, session 54).
 
 use glam::DVec3;
 
@@ -66,10 +69,10 @@ pub(crate) fn lone_runs(traces: &[Trace], one_second: i64) -> Vec<(i64, DVec3)> 
             }
         }
     }
-    // Each run's window of frames (first, last, run), by first frame; one
-    // pass over every other trace's samples marks the runs a marker came
-    // near (a trace's samples are decoded once, as above: an hour's take
-    // holds no more than one trace's at a time).
+    // Each run's window of frames (first, last, run), by first frame; a
+    // second pass over every trace's samples marks the runs another
+    // marker came near (one trace decoded at a time, as above: an hour's
+    // take never holds all its samples decoded at once).
     let mut windows: Vec<(i64, i64, usize)> = runs
         .iter()
         .enumerate()

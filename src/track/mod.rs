@@ -105,9 +105,9 @@ pub struct Summary {
     /// there filled, rather than risk a piece of one marker in another's
     /// tip (`rejoin`).
     pub in_doubt: usize,
-    /// Samples of runs of one to three a tip held alone between two gaps,
-    /// most often a hidden tip's close partner or a reflection: given up
-    /// with their tips' gaps there filled (`lone`).
+    /// Samples of runs of one to three a tip held alone between two gaps
+    /// with another tip's marker beside them, which may as well be that
+    /// marker's: given up with their tips' gaps there filled (`lone`).
     pub lone: usize,
     /// Pieces joined afterwards by rest position.
     pub joined_by_rest: usize,
@@ -315,7 +315,8 @@ pub fn clean(
     // though one fitted them loosely (rejoin.rs, `in_doubt`, `claimable`).
     let in_doubt = untangle::give_up([&mut kept, &mut pool], &doubtful);
     // Then the runs of one to three samples a tip holds alone between
-    // two gaps (lone.rs), on the tips as the steps above left them.
+    // two gaps beside another marker (lone.rs), on the tips as the steps
+    // above left them.
     let alone = lone::lone_runs(&kept, one_second(&timeline));
     let lone = untangle::give_up([&mut kept], &alone);
     let (reclaimed, gap_stats) =
