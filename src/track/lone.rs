@@ -46,27 +46,40 @@ const SHORTER_GAP: i64 = 2;
 /// split a hole the fill then spans whole.
 pub(crate) fn lone_runs(traces: &[Trace], one_second: i64) -> Vec<(i64, DVec3)> {
     let longer = ((LONGER_GAP_S * one_second as f64).round() as i64).max(SHORTER_GAP);
-    // The candidates, with the trace that holds them.
+    // The candidates, with the trace that holds them. Streamed: an hour
+    // of one marker decoded whole is 28 MB, and the hour's cleaning peaks
+    // near its bound (README, performance).
     let mut runs: Vec<(usize, Vec<(i64, DVec3)>)> = Vec::new();
     for (k, t) in traces.iter().enumerate() {
-        let samples: Vec<(i64, DVec3)> = t.measurements().collect();
-        // Where each run of consecutive frames begins, and the end.
-        let mut starts: Vec<usize> = (0..samples.len())
-            .filter(|&i| i == 0 || samples[i].0 != samples[i - 1].0 + 1)
-            .collect();
-        starts.push(samples.len());
-        // The first run (from `starts[0]`) and the last (ending at the
-        // end) have no gap on their outer side.
-        for w in starts[1..].windows(2) {
-            let (start, end) = (w[0], w[1]);
-            if end - start >= MIN_RUN || end == samples.len() {
-                continue;
+        // The last frame of the run before the current one, the current
+        // run's first and last frames and its first samples (at most
+        // `MIN_RUN`: a longer run is never lone).
+        let mut before_end: Option<i64> = None;
+        let mut first = i64::MIN;
+        let mut last = i64::MIN;
+        let mut held: Vec<(i64, DVec3)> = Vec::with_capacity(MIN_RUN);
+        for (f, p) in t.measurements() {
+            if f != last + 1 && last != i64::MIN {
+                // The current run ended at `last`; `f` begins the next.
+                if let Some(end) = before_end {
+                    let (before, after) = (first - end - 1, f - last - 1);
+                    if held.len() < MIN_RUN
+                        && before.min(after) >= SHORTER_GAP
+                        && before.max(after) >= longer
+                    {
+                        runs.push((k, held.clone()));
+                    }
+                }
+                before_end = Some(last);
+                held.clear();
+                first = f;
+            } else if last == i64::MIN {
+                first = f;
             }
-            let before = samples[start].0 - samples[start - 1].0 - 1;
-            let after = samples[end].0 - samples[end - 1].0 - 1;
-            if before.min(after) >= SHORTER_GAP && before.max(after) >= longer {
-                runs.push((k, samples[start..end].to_vec()));
+            if held.len() < MIN_RUN {
+                held.push((f, p));
             }
+            last = f;
         }
     }
     // Each run's window of frames (first, last, run), by first frame; a
