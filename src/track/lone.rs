@@ -46,40 +46,71 @@ const SHORTER_GAP: i64 = 2;
 /// split a hole the fill then spans whole.
 pub(crate) fn lone_runs(traces: &[Trace], one_second: i64) -> Vec<(i64, DVec3)> {
     let longer = ((LONGER_GAP_S * one_second as f64).round() as i64).max(SHORTER_GAP);
-    // The candidates, with the trace that holds them. Streamed: an hour
-    // of one marker decoded whole is 28 MB, and the hour's cleaning peaks
-    // near its bound (README, performance).
-    let mut runs: Vec<(usize, Vec<(i64, DVec3)>)> = Vec::new();
+    // The candidates' frames (trace, first, last), found on the
+    // measured flags alone: most captures have none, and their samples
+    // are then never decoded here (decoding every trace twice cost the
+    // cleaning of pine-35 about 5 ms).
+    let mut spans: Vec<(usize, i64, i64)> = Vec::new();
     for (k, t) in traces.iter().enumerate() {
-        // The last frame of the run before the current one, the current
-        // run's first and last frames and its first samples (at most
-        // `MIN_RUN`: a longer run is never lone).
+        // The last frame of the run before the current one, and the
+        // current run's first frame.
         let mut before_end: Option<i64> = None;
-        let mut first = i64::MIN;
-        let mut last = i64::MIN;
-        let mut held: Vec<(i64, DVec3)> = Vec::with_capacity(MIN_RUN);
-        for (f, p) in t.measurements() {
-            if f != last + 1 && last != i64::MIN {
-                // The current run ended at `last`; `f` begins the next.
-                if let Some(end) = before_end {
-                    let (before, after) = (first - end - 1, f - last - 1);
-                    if held.len() < MIN_RUN
-                        && before.min(after) >= SHORTER_GAP
-                        && before.max(after) >= longer
-                    {
-                        runs.push((k, held.clone()));
-                    }
-                }
-                before_end = Some(last);
-                held.clear();
-                first = f;
-            } else if last == i64::MIN {
-                first = f;
+        let mut first = t.first_frame();
+        loop {
+            // The current run ends at the frame before the next missing.
+            let mut last = first;
+            while last < t.last_frame() && t.is_measured(last + 1) {
+                last += 1;
             }
-            if held.len() < MIN_RUN {
+            let mut next = last + 1;
+            while next <= t.last_frame() && !t.is_measured(next) {
+                next += 1;
+            }
+            if next > t.last_frame() {
+                break; // the last run: no gap after it
+            }
+            if let Some(end) = before_end {
+                let (before, after) = (first - end - 1, next - last - 1);
+                if ((last - first + 1) as usize) < MIN_RUN
+                    && before.min(after) >= SHORTER_GAP
+                    && before.max(after) >= longer
+                {
+                    spans.push((k, first, last));
+                }
+            }
+            before_end = Some(last);
+            first = next;
+        }
+    }
+    if spans.is_empty() {
+        return Vec::new();
+    }
+    // Their samples, with the trace that holds them.
+    let mut runs: Vec<(usize, Vec<(i64, DVec3)>)> = Vec::with_capacity(spans.len());
+    let mut by_trace = spans.iter().peekable();
+    for (k, t) in traces.iter().enumerate() {
+        if by_trace.peek().is_none_or(|s| s.0 != k) {
+            continue;
+        }
+        let mine: Vec<(i64, i64)> = std::iter::from_fn(|| by_trace.next_if(|s| s.0 == k))
+            .map(|s| (s.1, s.2))
+            .collect();
+        let mut at = 0;
+        let mut held: Vec<(i64, DVec3)> = Vec::new();
+        for (f, p) in t.measurements() {
+            while at < mine.len() && f > mine[at].1 {
+                runs.push((k, std::mem::take(&mut held)));
+                at += 1;
+            }
+            if at == mine.len() {
+                break;
+            }
+            if f >= mine[at].0 {
                 held.push((f, p));
             }
-            last = f;
+        }
+        if at < mine.len() {
+            runs.push((k, held));
         }
     }
     // Each run's window of frames (first, last, run), by first frame; a
@@ -93,9 +124,12 @@ pub(crate) fn lone_runs(traces: &[Trace], one_second: i64) -> Vec<(i64, DVec3)> 
         .collect();
     windows.sort_unstable();
     let widest = windows.iter().map(|w| w.1 - w.0).max().unwrap_or(0);
+    // Past the last window no sample matters: each trace is decoded up to
+    // there only.
+    let end = windows.iter().map(|w| w.1).max().unwrap_or(i64::MIN);
     let mut near = vec![false; runs.len()];
     for (k, t) in traces.iter().enumerate() {
-        for (f, p) in t.measurements() {
+        for (f, p) in t.measurements().take_while(|s| s.0 <= end) {
             let first = windows.partition_point(|w| w.0 < f - widest);
             for &(_, to, r) in windows[first..].iter().take_while(|w| w.0 <= f) {
                 let (holder, run) = &runs[r];
