@@ -437,30 +437,29 @@ fn a_marker_hidden_before_a_gap_and_near_where_the_trace_went_on_meets_it() {
 #[test]
 fn a_run_held_alone_between_two_gaps_beside_another_marker_is_given_up() {
     let noise = TrackingSettings::default().noise_mm;
-    let summary = &held_under_all(&[(335, noise)])[0];
-    println!(
-        "all, seed 335: {} samples held alone given up",
-        summary.lone
-    );
-    assert!(
-        (2..=100).contains(&summary.lone),
-        "all, seed 335: {} samples held alone given up",
-        summary.lone
-    );
+    held_giving_up(&[(335, noise)], "held alone", |s| s.lone, 2..=100);
 }
 
 /// [`held_under_all`], and each case gives up some samples of pieces in
 /// doubt, but no more than 3 000 (under 1 % of a session's).
 fn held_giving_up_little(cases: &[(u64, f64)]) {
+    held_giving_up(cases, "of pieces in doubt", |s| s.in_doubt, 1..=3_000);
+}
+
+/// [`held_under_all`], and each case gives up a number of samples in
+/// `range`, counted by `given` (`what` names them in the messages).
+fn held_giving_up(
+    cases: &[(u64, f64)],
+    what: &str,
+    given: fn(&track::Summary) -> usize,
+    range: std::ops::RangeInclusive<usize>,
+) {
     for (summary, (seed, noise_mm)) in held_under_all(cases).iter().zip(cases) {
-        println!(
-            "all, seed {seed}, noise_mm {noise_mm}: {} samples of pieces in doubt given up",
-            summary.in_doubt
-        );
+        let n = given(summary);
+        println!("all, seed {seed}, noise_mm {noise_mm}: {n} samples {what} given up");
         assert!(
-            (1..=3_000).contains(&summary.in_doubt),
-            "all, seed {seed}, noise_mm {noise_mm}: {} samples in doubt given up",
-            summary.in_doubt
+            range.contains(&n),
+            "all, seed {seed}, noise_mm {noise_mm}: {n} samples {what} given up"
         );
     }
 }
