@@ -12,12 +12,16 @@
 //! and counts against the tip's identity. `reclaim` asks as much of a
 //! run it finds after frames without one ([`MIN_RUN`] samples).
 //!
-//! Runs with no other marker near stay, though some are a hidden
-//! partner's (`all` seeds 216 and 331: a trace begun on the partner's
-//! marker a frame before it found its own, 7 frames later; seed 248:
-//! 3 samples of tip 63's marker inside tip 18's gap): giving up every
-//! lone run cost the fills more than it saved (below, and
-//! docs/tracking.md §4a, session 54).
+//! With no other marker measured near, the run may still be a hidden
+//! partner's: `all` seed 216, one sample of tip 60's marker, hidden
+//! from 13 frames before to 30 after, in tip 3's gap 6 mm from where
+//! tip 3 was. Where the run is, by where each tip's neighbours went,
+//! is weighed for the run's own tip carried across the run and for
+//! every tip hidden across it ([`hidden_partner`]); where a hidden tip
+//! would be about as near as the run's own, which is which is not
+//! known, and the run goes. Giving up every lone run, a marker near or
+//! not, cost the fills more than it saved: most are the tip's own
+//! (docs/tracking.md §4a, session 54).
 
 use glam::DVec3;
 
@@ -33,17 +37,42 @@ const LONGER_GAP_S: f64 = 0.025;
 /// Frames missing on the shorter side at least.
 const SHORTER_GAP: i64 = 2;
 
+/// A tip hidden across a lone run is weighed as its partner when it was
+/// measured within this long (s) before the run and after it: a tip's
+/// place across a gap is carried from both ends by its neighbours, and
+/// over longer gaps two tips' motions part too far for it to tell
+/// (`all` seed 191: tip 9, hidden for 0.4 s while it passed tip 62 and
+/// the two drew 120 mm apart, carried 62 mm off its marker).
+const PARTNER_REACH_S: f64 = 0.5;
+
+/// Neighbours a tip's place is carried by across a gap: the tips
+/// nearest it where the gap began that were measured at both its ends
+/// and through the run.
+const NEIGHBOURS: usize = 4;
+
+/// A hidden partner carried to within this many times the run's own
+/// tip's miss of the run (and within [`MEET`]) leaves the run in doubt.
+/// Above one: `all` seed 331, two tips 2.1 mm apart where one's sample
+/// fell in the other's gap, the partner carried to 2.9 mm of it and the
+/// run's own tip to 1.4 mm; two markers that near are not told apart by
+/// a few millimetres of carrying. Over seeds 216, 248, 301 and 331 (660
+/// lone runs with no marker near) the three runs within 2.5 times were
+/// the three hidden partners'; the next nearest partner was 30.4 mm off
+/// (the run's own tip 16.0 mm).
+const AS_NEAR: f64 = 2.5;
+
 /// The samples of every run of fewer than [`MIN_RUN`] samples in
 /// `traces` (one trace per tip) with at least [`SHORTER_GAP`] frames
 /// missing on either side and [`LONGER_GAP_S`] on one, and another tip's
 /// marker measured within [`MEET`] of it within `LONGER_GAP_S` of it in
-/// time (`one_second`: frames per second). A trace's first and last runs
-/// are never lone: on one side nothing says the marker was hidden. With
-/// no other marker near, the run can only be the tip's own (or a
-/// reflection, which fits no tip): under occlusion alone, giving up
-/// every such run made the fills of 1–10 frames worse than PCHIP's
-/// (seeds 103–109, 0.32 against 0.31 mm), for the samples given up
-/// split a hole the fill then spans whole.
+/// time (`one_second`: frames per second), or a tip hidden across it
+/// about as near by its neighbours' motion ([`hidden_partner`]). A
+/// trace's first and last runs are never lone: on one side nothing says
+/// the marker was hidden. With neither, the run can only be the tip's
+/// own (or a reflection, which fits no tip): under occlusion alone,
+/// giving up every such run made the fills of 1–10 frames worse than
+/// PCHIP's (seeds 103–109, 0.32 against 0.31 mm), for the samples given
+/// up split a hole the fill then spans whole.
 pub(crate) fn lone_runs(traces: &[Trace], one_second: i64) -> Vec<(i64, DVec3)> {
     let longer = ((LONGER_GAP_S * one_second as f64).round() as i64).max(SHORTER_GAP);
     // The candidates' frames (trace, first, last), found on the
@@ -51,6 +80,8 @@ pub(crate) fn lone_runs(traces: &[Trace], one_second: i64) -> Vec<(i64, DVec3)> 
     // are then never decoded here (decoding every trace twice cost the
     // cleaning of pine-35 about 5 ms).
     let mut spans: Vec<(usize, i64, i64)> = Vec::new();
+    // The last frame measured before each span and the first after it.
+    let mut sides: Vec<(i64, i64)> = Vec::new();
     for (k, t) in traces.iter().enumerate() {
         // The last frame of the run before the current one, and the
         // current run's first frame.
@@ -76,6 +107,7 @@ pub(crate) fn lone_runs(traces: &[Trace], one_second: i64) -> Vec<(i64, DVec3)> 
                     && before.max(after) >= longer
                 {
                     spans.push((k, first, last));
+                    sides.push((end, next));
                 }
             }
             before_end = Some(last);
@@ -113,10 +145,22 @@ pub(crate) fn lone_runs(traces: &[Trace], one_second: i64) -> Vec<(i64, DVec3)> 
             runs.push((k, held));
         }
     }
+    let partners = partners_of(traces, &runs, one_second);
+    // The frames each tip's place is weighed at: where its gap across a
+    // run began and ended, and the run's.
+    let mut at_frames: Vec<i64> = Vec::new();
+    for ((_, run), &(before, after)) in runs.iter().zip(&sides) {
+        at_frames.extend([before, after]);
+        at_frames.extend(run.iter().map(|s| s.0));
+    }
+    at_frames.extend(partners.iter().flat_map(|p| [p.before, p.after]));
+    at_frames.sort_unstable();
+    at_frames.dedup();
     // Each run's window of frames (first, last, run), by first frame; a
     // second pass over every trace's samples marks the runs another
-    // marker came near (one trace decoded at a time, as above: an hour's
-    // take never holds all its samples decoded at once).
+    // marker came near and keeps every trace's samples at `at_frames`
+    // (one trace decoded at a time, as above: an hour's take never holds
+    // all its samples decoded at once).
     let mut windows: Vec<(i64, i64, usize)> = runs
         .iter()
         .enumerate()
@@ -126,10 +170,19 @@ pub(crate) fn lone_runs(traces: &[Trace], one_second: i64) -> Vec<(i64, DVec3)> 
     let widest = windows.iter().map(|w| w.1 - w.0).max().unwrap_or(0);
     // Past the last window no sample matters: each trace is decoded up to
     // there only.
-    let end = windows.iter().map(|w| w.1).max().unwrap_or(i64::MIN);
+    let end = windows
+        .iter()
+        .map(|w| w.1)
+        .chain(at_frames.last().copied())
+        .max()
+        .unwrap_or(i64::MIN);
     let mut near = vec![false; runs.len()];
+    let mut places: Vec<Vec<(i64, DVec3)>> = vec![Vec::new(); traces.len()];
     for (k, t) in traces.iter().enumerate() {
         for (f, p) in t.measurements().take_while(|s| s.0 <= end) {
+            if at_frames.binary_search(&f).is_ok() {
+                places[k].push((f, p));
+            }
             let first = windows.partition_point(|w| w.0 < f - widest);
             for &(_, to, r) in windows[first..].iter().take_while(|w| w.0 <= f) {
                 let (holder, run) = &runs[r];
@@ -139,11 +192,140 @@ pub(crate) fn lone_runs(traces: &[Trace], one_second: i64) -> Vec<(i64, DVec3)> 
             }
         }
     }
-    runs.into_iter()
-        .zip(near)
-        .filter(|(_, n)| *n)
-        .flat_map(|((_, run), _)| run)
-        .collect()
+    let places = Places(places);
+    let mut partners = partners.into_iter().peekable();
+    let mut lone = Vec::new();
+    for (r, ((k, run), &(before, after))) in runs.into_iter().zip(&sides).enumerate() {
+        let mine: Vec<Partner> = std::iter::from_fn(|| partners.next_if(|p| p.run == r)).collect();
+        if near[r] || hidden_partner(&places, k, &run, (before, after), &mine) {
+            lone.extend(run);
+        }
+    }
+    lone
+}
+
+/// Every trace's samples at the frames a lone run's tips are weighed
+/// at, in frame order.
+struct Places(Vec<Vec<(i64, DVec3)>>);
+
+impl Places {
+    /// Where trace `k` was measured at frame `f`, if it was.
+    fn at(&self, k: usize, f: i64) -> Option<DVec3> {
+        let v = &self.0[k];
+        v.binary_search_by_key(&f, |s| s.0).ok().map(|i| v[i].1)
+    }
+}
+
+/// A tip hidden across a lone run, whose marker the run may be.
+struct Partner {
+    /// The run (its index among the runs).
+    run: usize,
+    /// The tip's trace.
+    trace: usize,
+    /// The last frame the tip was measured before the run.
+    before: i64,
+    /// The first frame it was measured after the run.
+    after: i64,
+}
+
+/// The tips hidden across each run that were measured within
+/// [`PARTNER_REACH_S`] on both sides of it, by run. Found on the
+/// measured flags.
+fn partners_of(
+    traces: &[Trace],
+    runs: &[(usize, Vec<(i64, DVec3)>)],
+    one_second: i64,
+) -> Vec<Partner> {
+    let reach = (PARTNER_REACH_S * one_second as f64).round() as i64;
+    let mut partners = Vec::new();
+    for (r, (k, run)) in runs.iter().enumerate() {
+        let (first, last) = (run[0].0, run[run.len() - 1].0);
+        for (p, t) in traces.iter().enumerate() {
+            if p == *k || (first..=last).any(|f| t.is_measured(f)) {
+                continue;
+            }
+            let a = (1..=reach).map(|d| first - d).find(|&f| t.is_measured(f));
+            let b = (1..=reach).map(|d| last + d).find(|&f| t.is_measured(f));
+            if let (Some(before), Some(after)) = (a, b) {
+                partners.push(Partner {
+                    run: r,
+                    trace: p,
+                    before,
+                    after,
+                });
+            }
+        }
+    }
+    partners
+}
+
+/// Whether a tip hidden across the run `run` of trace `k` (its gap
+/// around the run from `before` to `after`) would be about as near the
+/// run as `k`'s own tip, each carried across its gap by its neighbours
+/// ([`carried_miss`]): a partner within [`MEET`] and [`AS_NEAR`] times
+/// the own tip's miss.
+fn hidden_partner(
+    places: &Places,
+    k: usize,
+    run: &[(i64, DVec3)],
+    (before, after): (i64, i64),
+    partners: &[Partner],
+) -> bool {
+    if partners.is_empty() {
+        return false;
+    }
+    let Some(own) = carried_miss(places, k, k, run, (before, after)) else {
+        return false;
+    };
+    partners.iter().any(|p| {
+        carried_miss(places, p.trace, k, run, (p.before, p.after))
+            .is_some_and(|m| m < MEET && m < AS_NEAR * own)
+    })
+}
+
+/// How far (m, mean over the run) trace `t`'s tip would be from the run
+/// `run` of trace `holder`, carried across its gap from frame `a` to
+/// frame `b` by its [`NEIGHBOURS`]: at each frame, a neighbour's
+/// position plus the tip's offset from it, turned linearly from the one
+/// at `a` to the one at `b`. The tips of a tree sway together; what
+/// parts them changes slowly. `None` when `t` or no neighbour was
+/// measured where needed.
+fn carried_miss(
+    places: &Places,
+    t: usize,
+    holder: usize,
+    run: &[(i64, DVec3)],
+    (a, b): (i64, i64),
+) -> Option<f64> {
+    let (ta, tb) = (places.at(t, a)?, places.at(t, b)?);
+    // (distance at `a`, position at `a`, at `b`, through the run).
+    let mut neighbours: Vec<(f64, DVec3, DVec3, Vec<DVec3>)> = (0..places.0.len())
+        .filter(|&n| n != t && n != holder)
+        .filter_map(|n| {
+            let (na, nb) = (places.at(n, a)?, places.at(n, b)?);
+            let through: Option<Vec<DVec3>> = run.iter().map(|s| places.at(n, s.0)).collect();
+            Some((na.distance(ta), na, nb, through?))
+        })
+        .collect();
+    if neighbours.is_empty() {
+        return None;
+    }
+    neighbours.sort_by(|x, y| x.0.total_cmp(&y.0));
+    neighbours.truncate(NEIGHBOURS);
+    let span = (b - a) as f64;
+    let miss: f64 = run
+        .iter()
+        .enumerate()
+        .map(|(i, &(f, p))| {
+            let w = (f - a) as f64 / span;
+            let sum: DVec3 = neighbours
+                .iter()
+                .map(|(_, na, nb, through)| through[i] + (ta - *na).lerp(tb - *nb, w))
+                .sum();
+            (sum / neighbours.len() as f64).distance(p)
+        })
+        .sum();
+    Some(miss / run.len() as f64)
 }
 
 #[cfg(test)]
@@ -187,6 +369,62 @@ mod tests {
         assert_eq!(lone_frames(&frames, 0.0036), vec![13]);
         // With no marker within 20 mm it can only be the tip's own.
         assert_eq!(lone_frames(&frames, 0.05), Vec::<i64>::new());
+    }
+
+    /// A tree swaying 50 mm at 1.5 Hz: four neighbours 0.1 m apart
+    /// measured throughout, the tip at the origin measured up to frame
+    /// 20, at 30 (the run, `run_at` off its own place) and from 40, and
+    /// a partner `partner_off` (m) along x hidden from frame 15 to 50.
+    /// The frames given up.
+    fn in_a_swaying_tree(partner_off: f64, run_at: DVec3) -> Vec<i64> {
+        let sway = |f: i64| {
+            let s = (f as f64 / 240.0 * 1.5 * std::f64::consts::TAU).sin();
+            DVec3::new(0.05 * s, 0.02 * s, 0.0)
+        };
+        let trace = |frames: Vec<i64>, off: DVec3| {
+            let mut t = Trace::new(0, frames[0], sway(frames[0]) + off, None);
+            for &f in &frames[1..] {
+                t.push(f, sway(f) + off, None);
+            }
+            t
+        };
+        let mut tip = trace((0..=20).collect(), DVec3::ZERO);
+        tip.push(30, sway(30) + run_at, None);
+        for f in 40..=80 {
+            tip.push(f, sway(f), None);
+        }
+        let hidden: Vec<i64> = (0..=14).chain(51..=80).collect();
+        let mut traces = vec![tip, trace(hidden, DVec3::new(partner_off, 0.0, 0.0))];
+        for i in 1..=4 {
+            traces.push(trace(
+                (0..=80).collect(),
+                DVec3::new(0.1 * i as f64, 0.2, 0.0),
+            ));
+        }
+        lone_runs(&traces, 240).iter().map(|s| s.0).collect()
+    }
+
+    #[test]
+    fn a_sample_where_a_hidden_partner_would_be_is_lone() {
+        // The partner's marker, 30 mm from where the tip was: no marker
+        // is measured near, but the partner's neighbours put it there.
+        assert_eq!(
+            in_a_swaying_tree(0.03, DVec3::new(0.03, 0.0, 0.0)),
+            vec![30]
+        );
+        // The tip's own marker, 30 mm from the partner: kept.
+        assert_eq!(in_a_swaying_tree(0.03, DVec3::ZERO), Vec::<i64>::new());
+        // Two tips 2 mm apart, the sample 1.2 mm from the tip's own place
+        // and 0.8 mm from the partner's: neither is known.
+        assert_eq!(
+            in_a_swaying_tree(0.002, DVec3::new(0.0012, 0.0, 0.0)),
+            vec![30]
+        );
+        // With no partner hidden across it the run is the tip's own.
+        assert_eq!(
+            in_a_swaying_tree(0.5, DVec3::new(0.01, 0.0, 0.0)),
+            Vec::<i64>::new()
+        );
     }
 
     #[test]
