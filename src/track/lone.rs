@@ -204,13 +204,33 @@ pub(crate) fn lone_runs(traces: &[Trace], one_second: i64) -> Vec<(i64, DVec3)> 
     lone
 }
 
-/// Every trace's samples at the frames a lone run's tips are weighed
-/// at, in frame order.
-struct Places(Vec<Vec<(i64, DVec3)>>);
+/// Every trace's samples at the frames a few samples are weighed at,
+/// in frame order: the traces are stored compressed and decoded in
+/// order, so the samples wanted are read in one pass and looked up here.
+pub(super) struct Places(Vec<Vec<(i64, DVec3)>>);
 
 impl Places {
+    /// Every trace's samples at `frames` (sorted), each trace decoded
+    /// up to the last of them only.
+    pub(super) fn at_frames(traces: &[Trace], frames: &[i64]) -> Places {
+        let Some(&last) = frames.last() else {
+            return Places(vec![Vec::new(); traces.len()]);
+        };
+        Places(
+            traces
+                .iter()
+                .map(|t| {
+                    t.measurements()
+                        .take_while(|s| s.0 <= last)
+                        .filter(|s| frames.binary_search(&s.0).is_ok())
+                        .collect()
+                })
+                .collect(),
+        )
+    }
+
     /// Where trace `k` was measured at frame `f`, if it was.
-    fn at(&self, k: usize, f: i64) -> Option<DVec3> {
+    pub(super) fn at(&self, k: usize, f: i64) -> Option<DVec3> {
         let v = &self.0[k];
         v.binary_search_by_key(&f, |s| s.0).ok().map(|i| v[i].1)
     }
