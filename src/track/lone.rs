@@ -210,20 +210,21 @@ pub(crate) fn lone_runs(traces: &[Trace], one_second: i64) -> Vec<(i64, DVec3)> 
 pub(super) struct Places(Vec<Vec<(i64, DVec3)>>);
 
 impl Places {
-    /// Every trace's samples at `frames` (sorted), each trace decoded
-    /// up to the last of them only.
-    pub(super) fn at_frames(traces: &[Trace], frames: &[i64]) -> Places {
-        let Some(&last) = frames.last() else {
-            return Places(vec![Vec::new(); traces.len()]);
-        };
+    /// Each trace's samples at its `frames` (sorted, one list per
+    /// trace), each trace decoded up to the last of its own only and
+    /// those with none not at all.
+    pub(super) fn at_frames(traces: &[Trace], frames: &[Vec<i64>]) -> Places {
         Places(
             traces
                 .iter()
-                .map(|t| {
-                    t.measurements()
+                .zip(frames)
+                .map(|(t, mine)| match mine.last() {
+                    Some(&last) => t
+                        .measurements()
                         .take_while(|s| s.0 <= last)
-                        .filter(|s| frames.binary_search(&s.0).is_ok())
-                        .collect()
+                        .filter(|s| mine.binary_search(&s.0).is_ok())
+                        .collect(),
+                    None => Vec::new(),
                 })
                 .collect(),
         )
@@ -440,7 +441,8 @@ mod tests {
             in_a_swaying_tree(0.002, DVec3::new(0.0012, 0.0, 0.0)),
             vec![30]
         );
-        // With no partner hidden across it the run is the tip's own.
+        // The tip hidden across it 0.5 m away: the run, 10 mm off the
+        // tip's place, is its own.
         assert_eq!(
             in_a_swaying_tree(0.5, DVec3::new(0.01, 0.0, 0.0)),
             Vec::<i64>::new()

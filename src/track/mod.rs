@@ -107,7 +107,8 @@ pub struct Summary {
     /// tip (`rejoin`).
     pub in_doubt: usize,
     /// Samples of runs of one to three a tip held alone between two gaps
-    /// with another tip's marker beside them, which may as well be that
+    /// with another tip's marker beside them, or where a tip hidden
+    /// across them would be about as near, which may as well be that
     /// marker's: given up with their tips' gaps there filled (`lone`).
     pub lone: usize,
     /// Samples at the end of a tip's run next to its gap, measured in

@@ -54,11 +54,18 @@ pub(crate) fn taken_ends(traces: &[Trace]) -> Vec<(i64, DVec3)> {
     if ends.is_empty() {
         return Vec::new();
     }
-    // Each end's frames and the two on each side: the other trace's
-    // samples about its gap, the run's own before (after) the end.
-    let mut frames: Vec<i64> = ends.iter().flat_map(|e| e.first - 2..=e.last + 2).collect();
-    frames.sort_unstable();
-    frames.dedup();
+    // The run's samples at each end and its two on the inner side; the
+    // other trace's on each side of its gap. Only these traces are
+    // decoded: most captures have few candidates.
+    let mut frames: Vec<Vec<i64>> = vec![Vec::new(); traces.len()];
+    for e in &ends {
+        frames[e.run].extend(e.first - 2..=e.last + 2);
+        frames[e.gap].extend([e.first - 1, e.last + 1]);
+    }
+    for f in &mut frames {
+        f.sort_unstable();
+        f.dedup();
+    }
     let places = Places::at_frames(traces, &frames);
     let mut taken = Vec::new();
     for e in &ends {
