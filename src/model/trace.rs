@@ -228,6 +228,28 @@ impl Trace {
             .is_some_and(|w| w & (1 << (idx % 64)) != 0)
     }
 
+    /// The runs of consecutive measured frames, (first, last) in order,
+    /// read from the measured flags: nothing is decoded.
+    pub fn measured_runs(&self) -> impl Iterator<Item = (i64, i64)> + '_ {
+        let end = self.last_frame();
+        let mut next = self.first;
+        std::iter::from_fn(move || {
+            if self.is_empty() || next > end {
+                return None;
+            }
+            let first = next;
+            let mut last = first;
+            while last < end && self.is_measured(last + 1) {
+                last += 1;
+            }
+            next = last + 1;
+            while next <= end && !self.is_measured(next) {
+                next += 1;
+            }
+            Some((first, last))
+        })
+    }
+
     /// The gap fills, in frame order.
     pub fn fills(&self) -> &[Fill] {
         &self.fills
@@ -717,6 +739,17 @@ impl Timeline {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn measured_runs_are_read_from_the_flags() {
+        let mut t = Trace::new(0, 5, DVec3::ZERO, None);
+        for f in [6, 7, 9, 12, 13] {
+            t.push(f, DVec3::ZERO, None);
+        }
+        let runs: Vec<(i64, i64)> = t.measured_runs().collect();
+        assert_eq!(runs, vec![(5, 7), (9, 9), (12, 13)]);
+        assert_eq!(Trace::default().measured_runs().count(), 0);
+    }
 
     #[test]
     fn measurements_round_trip_to_the_quantum() {

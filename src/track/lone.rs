@@ -75,133 +75,85 @@ const AS_NEAR: f64 = 2.5;
 /// up split a hole the fill then spans whole.
 pub(crate) fn lone_runs(traces: &[Trace], one_second: i64) -> Vec<(i64, DVec3)> {
     let longer = ((LONGER_GAP_S * one_second as f64).round() as i64).max(SHORTER_GAP);
-    // The candidates' frames (trace, first, last), found on the
-    // measured flags alone: most captures have none, and their samples
-    // are then never decoded here (decoding every trace twice cost the
-    // cleaning of pine-35 about 5 ms).
-    let mut spans: Vec<(usize, i64, i64)> = Vec::new();
-    // The last frame measured before each span and the first after it.
-    let mut sides: Vec<(i64, i64)> = Vec::new();
+    // The candidates, found on the measured flags alone: most captures
+    // have none, and their samples are then never decoded here.
+    let mut spans: Vec<Span> = Vec::new();
     for (k, t) in traces.iter().enumerate() {
-        // The last frame of the run before the current one, and the
-        // current run's first frame.
-        let mut before_end: Option<i64> = None;
-        let mut first = t.first_frame();
-        loop {
-            // The current run ends at the frame before the next missing.
-            let mut last = first;
-            while last < t.last_frame() && t.is_measured(last + 1) {
-                last += 1;
+        let runs: Vec<(i64, i64)> = t.measured_runs().collect();
+        for w in runs.windows(3) {
+            let [(_, end), (first, last), (next, _)] = [w[0], w[1], w[2]];
+            let (before, after) = (first - end - 1, next - last - 1);
+            if ((last - first + 1) as usize) < MIN_RUN
+                && before.min(after) >= SHORTER_GAP
+                && before.max(after) >= longer
+            {
+                spans.push(Span {
+                    trace: k,
+                    before: end,
+                    first,
+                    last,
+                    after: next,
+                });
             }
-            let mut next = last + 1;
-            while next <= t.last_frame() && !t.is_measured(next) {
-                next += 1;
-            }
-            if next > t.last_frame() {
-                break; // the last run: no gap after it
-            }
-            if let Some(end) = before_end {
-                let (before, after) = (first - end - 1, next - last - 1);
-                if ((last - first + 1) as usize) < MIN_RUN
-                    && before.min(after) >= SHORTER_GAP
-                    && before.max(after) >= longer
-                {
-                    spans.push((k, first, last));
-                    sides.push((end, next));
-                }
-            }
-            before_end = Some(last);
-            first = next;
         }
     }
     if spans.is_empty() {
         return Vec::new();
     }
-    // Their samples, with the trace that holds them.
-    let mut runs: Vec<(usize, Vec<(i64, DVec3)>)> = Vec::with_capacity(spans.len());
-    let mut by_trace = spans.iter().peekable();
-    for (k, t) in traces.iter().enumerate() {
-        if by_trace.peek().is_none_or(|s| s.0 != k) {
-            continue;
-        }
-        let mine: Vec<(i64, i64)> = std::iter::from_fn(|| by_trace.next_if(|s| s.0 == k))
-            .map(|s| (s.1, s.2))
-            .collect();
-        let mut at = 0;
-        let mut held: Vec<(i64, DVec3)> = Vec::new();
-        for (f, p) in t.measurements() {
-            while at < mine.len() && f > mine[at].1 {
-                runs.push((k, std::mem::take(&mut held)));
-                at += 1;
-            }
-            if at == mine.len() {
-                break;
-            }
-            if f >= mine[at].0 {
-                held.push((f, p));
-            }
-        }
-        if at < mine.len() {
-            runs.push((k, held));
-        }
+    let partners = partners_of(traces, &spans, one_second);
+    // Every trace's samples where a run's neighbourhood is looked at
+    // (within `longer` of it), and where each tip's place is weighed:
+    // its gap's ends and the run's frames. One pass decodes each trace
+    // once, up to the last of these frames only (decoding every trace
+    // twice cost the cleaning of pine-35 about 5 ms; an hour's take
+    // never holds all its samples decoded at once).
+    let mut frames: Vec<i64> = Vec::new();
+    for s in &spans {
+        frames.extend(s.first - longer..=s.last + longer);
+        frames.extend([s.before, s.after]);
     }
-    let partners = partners_of(traces, &runs, one_second);
-    // The frames each tip's place is weighed at: where its gap across a
-    // run began and ended, and the run's.
-    let mut at_frames: Vec<i64> = Vec::new();
-    for ((_, run), &(before, after)) in runs.iter().zip(&sides) {
-        at_frames.extend([before, after]);
-        at_frames.extend(run.iter().map(|s| s.0));
-    }
-    at_frames.extend(partners.iter().flat_map(|p| [p.before, p.after]));
-    at_frames.sort_unstable();
-    at_frames.dedup();
-    // Each run's window of frames (first, last, run), by first frame; a
-    // second pass over every trace's samples marks the runs another
-    // marker came near and keeps every trace's samples at `at_frames`
-    // (one trace decoded at a time, as above: an hour's take never holds
-    // all its samples decoded at once).
-    let mut windows: Vec<(i64, i64, usize)> = runs
-        .iter()
-        .enumerate()
-        .map(|(r, (_, s))| (s[0].0 - longer, s[s.len() - 1].0 + longer, r))
-        .collect();
-    windows.sort_unstable();
-    let widest = windows.iter().map(|w| w.1 - w.0).max().unwrap_or(0);
-    // Past the last window no sample matters: each trace is decoded up to
-    // there only.
-    let end = windows
-        .iter()
-        .map(|w| w.1)
-        .chain(at_frames.last().copied())
-        .max()
-        .unwrap_or(i64::MIN);
-    let mut near = vec![false; runs.len()];
-    let mut places: Vec<Vec<(i64, DVec3)>> = vec![Vec::new(); traces.len()];
-    for (k, t) in traces.iter().enumerate() {
-        for (f, p) in t.measurements().take_while(|s| s.0 <= end) {
-            if at_frames.binary_search(&f).is_ok() {
-                places[k].push((f, p));
-            }
-            let first = windows.partition_point(|w| w.0 < f - widest);
-            for &(_, to, r) in windows[first..].iter().take_while(|w| w.0 <= f) {
-                let (holder, run) = &runs[r];
-                if to >= f && *holder != k && !near[r] {
-                    near[r] = run.iter().any(|s| s.1.distance(p) <= MEET);
-                }
-            }
-        }
-    }
-    let places = Places(places);
+    frames.extend(partners.iter().flat_map(|p| [p.before, p.after]));
+    frames.sort_unstable();
+    frames.dedup();
+    let places = Places::shared(traces, &frames);
     let mut partners = partners.into_iter().peekable();
     let mut lone = Vec::new();
-    for (r, ((k, run), &(before, after))) in runs.into_iter().zip(&sides).enumerate() {
+    for (r, s) in spans.iter().enumerate() {
+        let run: Vec<(i64, DVec3)> = (s.first..=s.last)
+            .filter_map(|f| Some((f, places.at(s.trace, f)?)))
+            .collect();
         let mine: Vec<Partner> = std::iter::from_fn(|| partners.next_if(|p| p.run == r)).collect();
-        if near[r] || hidden_partner(&places, k, &run, (before, after), &mine) {
+        if near(&places, s, &run, longer)
+            || hidden_partner(&places, s.trace, &run, (s.before, s.after), &mine)
+        {
             lone.extend(run);
         }
     }
     lone
+}
+
+/// A candidate run: one to three samples of a tip between two gaps.
+struct Span {
+    /// The tip's trace.
+    trace: usize,
+    /// The last frame measured before the run.
+    before: i64,
+    /// The run's first frame.
+    first: i64,
+    /// Its last frame.
+    last: i64,
+    /// The first frame measured after it.
+    after: i64,
+}
+
+/// Whether another tip's marker was measured within [`MEET`] of the run
+/// `run` of span `s` within `longer` frames of it.
+fn near(places: &Places, s: &Span, run: &[(i64, DVec3)], longer: i64) -> bool {
+    (0..places.0.len()).filter(|&k| k != s.trace).any(|k| {
+        (s.first - longer..=s.last + longer)
+            .filter_map(|f| places.at(k, f))
+            .any(|p| run.iter().any(|q| q.1.distance(p) <= MEET))
+    })
 }
 
 /// Every trace's samples at the frames a few samples are weighed at,
@@ -218,16 +170,14 @@ impl Places {
             traces
                 .iter()
                 .zip(frames)
-                .map(|(t, mine)| match mine.last() {
-                    Some(&last) => t
-                        .measurements()
-                        .take_while(|s| s.0 <= last)
-                        .filter(|s| mine.binary_search(&s.0).is_ok())
-                        .collect(),
-                    None => Vec::new(),
-                })
+                .map(|(t, mine)| read(t, mine))
                 .collect(),
         )
+    }
+
+    /// Every trace's samples at the same `frames` (sorted).
+    pub(super) fn shared(traces: &[Trace], frames: &[i64]) -> Places {
+        Places(traces.iter().map(|t| read(t, frames)).collect())
     }
 
     /// Where trace `k` was measured at frame `f`, if it was.
@@ -237,9 +187,20 @@ impl Places {
     }
 }
 
+/// `t`'s samples at `frames` (sorted), decoded up to the last of them.
+fn read(t: &Trace, frames: &[i64]) -> Vec<(i64, DVec3)> {
+    let Some(&last) = frames.last() else {
+        return Vec::new();
+    };
+    t.measurements()
+        .take_while(|s| s.0 <= last)
+        .filter(|s| frames.binary_search(&s.0).is_ok())
+        .collect()
+}
+
 /// A tip hidden across a lone run, whose marker the run may be.
 struct Partner {
-    /// The run (its index among the runs).
+    /// The run (its index among the spans).
     run: usize,
     /// The tip's trace.
     trace: usize,
@@ -252,17 +213,13 @@ struct Partner {
 /// The tips hidden across each run that were measured within
 /// [`PARTNER_REACH_S`] on both sides of it, by run. Found on the
 /// measured flags.
-fn partners_of(
-    traces: &[Trace],
-    runs: &[(usize, Vec<(i64, DVec3)>)],
-    one_second: i64,
-) -> Vec<Partner> {
+fn partners_of(traces: &[Trace], spans: &[Span], one_second: i64) -> Vec<Partner> {
     let reach = (PARTNER_REACH_S * one_second as f64).round() as i64;
     let mut partners = Vec::new();
-    for (r, (k, run)) in runs.iter().enumerate() {
-        let (first, last) = (run[0].0, run[run.len() - 1].0);
+    for (r, s) in spans.iter().enumerate() {
+        let (first, last) = (s.first, s.last);
         for (p, t) in traces.iter().enumerate() {
-            if p == *k || (first..=last).any(|f| t.is_measured(f)) {
+            if p == s.trace || (first..=last).any(|f| t.is_measured(f)) {
                 continue;
             }
             let a = (1..=reach).map(|d| first - d).find(|&f| t.is_measured(f));

@@ -107,12 +107,7 @@ pub(crate) fn taken_ends(traces: &[Trace]) -> Vec<(i64, DVec3)> {
 fn candidates(traces: &[Trace]) -> Vec<End> {
     let mut ends = Vec::new();
     for (k, t) in traces.iter().enumerate() {
-        let mut first = t.first_frame();
-        while first <= t.last_frame() {
-            let mut last = first;
-            while last < t.last_frame() && t.is_measured(last + 1) {
-                last += 1;
-            }
+        for (first, last) in t.measured_runs() {
             for m in 1..=MOST {
                 if last - first + 1 < m + 2 {
                     break;
@@ -137,10 +132,6 @@ fn candidates(traces: &[Trace]) -> Vec<End> {
                         }
                     }
                 }
-            }
-            first = last + 1;
-            while first <= t.last_frame() && !t.is_measured(first) {
-                first += 1;
             }
         }
     }
