@@ -344,7 +344,8 @@ fn a_marker_seen_between_two_gaps_keeps_its_short_gap() {
 /// up (since session 50, the samples of two close markers at log odds
 /// down to −6, and those within 4 mm that cannot be weighed: 12 and 12
 /// samples, 6 frames of two markers within a few millimetres, where 2
-/// each were given up at −2 alone).
+/// each were given up at −2 alone; since session 56, those within 8 mm
+/// that cannot be weighed: 24 under the default `noise_mm`).
 #[test]
 fn samples_too_close_to_tell_apart_are_given_up_not_exchanged() {
     let st = sweep_stress("all", 101);
@@ -355,7 +356,7 @@ fn samples_too_close_to_tell_apart_are_given_up_not_exchanged() {
         one_tip_per_tip(&name, &s);
         assert_eq!(s.wrong_samples, 0, "{name}: samples of another marker");
         assert!(
-            (1..=16).contains(&summary.given_up),
+            (1..=32).contains(&summary.given_up),
             "{name}: {} samples given up",
             summary.given_up
         );
@@ -433,11 +434,18 @@ fn a_marker_hidden_before_a_gap_and_near_where_the_trace_went_on_meets_it() {
 /// every stress at once, `all` seed 335, one sample of each of tips 48
 /// and 60 was exchanged 3.6 mm apart between gaps of 2 and 7 frames.
 /// Both go, and few others do: a run with no other marker near is the
-/// tip's own.
+/// tip's own. Since session 56 `untangle` gives them up first (the two
+/// markers' vector cannot be weighed there, and they are measured within
+/// 8 mm), so the samples given up by either step are counted.
 #[test]
 fn a_run_held_alone_between_two_gaps_beside_another_marker_is_given_up() {
     let noise = TrackingSettings::default().noise_mm;
-    held_giving_up(&[(335, noise)], "held alone", |s| s.lone, 2..=100);
+    held_giving_up(
+        &[(335, noise)],
+        "held alone or where two markers could not be told apart",
+        |s| s.lone + s.given_up,
+        2..=100,
+    );
 }
 
 /// A run of one or two samples a tip holds alone between two gaps, where
@@ -464,11 +472,19 @@ fn a_run_alone_where_a_hidden_partner_would_be_is_given_up() {
 /// held tip 68's marker in 4 941 and 4 942, the two frames tip 68's own
 /// trace missed. They are given up and both gaps filled, and few others
 /// are: a marker's trace seldom misses exactly the frames another's run
-/// went on into its gap, nearer its line than that run's own.
+/// went on into its gap, nearer its line than that run's own. Since
+/// session 56 `untangle` gives them up first (the pair's vector cannot
+/// be weighed beside the missing frames, and the markers are measured
+/// within 8 mm), so the samples given up by either step are counted.
 #[test]
 fn a_runs_end_in_the_frames_another_marker_went_missing_is_given_up() {
     let noise = TrackingSettings::default().noise_mm;
-    held_giving_up(&[(363, noise)], "taken", |s| s.taken, 2..=100);
+    held_giving_up(
+        &[(363, noise)],
+        "taken or where two markers could not be told apart",
+        |s| s.taken + s.given_up,
+        2..=100,
+    );
 }
 
 /// Two tips' markers came back from their gaps together and passed
