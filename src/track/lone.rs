@@ -25,6 +25,7 @@
 
 use glam::DVec3;
 
+use super::places::Places;
 use super::reclaim::MIN_RUN;
 use super::rejoin::MEET;
 use crate::model::trace::Trace;
@@ -149,53 +150,11 @@ struct Span {
 /// Whether another tip's marker was measured within [`MEET`] of the run
 /// `run` of span `s` within `longer` frames of it.
 fn near(places: &Places, s: &Span, run: &[(i64, DVec3)], longer: i64) -> bool {
-    (0..places.0.len()).filter(|&k| k != s.trace).any(|k| {
+    (0..places.len()).filter(|&k| k != s.trace).any(|k| {
         (s.first - longer..=s.last + longer)
             .filter_map(|f| places.at(k, f))
             .any(|p| run.iter().any(|q| q.1.distance(p) <= MEET))
     })
-}
-
-/// Every trace's samples at the frames a few samples are weighed at,
-/// in frame order: the traces are stored compressed and decoded in
-/// order, so the samples wanted are read in one pass and looked up here.
-pub(super) struct Places(Vec<Vec<(i64, DVec3)>>);
-
-impl Places {
-    /// Each trace's samples at its `frames` (sorted, one list per
-    /// trace), each trace decoded up to the last of its own only and
-    /// those with none not at all.
-    pub(super) fn at_frames(traces: &[Trace], frames: &[Vec<i64>]) -> Places {
-        Places(
-            traces
-                .iter()
-                .zip(frames)
-                .map(|(t, mine)| read(t, mine))
-                .collect(),
-        )
-    }
-
-    /// Every trace's samples at the same `frames` (sorted).
-    pub(super) fn shared(traces: &[Trace], frames: &[i64]) -> Places {
-        Places(traces.iter().map(|t| read(t, frames)).collect())
-    }
-
-    /// Where trace `k` was measured at frame `f`, if it was.
-    pub(super) fn at(&self, k: usize, f: i64) -> Option<DVec3> {
-        let v = &self.0[k];
-        v.binary_search_by_key(&f, |s| s.0).ok().map(|i| v[i].1)
-    }
-}
-
-/// `t`'s samples at `frames` (sorted), decoded up to the last of them.
-fn read(t: &Trace, frames: &[i64]) -> Vec<(i64, DVec3)> {
-    let Some(&last) = frames.last() else {
-        return Vec::new();
-    };
-    t.measurements()
-        .take_while(|s| s.0 <= last)
-        .filter(|s| frames.binary_search(&s.0).is_ok())
-        .collect()
 }
 
 /// A tip hidden across a lone run, whose marker the run may be.
@@ -277,7 +236,7 @@ fn carried_miss(
 ) -> Option<f64> {
     let (ta, tb) = (places.at(t, a)?, places.at(t, b)?);
     // (distance at `a`, position at `a`, at `b`, through the run).
-    let mut neighbours: Vec<(f64, DVec3, DVec3, Vec<DVec3>)> = (0..places.0.len())
+    let mut neighbours: Vec<(f64, DVec3, DVec3, Vec<DVec3>)> = (0..places.len())
         .filter(|&n| n != t && n != holder)
         .filter_map(|n| {
             let (na, nb) = (places.at(n, a)?, places.at(n, b)?);

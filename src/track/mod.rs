@@ -39,6 +39,7 @@ pub mod live;
 mod lone;
 mod motion;
 pub mod noise;
+mod places;
 mod radix;
 mod reclaim;
 mod rejoin;

@@ -18,7 +18,7 @@
 
 use glam::DVec3;
 
-use super::lone::Places;
+use super::places::Places;
 use super::rejoin::MEET;
 use crate::model::trace::Trace;
 
