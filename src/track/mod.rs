@@ -45,7 +45,6 @@ mod reclaim;
 mod rejoin;
 pub mod rest;
 pub mod settings;
-mod taken;
 pub mod tracker;
 mod untangle;
 mod warm;
@@ -112,12 +111,6 @@ pub struct Summary {
     /// across them would be about as near, which may as well be that
     /// marker's: given up with their tips' gaps there filled (`lone`).
     pub lone: usize,
-    /// Samples at the end of a tip's run next to its gap, measured in
-    /// exactly the frames another tip's marker went missing between two
-    /// samples and nearer that marker's line than the run's own: the
-    /// tracker took the other marker for a frame or two as the tip was
-    /// hidden (`taken`). Given up with their tips' gaps there filled.
-    pub taken: usize,
     /// Pieces joined afterwards by rest position.
     pub joined_by_rest: usize,
     /// Long fragments without a rest position put into a gap of the marker
@@ -158,8 +151,8 @@ impl fmt::Display for Summary {
         )?;
         writeln!(
             f,
-            "markers found: {} tips, from {} traces ({} ghosts never confirmed; pieces joined: {} from the neighbours' motion, {} handing over to their marker, {} by rest position, {} into a gap of their neighbourhood; {} given to another tip after the session; {} swaps undone where two markers passed close; samples given up: {} where two markers could not be told apart, {} of pieces whose tip was in doubt, {} held alone between gaps, {} taken from another marker's short gap)",
-            self.tips, self.traces, self.ghosts, self.joined_on_line, self.adopted, self.joined_by_rest, self.joined_into_gaps, self.rejoined, self.untangled, self.given_up, self.in_doubt, self.lone, self.taken
+            "markers found: {} tips, from {} traces ({} ghosts never confirmed; pieces joined: {} from the neighbours' motion, {} handing over to their marker, {} by rest position, {} into a gap of their neighbourhood; {} given to another tip after the session; {} swaps undone where two markers passed close; samples given up: {} where two markers could not be told apart, {} of pieces whose tip was in doubt, {} held alone between gaps)",
+            self.tips, self.traces, self.ghosts, self.joined_on_line, self.adopted, self.joined_by_rest, self.joined_into_gaps, self.rejoined, self.untangled, self.given_up, self.in_doubt, self.lone
         )?;
         let longest = self.dropped.first().map_or(String::new(), |d| {
             format!(
@@ -325,14 +318,9 @@ pub fn clean(
     let in_doubt = untangle::give_up([&mut kept, &mut pool], &doubtful);
     // Then, found on the tips as the steps above left them, the runs of
     // one to three samples a tip holds alone between two gaps beside
-    // another marker or where a hidden one would be (lone.rs), and the
-    // ends of runs the tracker carried on with another marker for a
-    // frame or two, that marker's trace missing just those frames
-    // (taken.rs).
+    // another marker or where a hidden one would be (lone.rs).
     let alone = lone::lone_runs(&kept, one_second(&timeline));
-    let ends = taken::taken_ends(&kept);
     let lone = untangle::give_up([&mut kept], &alone);
-    let taken = untangle::give_up([&mut kept], &ends);
     let (reclaimed, gap_stats) =
         reclaim::reclaim(&mut kept, &pool, &timeline, settings, cfg.noise_mm / 1000.0);
     drop(pool);
@@ -355,7 +343,6 @@ pub fn clean(
         given_up,
         in_doubt,
         lone,
-        taken,
         joined_by_rest,
         joined_into_gaps,
         rejoined,
