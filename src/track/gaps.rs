@@ -101,7 +101,7 @@ const MIN_OWN_S: f64 = 0.044;
 /// what an interpolation misses, and the neighbours' model, which cannot
 /// know it, added their twigs' motion (measured on the stress sweep).
 /// Longer gaps are filled from the neighbours.
-const MAX_OWN_S: f64 = 0.21;
+pub(super) const MAX_OWN_S: f64 = 0.21;
 /// Samples (s) each side of a gap that the end fits (value and slope of a
 /// least-squares quadratic) use: long enough to average 0.2–1 mm of noise
 /// away, short against a 3 Hz twig's period (chosen on the stress sweep
@@ -397,7 +397,7 @@ fn fill_one(
     let base_span = ((END_FIT_S / dt).round() as i64).max(4);
     // Under noise of a millimetre the ends are fitted over longer spans and
     // the neighbours smoothed (their noise would pass into the fill).
-    let noisy = noise_sigma(ctx, base_span).is_some_and(|s| s > NOISY_M);
+    let noisy = noise_sigma(|f| ctx.host_at(f), a, b, base_span).is_some_and(|s| s > NOISY_M);
     let (end_span, smooth) = if noisy {
         let span = ((NOISY_END_FIT_S / dt).round() as i64).max(4);
         (span, (NOISY_SMOOTH_S / dt).round() as usize)
@@ -414,7 +414,8 @@ fn fill_one(
     // Where the model cannot be evaluated (a neighbour's hole, too few
     // residuals at an end), a gap PCHIP may fill is filled from the
     // marker's own samples.
-    let own = || own_fill(ctx, end_span).or_else(|| Some(pchip_between(ctx, a, b)));
+    let own =
+        || own_fill(|f| ctx.host_at(f), a, b, end_span).or_else(|| Some(pchip_between(ctx, a, b)));
     let fill = match (choice, &model) {
         (Choice::Model, Some(m)) => {
             neighbour_fill(ctx, m, end_span, duration)
@@ -447,11 +448,10 @@ fn fill_one(
 /// differences over `span` frames at each end of the gap: white noise adds
 /// 20 σ² to them, a tree's sway at 100–240 Hz next to nothing (a second
 /// difference would count a 200 mm sway as noise).
-fn noise_sigma(ctx: &Context<'_, '_>, span: i64) -> Option<f64> {
-    let (a, b) = (ctx.a, ctx.b);
+fn noise_sigma(at: impl Fn(i64) -> Option<DVec3>, a: i64, b: i64, span: i64) -> Option<f64> {
     let (mut sum, mut n) = (0.0, 0usize);
     for f in (a - span..=a - 3).chain(b..=b + span - 3) {
-        let p = |d: i64| ctx.host_at(f + d);
+        let p = |d: i64| at(f + d);
         if let (Some(p0), Some(p1), Some(p2), Some(p3)) = (p(0), p(1), p(2), p(3)) {
             sum += third_difference([p0, p1, p2, p3]).length_squared();
             n += 1;
@@ -556,11 +556,10 @@ fn neighbour_fill(ctx: &Context<'_, '_>, m: &Model, span: i64, duration: f64) ->
 
 /// A cubic Hermite across the gap between quadratic fits of the host's
 /// own samples over `span` frames at each end (value and slope there).
-fn own_fill(ctx: &Context<'_, '_>, span: i64) -> Option<Fill> {
-    let (a, b) = (ctx.a, ctx.b);
-    let pa = ctx.host_at(a)?;
-    let left = (0..span).filter_map(|i| ctx.host_at(a - i).map(|p| (-(i as f64), p - pa)));
-    let right = (0..span).filter_map(|i| ctx.host_at(b + i).map(|p| (i as f64, p - pa)));
+fn own_fill(at: impl Fn(i64) -> Option<DVec3>, a: i64, b: i64, span: i64) -> Option<Fill> {
+    let pa = at(a)?;
+    let left = (0..span).filter_map(|i| at(a - i).map(|p| (-(i as f64), p - pa)));
+    let right = (0..span).filter_map(|i| at(b + i).map(|p| (i as f64, p - pa)));
     let (va, sa) = quad_end(left)?;
     let (vb, sb) = quad_end(right)?;
     Some(Fill {
@@ -574,6 +573,35 @@ fn own_fill(ctx: &Context<'_, '_>, span: i64) -> Option<Fill> {
         },
     })
 }
+
+/// The marker's own course across frames `a` to `b` (both measured;
+/// `at`: its samples, of which those between are not read), drawn as the
+/// gap filler draws a gap of up to [`MAX_OWN_S`] from the marker's own
+/// samples: a cubic Hermite between quadratic fits over
+/// [`END_FIT_S`] each side, or [`NOISY_END_FIT_S`] where the samples
+/// beside the gap are noisy. `dt`: seconds per frame. `None` where an end
+/// has too few samples for a fit.
+pub(super) fn own_course(
+    at: impl Fn(i64) -> Option<DVec3>,
+    a: i64,
+    b: i64,
+    dt: f64,
+) -> Option<Fill> {
+    let base = ((END_FIT_S / dt).round() as i64).max(4);
+    let span = if noise_sigma(&at, a, b, base).is_some_and(|s| s > NOISY_M) {
+        ((NOISY_END_FIT_S / dt).round() as i64).max(4)
+    } else {
+        base
+    };
+    own_fill(at, a, b, span)
+}
+
+/// The longest end fit [`own_course`] uses (s).
+pub(super) const OWN_END_MAX_S: f64 = if END_FIT_S > NOISY_END_FIT_S {
+    END_FIT_S
+} else {
+    NOISY_END_FIT_S
+};
 
 /// Least-squares quadratic through `(x, y)` samples (x in frames); its
 /// value and slope (per frame) at `x = 0`. `None` with fewer than four

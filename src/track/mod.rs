@@ -45,6 +45,7 @@ mod reclaim;
 mod rejoin;
 pub mod rest;
 pub mod settings;
+mod stray;
 pub mod tracker;
 mod untangle;
 mod warm;
@@ -111,6 +112,12 @@ pub struct Summary {
     /// across them would be about as near, which may as well be that
     /// marker's: given up with their tips' gaps there filled (`lone`).
     pub lone: usize,
+    /// Samples of runs of up to eight a tip held between two gaps that
+    /// lie more than 20 mm off the course its own samples draw across the
+    /// whole gap, where the gap filler draws one (up to 0.21 s): a
+    /// reflection sitting where the tip was hidden, or now and then the
+    /// tip's own swinging fast (`stray`). Given up with the gap filled.
+    pub stray: usize,
     /// Pieces joined afterwards by rest position.
     pub joined_by_rest: usize,
     /// Long fragments without a rest position put into a gap of the marker
@@ -151,8 +158,8 @@ impl fmt::Display for Summary {
         )?;
         writeln!(
             f,
-            "markers found: {} tips, from {} traces ({} ghosts never confirmed; pieces joined: {} from the neighbours' motion, {} handing over to their marker, {} by rest position, {} into a gap of their neighbourhood; {} given to another tip after the session; {} swaps undone where two markers passed close; samples given up: {} where two markers could not be told apart, {} of pieces whose tip was in doubt, {} held alone between gaps)",
-            self.tips, self.traces, self.ghosts, self.joined_on_line, self.adopted, self.joined_by_rest, self.joined_into_gaps, self.rejoined, self.untangled, self.given_up, self.in_doubt, self.lone
+            "markers found: {} tips, from {} traces ({} ghosts never confirmed; pieces joined: {} from the neighbours' motion, {} handing over to their marker, {} by rest position, {} into a gap of their neighbourhood; {} given to another tip after the session; {} swaps undone where two markers passed close; samples given up: {} where two markers could not be told apart, {} of pieces whose tip was in doubt, {} held alone between gaps, {} off the tip's own course across a gap)",
+            self.tips, self.traces, self.ghosts, self.joined_on_line, self.adopted, self.joined_by_rest, self.joined_into_gaps, self.rejoined, self.untangled, self.given_up, self.in_doubt, self.lone, self.stray
         )?;
         let longest = self.dropped.first().map_or(String::new(), |d| {
             format!(
@@ -321,6 +328,10 @@ pub fn clean(
     // another marker or where a hidden one would be (lone.rs).
     let alone = lone::lone_runs(&kept, one_second(&timeline));
     let lone = untangle::give_up([&mut kept], &alone);
+    // And the short runs between two gaps far off the course the tip's
+    // own samples draw across them (stray.rs).
+    let strays = stray::stray_runs(&kept, &timeline);
+    let stray = untangle::give_up([&mut kept], &strays);
     let (reclaimed, gap_stats) =
         reclaim::reclaim(&mut kept, &pool, &timeline, settings, cfg.noise_mm / 1000.0);
     drop(pool);
@@ -343,6 +354,7 @@ pub fn clean(
         given_up,
         in_doubt,
         lone,
+        stray,
         joined_by_rest,
         joined_into_gaps,
         rejoined,

@@ -1,7 +1,7 @@
 //! Samples of many traces at a few chosen frames, read in one pass.
 //!
 //! The steps after the session that weigh a few samples against their
-//! neighbours (`lone.rs`) need each trace's positions at a
+//! neighbours (`lone.rs`, `stray.rs`) need each trace's positions at a
 //! handful of frames. Traces are stored compressed and decode in frame
 //! order only, so the frames wanted are gathered first, each trace is
 //! decoded once up to the last of them, and the samples are looked up
@@ -17,6 +17,19 @@ use crate::model::trace::Trace;
 pub(super) struct Places(Vec<Vec<(i64, DVec3)>>);
 
 impl Places {
+    /// Each trace's samples at its own `frames` (sorted, one list per
+    /// trace), each trace decoded up to the last of its own only and
+    /// those with none not at all.
+    pub(super) fn at_frames(traces: &[Trace], frames: &[Vec<i64>]) -> Places {
+        Places(
+            traces
+                .iter()
+                .zip(frames)
+                .map(|(t, mine)| read(t, mine))
+                .collect(),
+        )
+    }
+
     /// Every trace's samples at the same `frames` (sorted).
     pub(super) fn shared(traces: &[Trace], frames: &[i64]) -> Places {
         Places(traces.iter().map(|t| read(t, frames)).collect())
