@@ -13,7 +13,7 @@
 //! `all` seeds 100–139, of 8 543 runs of up to eight samples across gaps
 //! the filler draws from the tip's own samples (up to 0.21 s), 99.8 %
 //! lie within 20 mm of that course, but 13 of the tips' own lie farther
-//! (up to 52.9 mm, a twig swinging fast through a gap of 0.18 s) beside
+//! (up to 52.9 mm, a twig swinging fast through a gap of 0.2 s) beside
 //! seed 126's reflection. Giving a run up costs little: its samples are
 //! filled with the rest of the gap and flagged as filled, where a
 //! reflection kept is a sample of no marker of the tip's, unflagged.
