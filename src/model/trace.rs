@@ -56,6 +56,21 @@ pub struct Fill {
     pub curve: Curve,
 }
 
+/// A run of measured frames `first..=last` with a gap on each side: the
+/// steps after the session that weigh a few samples held between two
+/// gaps (`lone`, `stray`) look at these.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct InnerRun {
+    /// The last frame measured before the gap ahead of the run.
+    pub before: i64,
+    /// The run's first frame.
+    pub first: i64,
+    /// Its last frame.
+    pub last: i64,
+    /// The first frame measured after the gap behind it.
+    pub after: i64,
+}
+
 /// The shape of a fill.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Curve {
@@ -247,6 +262,25 @@ impl Trace {
                 next += 1;
             }
             Some((first, last))
+        })
+    }
+
+    /// The runs of measured frames with a gap on each side, in order:
+    /// the trace's first and last runs are never among them. Read from
+    /// the measured flags: nothing is decoded.
+    pub fn inner_runs(&self) -> impl Iterator<Item = InnerRun> + '_ {
+        let mut runs = self.measured_runs();
+        let (mut prev, mut this) = (runs.next(), runs.next());
+        std::iter::from_fn(move || {
+            let next = runs.next()?;
+            let ((_, before), (first, last)) = (prev?, this?);
+            (prev, this) = (this, Some(next));
+            Some(InnerRun {
+                before,
+                first,
+                last,
+                after: next.0,
+            })
         })
     }
 

@@ -394,15 +394,13 @@ fn fill_one(
         (model::CHECK, one_s)
     };
     let window = window.max(b - a).min(ctx.reach - 2);
-    let base_span = ((END_FIT_S / dt).round() as i64).max(4);
     // Under noise of a millimetre the ends are fitted over longer spans and
     // the neighbours smoothed (their noise would pass into the fill).
-    let noisy = noise_sigma(|f| ctx.host_at(f), a, b, base_span).is_some_and(|s| s > NOISY_M);
-    let (end_span, smooth) = if noisy {
-        let span = ((NOISY_END_FIT_S / dt).round() as i64).max(4);
-        (span, (NOISY_SMOOTH_S / dt).round() as usize)
+    let (end_span, noisy) = end_fit(|f| ctx.host_at(f), a, b, dt);
+    let smooth = if noisy {
+        (NOISY_SMOOTH_S / dt).round() as usize
     } else {
-        (base_span, 0)
+        0
     };
     let model = if settings.neighbours && duration <= settings.max_fill_s + 1e-9 {
         Model::fit(ctx, window, smooth, fit)
@@ -587,13 +585,21 @@ pub(super) fn own_course(
     b: i64,
     dt: f64,
 ) -> Option<Fill> {
-    let base = ((END_FIT_S / dt).round() as i64).max(4);
-    let span = if noise_sigma(&at, a, b, base).is_some_and(|s| s > NOISY_M) {
-        ((NOISY_END_FIT_S / dt).round() as i64).max(4)
-    } else {
-        base
-    };
+    let (span, _) = end_fit(&at, a, b, dt);
     own_fill(at, a, b, span)
+}
+
+/// Frames each side of the gap `a`..`b` the end fits use, and whether
+/// the marker's samples there are noisy: [`END_FIT_S`], or
+/// [`NOISY_END_FIT_S`] where their noise is over [`NOISY_M`]. `dt`:
+/// seconds per frame.
+fn end_fit(at: impl Fn(i64) -> Option<DVec3>, a: i64, b: i64, dt: f64) -> (i64, bool) {
+    let base = ((END_FIT_S / dt).round() as i64).max(4);
+    if noise_sigma(at, a, b, base).is_some_and(|s| s > NOISY_M) {
+        (((NOISY_END_FIT_S / dt).round() as i64).max(4), true)
+    } else {
+        (base, false)
+    }
 }
 
 /// The longest end fit [`own_course`] uses (s).

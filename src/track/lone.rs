@@ -80,20 +80,18 @@ pub(crate) fn lone_runs(traces: &[Trace], one_second: i64) -> Vec<(i64, DVec3)> 
     // have none, and their samples are then never decoded here.
     let mut spans: Vec<Span> = Vec::new();
     for (k, t) in traces.iter().enumerate() {
-        let runs: Vec<(i64, i64)> = t.measured_runs().collect();
-        for w in runs.windows(3) {
-            let [(_, end), (first, last), (next, _)] = [w[0], w[1], w[2]];
-            let (before, after) = (first - end - 1, next - last - 1);
-            if ((last - first + 1) as usize) < MIN_RUN
+        for r in t.inner_runs() {
+            let (before, after) = (r.first - r.before - 1, r.after - r.last - 1);
+            if ((r.last - r.first + 1) as usize) < MIN_RUN
                 && before.min(after) >= SHORTER_GAP
                 && before.max(after) >= longer
             {
                 spans.push(Span {
                     trace: k,
-                    before: end,
-                    first,
-                    last,
-                    after: next,
+                    before: r.before,
+                    first: r.first,
+                    last: r.last,
+                    after: r.after,
                 });
             }
         }

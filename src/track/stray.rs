@@ -27,7 +27,7 @@ use glam::DVec3;
 
 use super::gaps::{own_course, MAX_OWN_S, OWN_END_MAX_S};
 use super::places::Places;
-use crate::model::trace::{Timeline, Trace};
+use crate::model::trace::{InnerRun, Timeline, Trace};
 
 /// Samples a run holds at most to be weighed: a reflection the tracker
 /// took for a hidden tip lives a few frames before the tip comes back.
@@ -39,19 +39,6 @@ const MOST: i64 = 8;
 /// farther.
 const STRAY: f64 = 0.020;
 
-/// A candidate: a trace's samples `first..=last`, measured at `before`
-/// and `after` and at none of the frames between those and the run.
-struct Span {
-    /// The last frame measured before the run.
-    before: i64,
-    /// The run's first frame.
-    first: i64,
-    /// Its last frame.
-    last: i64,
-    /// The first frame measured after it.
-    after: i64,
-}
-
 /// The samples of every run of up to [`MOST`] samples between two gaps
 /// of a trace in `traces` (one per tip) whose whole gap, the run left
 /// out, is one the gap filler fills from the tip's own samples (at most
@@ -62,22 +49,14 @@ pub(crate) fn stray_runs(traces: &[Trace], timeline: &Timeline) -> Vec<(i64, DVe
     let longest = (MAX_OWN_S / dt).round() as i64 + 1;
     let reach = (OWN_END_MAX_S / dt).round() as i64 + 1;
     let mut stray = Vec::new();
-    let mut spans = Vec::new();
+    let mut spans: Vec<InnerRun> = Vec::new();
     let mut frames = Vec::new();
     for t in traces {
         spans.clear();
-        let runs: Vec<(i64, i64)> = t.measured_runs().collect();
-        for w in runs.windows(3) {
-            let [(_, before), (first, last), (after, _)] = [w[0], w[1], w[2]];
-            if last - first < MOST && after - before <= longest {
-                spans.push(Span {
-                    before,
-                    first,
-                    last,
-                    after,
-                });
-            }
-        }
+        spans.extend(
+            t.inner_runs()
+                .filter(|r| r.last - r.first < MOST && r.after - r.before <= longest),
+        );
         if spans.is_empty() {
             continue;
         }
