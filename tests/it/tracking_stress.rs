@@ -501,6 +501,23 @@ fn a_reflection_off_the_tips_course_across_its_gap_is_given_up() {
     );
 }
 
+/// Two samples of one hidden tip the tracker gave to another, hidden
+/// too, as the two passed: `all` seed 191, tip 9 seen at frames 5 286 and
+/// 5 287 in a gap of 0.4 s, 8.3 mm from tip 62, itself hidden for 22
+/// frames. The run lies 8.8 mm off tip 62's own course across its gap,
+/// farther than 99 % of such courses miss, and within what tip 9's course
+/// across its gap misses by; either could own it, and it is given up.
+#[test]
+fn a_run_either_of_two_hidden_tips_could_own_is_given_up() {
+    let noise = TrackingSettings::default().noise_mm;
+    held_giving_up(
+        &[(191, noise)],
+        "off the tip's own course",
+        |s| s.stray,
+        1..=10,
+    );
+}
+
 /// A sample the tracker held right that `untangle` read as turned round
 /// on weak odds: `all` seed 121, tips 0 and 69 3 mm apart at frame 6 426,
 /// measured 1.8 mm apart, turned at log odds 3.5. Samples turned at odds
