@@ -73,8 +73,9 @@ fn check(name: &str, opts: &sim::SynthOptions) -> score::Score {
     s
 }
 
-/// Each stress alone (all of them combined does not hold yet: see the
-/// README's table from examples/track_stress.rs).
+/// Each stress alone (all of them combined, on the sweep's sessions:
+/// the README's tables from examples/track_stress.rs, and the `all`
+/// cases below).
 #[test]
 fn every_stress_alone_holds_on_a_short_session() {
     let base = stress::base(14, 30, 4.0, 8.0);
