@@ -41,7 +41,7 @@ use glam::DVec3;
 
 use super::gaps::{own_course, MAX_OWN_S, OWN_END_MAX_S};
 use super::places::Places;
-use crate::model::trace::{InnerRun, Timeline, Trace};
+use crate::model::trace::{Fill, InnerRun, Timeline, Trace};
 
 /// Samples a run holds at most to be weighed: a reflection the tracker
 /// took for a hidden tip lives a few frames before the tip comes back.
@@ -117,12 +117,7 @@ pub(crate) fn stray_runs(traces: &[Trace], timeline: &Timeline) -> Vec<(i64, DVe
         frames.dedup();
         let places = Places::at_frames(std::slice::from_ref(t), std::slice::from_ref(&frames));
         for s in &spans {
-            let at = |f: i64| {
-                (f <= s.before || f >= s.after)
-                    .then(|| places.at(0, f))
-                    .flatten()
-            };
-            let Some(course) = own_course(at, s.before, s.after, dt) else {
+            let Some(course) = course_across(&places, s.before, s.after, dt) else {
                 continue;
             };
             let run: Vec<(i64, DVec3)> = (s.first..=s.last)
@@ -173,14 +168,21 @@ fn another_hidden_fits(
             .chain(after..=after + reach)
             .collect();
         let places = Places::at_frames(std::slice::from_ref(u), std::slice::from_ref(&frames));
-        let at = |f: i64| {
-            (f <= before || f >= after)
-                .then(|| places.at(0, f))
-                .flatten()
-        };
-        own_course(at, before, after, dt)
+        course_across(&places, before, after, dt)
             .is_some_and(|c| run.iter().all(|&(f, p)| p.distance(c.at(f)) <= bound))
     })
+}
+
+/// The course the gap filler draws from the tip's own samples across the
+/// gap `before`..`after` of the one trace `places` holds, from its
+/// samples outside the gap alone (a run inside it left out).
+fn course_across(places: &Places, before: i64, after: i64, dt: f64) -> Option<Fill> {
+    let at = |f: i64| {
+        (f <= before || f >= after)
+            .then(|| places.at(0, f))
+            .flatten()
+    };
+    own_course(at, before, after, dt)
 }
 
 #[cfg(test)]
