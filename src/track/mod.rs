@@ -116,7 +116,9 @@ pub struct Summary {
     /// lie more than 20 mm off the course its own samples draw across the
     /// whole gap, where the gap filler draws one (up to 0.21 s): a
     /// reflection sitting where the tip was hidden, or now and then the
-    /// tip's own swinging fast (`stray`). Given up with the gap filled.
+    /// tip's own swinging fast; or off it by more than 99 % of such
+    /// courses miss while another tip hidden across the run could own it
+    /// (`stray`). Given up with the gap filled.
     pub stray: usize,
     /// Pieces joined afterwards by rest position.
     pub joined_by_rest: usize,

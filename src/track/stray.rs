@@ -87,15 +87,19 @@ fn miss_99(secs: f64) -> Option<f64> {
 /// of a trace in `traces` (one per tip) whose whole gap, the run left
 /// out, is one the gap filler fills from the tip's own samples (at most
 /// [`MAX_OWN_S`]), where a sample lies farther than [`STRAY`] from that
-/// fill.
+/// fill, or farther than [`MISS_99`] while another tip hidden right
+/// across the run could own it ([`Partner`]).
 pub(crate) fn stray_runs(traces: &[Trace], timeline: &Timeline) -> Vec<(i64, DVec3)> {
     let dt = timeline.frame_interval().unwrap_or(1.0 / 100.0);
     let longest = (MAX_OWN_S / dt).round() as i64 + 1;
     let reach = (OWN_END_MAX_S / dt).round() as i64 + 1;
     let mut stray = Vec::new();
+    // Runs beyond their own bound, with the tips hidden across them, to
+    // be weighed once every trace has been read.
+    let mut doubtful: Vec<Doubtful> = Vec::new();
     let mut spans: Vec<InnerRun> = Vec::new();
     let mut frames = Vec::new();
-    for t in traces {
+    for (k, t) in traces.iter().enumerate() {
         spans.clear();
         spans.extend(
             t.inner_runs()
@@ -117,7 +121,7 @@ pub(crate) fn stray_runs(traces: &[Trace], timeline: &Timeline) -> Vec<(i64, DVe
         frames.dedup();
         let places = Places::at_frames(std::slice::from_ref(t), std::slice::from_ref(&frames));
         for s in &spans {
-            let Some(course) = course_across(&places, s.before, s.after, dt) else {
+            let Some(course) = course_across(&places, 0, s.before, s.after, dt) else {
                 continue;
             };
             let run: Vec<(i64, DVec3)> = (s.first..=s.last)
@@ -127,59 +131,95 @@ pub(crate) fn stray_runs(traces: &[Trace], timeline: &Timeline) -> Vec<(i64, DVe
                 .iter()
                 .map(|&(f, p)| p.distance(course.at(f)))
                 .fold(0.0, f64::max);
-            let beyond_own = miss_99((s.after - s.before) as f64 * dt).is_some_and(|m| off > m);
-            if off > STRAY || (beyond_own && another_hidden_fits(traces, t, s, &run, dt)) {
+            if off > STRAY {
                 stray.extend(run);
+            } else if miss_99((s.after - s.before) as f64 * dt).is_some_and(|m| off > m) {
+                doubtful.push(Doubtful {
+                    partners: partners(traces, k, s, dt),
+                    run,
+                });
             }
+        }
+    }
+    // The tips hidden across them were found from the measured flags
+    // alone; each is decoded once, at the frames all its gaps' ends need.
+    let mut wanted: Vec<Vec<i64>> = vec![Vec::new(); traces.len()];
+    for p in doubtful.iter().flat_map(|d| &d.partners) {
+        wanted[p.trace].extend((p.before - reach..=p.before).chain(p.after..=p.after + reach));
+    }
+    for w in &mut wanted {
+        w.sort_unstable();
+        w.dedup();
+    }
+    let places = Places::at_frames(traces, &wanted);
+    for Doubtful { partners, run } in doubtful {
+        let fits = partners.iter().any(|p| {
+            course_across(&places, p.trace, p.before, p.after, dt)
+                .is_some_and(|c| run.iter().all(|&(f, q)| q.distance(c.at(f)) <= p.bound))
+        });
+        if fits {
+            stray.extend(run);
         }
     }
     stray
 }
 
-/// Whether a trace of `traces` other than `own`, hidden right across the
-/// run `s` of `own` (its samples `run`), draws a course across its gap
-/// that passes every sample of the run within [`MISS_99`] for that gap.
-fn another_hidden_fits(
-    traces: &[Trace],
-    own: &Trace,
-    s: &InnerRun,
-    run: &[(i64, DVec3)],
-    dt: f64,
-) -> bool {
+/// A run off its tip's own course by more than [`MISS_99`], within
+/// [`STRAY`].
+struct Doubtful {
+    /// The tips hidden right across it.
+    partners: Vec<Partner>,
+    /// Its samples.
+    run: Vec<(i64, DVec3)>,
+}
+
+/// Another tip hidden right across a run: its trace, its gap
+/// (`before`..`after`, the frames measured on each side) and how far its
+/// own course across that gap may miss it ([`MISS_99`]).
+struct Partner {
+    trace: usize,
+    before: i64,
+    after: i64,
+    bound: f64,
+}
+
+/// The traces of `traces` other than the `own`th measured in none of the
+/// frames of run `s`, in a gap of at most [`MISS_99`]'s last row around it.
+fn partners(traces: &[Trace], own: usize, s: &InnerRun, dt: f64) -> Vec<Partner> {
     let longest = (MISS_99[MISS_99.len() - 1].0 / dt).round() as i64;
-    let reach = (OWN_END_MAX_S / dt).round() as i64 + 1;
-    traces.iter().filter(|u| !std::ptr::eq(*u, own)).any(|u| {
+    let gap_of = |u: &Trace| {
         if (s.first..=s.last).any(|f| u.is_measured(f)) {
-            return false;
+            return None;
         }
-        let Some(before) = (s.first - longest..s.first)
+        let before = (s.first - longest..s.first)
             .rev()
-            .find(|&f| u.is_measured(f))
-        else {
-            return false;
-        };
-        let Some(after) = (s.last + 1..=before + longest).find(|&f| u.is_measured(f)) else {
-            return false;
-        };
-        let Some(bound) = miss_99((after - before) as f64 * dt) else {
-            return false;
-        };
-        let frames: Vec<i64> = (before - reach..=before)
-            .chain(after..=after + reach)
-            .collect();
-        let places = Places::at_frames(std::slice::from_ref(u), std::slice::from_ref(&frames));
-        course_across(&places, before, after, dt)
-            .is_some_and(|c| run.iter().all(|&(f, p)| p.distance(c.at(f)) <= bound))
-    })
+            .find(|&f| u.is_measured(f))?;
+        let after = (s.last + 1..=before + longest).find(|&f| u.is_measured(f))?;
+        Some((before, after, miss_99((after - before) as f64 * dt)?))
+    };
+    traces
+        .iter()
+        .enumerate()
+        .filter(|&(k, _)| k != own)
+        .filter_map(|(k, u)| {
+            let (before, after, bound) = gap_of(u)?;
+            Some(Partner {
+                trace: k,
+                before,
+                after,
+                bound,
+            })
+        })
+        .collect()
 }
 
 /// The course the gap filler draws from the tip's own samples across the
-/// gap `before`..`after` of the one trace `places` holds, from its
-/// samples outside the gap alone (a run inside it left out).
-fn course_across(places: &Places, before: i64, after: i64, dt: f64) -> Option<Fill> {
+/// gap `before`..`after` of trace `k` of `places`, from its samples
+/// outside the gap alone (a run inside it left out).
+fn course_across(places: &Places, k: usize, before: i64, after: i64, dt: f64) -> Option<Fill> {
     let at = |f: i64| {
         (f <= before || f >= after)
-            .then(|| places.at(0, f))
+            .then(|| places.at(k, f))
             .flatten()
     };
     own_course(at, before, after, dt)

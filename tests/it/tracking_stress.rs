@@ -463,9 +463,8 @@ fn a_marker_hidden_before_a_gap_and_near_where_the_trace_went_on_meets_it() {
 /// 8 mm), so the samples given up by either step are counted.
 #[test]
 fn a_run_held_alone_between_two_gaps_beside_another_marker_is_given_up() {
-    let noise = TrackingSettings::default().noise_mm;
     held_giving_up(
-        &[(335, noise)],
+        &at_default_noise(&[335]),
         "held alone or where two markers could not be told apart",
         |s| s.lone + s.given_up,
         2..=100,
@@ -481,9 +480,8 @@ fn a_run_held_alone_between_two_gaps_beside_another_marker_is_given_up() {
 /// others do: with no partner hidden near the run is the tip's own.
 #[test]
 fn a_run_alone_where_a_hidden_partner_would_be_is_given_up() {
-    let noise = TrackingSettings::default().noise_mm;
     held_giving_up(
-        &[(216, noise), (331, noise)],
+        &at_default_noise(&[216, 331]),
         "held alone",
         |s| s.lone,
         1..=100,
@@ -499,9 +497,8 @@ fn a_run_alone_where_a_hidden_partner_would_be_is_given_up() {
 /// them up and both gaps are filled; few others go.
 #[test]
 fn a_runs_end_in_the_frames_another_marker_went_missing_is_given_up() {
-    let noise = TrackingSettings::default().noise_mm;
     held_giving_up(
-        &[(363, noise)],
+        &at_default_noise(&[363]),
         "where two markers could not be told apart",
         |s| s.given_up,
         2..=100,
@@ -516,9 +513,8 @@ fn a_runs_end_in_the_frames_another_marker_went_missing_is_given_up() {
 /// and 28.7 mm; they are given up and the gaps filled.
 #[test]
 fn a_reflection_off_the_tips_course_across_its_gap_is_given_up() {
-    let noise = TrackingSettings::default().noise_mm;
     held_giving_up(
-        &[(126, noise), (301, noise)],
+        &at_default_noise(&[126, 301]),
         "off the tip's own course",
         |s| s.stray,
         1..=10,
@@ -533,9 +529,8 @@ fn a_reflection_off_the_tips_course_across_its_gap_is_given_up() {
 /// across its gap misses by; either could own it, and it is given up.
 #[test]
 fn a_run_either_of_two_hidden_tips_could_own_is_given_up() {
-    let noise = TrackingSettings::default().noise_mm;
     held_giving_up(
-        &[(191, noise)],
+        &at_default_noise(&[191]),
         "off the tip's own course",
         |s| s.stray,
         1..=10,
@@ -548,9 +543,8 @@ fn a_run_either_of_two_hidden_tips_could_own_is_given_up() {
 /// under 6 are given up with the unsure ones.
 #[test]
 fn a_sample_turned_round_on_weak_odds_is_given_up() {
-    let noise = TrackingSettings::default().noise_mm;
     held_giving_up(
-        &[(121, noise)],
+        &at_default_noise(&[121]),
         "where two markers could not be told apart",
         |s| s.given_up,
         2..=100,
@@ -567,13 +561,19 @@ fn a_sample_turned_round_on_weak_odds_is_given_up() {
 /// Both markers' samples there are given up and the gaps filled.
 #[test]
 fn markers_that_came_back_together_within_their_noise_are_given_up() {
-    let noise = TrackingSettings::default().noise_mm;
     held_giving_up(
-        &[(243, noise), (278, noise)],
+        &at_default_noise(&[243, 278]),
         "where two markers could not be told apart",
         |s| s.given_up,
         1..=200,
     );
+}
+
+/// Each of `seeds` with the tracker's default `noise_mm`: the cases
+/// [`held_giving_up`] takes.
+fn at_default_noise(seeds: &[u64]) -> Vec<(u64, f64)> {
+    let noise_mm = TrackingSettings::default().noise_mm;
+    seeds.iter().map(|&seed| (seed, noise_mm)).collect()
 }
 
 /// [`held_under_all`], and each case gives up some samples of pieces in
